@@ -1,0 +1,161 @@
+//! Arbitration windows on a port: suppression, inhibition, write-inhibition and overrides
+//! (rule S6), and the two questions every message asks of them.
+//!
+//! * [`Windows::admit_write`] — may this *connection* write the port now? (Suppress blocks
+//!   every connection; OverrideIn blocks every connection but its pass holders.)
+//! * [`Windows::admit_propagation`] — may the value just written leave the port along its
+//!   outgoing connections? (Inhibit blocks all; OverrideOut blocks all but values that arrived
+//!   along a pass holder; WriteInhibit blocks the behavior's own writes.)
+//!
+//! Windows are keyed by (kind, holder). Arriving again *refreshes*: `end := max(end, t + p)`,
+//! never shortened. Expired windows are simply ignored and their slots reused, so a port that
+//! is arbitrated steadily stops allocating after its first windows.
+
+use crate::address::Source;
+use crate::counters::Drop;
+use crate::time::Instant;
+
+/// Which effect a window has.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum WindowKind {
+    Suppress,
+    Inhibit,
+    WriteInhibit,
+    /// The holder has the only pass to *write* the port.
+    OverrideIn,
+    /// Values arriving along the holder are the only ones that *propagate*.
+    OverrideOut,
+}
+
+impl WindowKind {
+    pub fn name(self) -> &'static str {
+        match self {
+            WindowKind::Suppress => "suppress",
+            WindowKind::Inhibit => "inhibit",
+            WindowKind::WriteInhibit => "write-inhibit",
+            WindowKind::OverrideIn => "override-in",
+            WindowKind::OverrideOut => "override-out",
+        }
+    }
+}
+
+/// One active (or expired) window.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub struct Window {
+    pub kind: WindowKind,
+    /// The connection that opened it (and holds the pass, for overrides).
+    pub holder: Source,
+    pub end: Instant,
+}
+
+/// Where a value being written into a port came from.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum Origin {
+    /// A process of the port's own behavior (or the application, on its behalf).
+    Internal,
+    /// A message along a connection.
+    Connection(Source),
+}
+
+/// The windows of one port. Usually empty; checks on an empty set are a single branch.
+#[derive(Clone, Debug, Default)]
+pub struct Windows {
+    list: Vec<Window>,
+}
+
+impl Windows {
+    /// Open or refresh the (kind, holder) window to last at least until `end`.
+    pub fn refresh(&mut self, now: Instant, kind: WindowKind, holder: Source, end: Instant) {
+        let mut free = None;
+        for (i, w) in self.list.iter_mut().enumerate() {
+            if w.kind == kind && w.holder == holder {
+                w.end = w.end.max(end);
+                return;
+            }
+            if w.end <= now && free.is_none() {
+                free = Some(i);
+            }
+        }
+        let w = Window { kind, holder, end };
+        match free {
+            Some(i) => self.list[i] = w,
+            None => self.list.push(w),
+        }
+    }
+
+    /// May a connection write from `by` be stored now?
+    #[inline]
+    pub fn admit_write(&self, now: Instant, by: Source) -> Result<(), Drop> {
+        if self.list.is_empty() {
+            return Ok(());
+        }
+        let mut overridden = false;
+        let mut has_pass = false;
+        for w in &self.list {
+            if w.end <= now {
+                continue;
+            }
+            match w.kind {
+                WindowKind::Suppress => return Err(Drop::Suppressed),
+                WindowKind::OverrideIn => {
+                    overridden = true;
+                    has_pass |= w.holder == by;
+                }
+                _ => {}
+            }
+        }
+        if overridden && !has_pass {
+            return Err(Drop::OverriddenIn);
+        }
+        Ok(())
+    }
+
+    /// May a value that was just stored, coming from `origin`, propagate out now?
+    #[inline]
+    pub fn admit_propagation(&self, now: Instant, origin: Origin) -> Result<(), Drop> {
+        if self.list.is_empty() {
+            return Ok(());
+        }
+        let mut overridden = false;
+        let mut has_pass = false;
+        let mut write_inhibited = false;
+        for w in &self.list {
+            if w.end <= now {
+                continue;
+            }
+            match w.kind {
+                WindowKind::Inhibit => return Err(Drop::Inhibited),
+                WindowKind::OverrideOut => {
+                    overridden = true;
+                    has_pass |= origin == Origin::Connection(w.holder);
+                }
+                WindowKind::WriteInhibit => write_inhibited = true,
+                _ => {}
+            }
+        }
+        if overridden && !has_pass {
+            return Err(Drop::OverriddenOut);
+        }
+        if write_inhibited && origin == Origin::Internal {
+            return Err(Drop::WriteInhibited);
+        }
+        Ok(())
+    }
+
+    /// The windows still open at `now`, soonest-ending first.
+    pub fn active(&self, now: Instant) -> Vec<Window> {
+        let mut v: Vec<Window> = self.list.iter().copied().filter(|w| w.end > now).collect();
+        v.sort_by_key(|w| (w.end, w.kind, w.holder));
+        v
+    }
+
+    /// The latest end of any open window: when this port will next be free.
+    pub fn next_end(&self, now: Instant) -> Option<Instant> {
+        self.list.iter().filter(|w| w.end > now).map(|w| w.end).max()
+    }
+
+    /// Forget windows held by a connection that has been removed.
+    pub fn forget_holder(&mut self, holder: Source) {
+        self.list.retain(|w| w.holder != holder);
+    }
+}

@@ -1,0 +1,243 @@
+//! Behavior classes: the declared interface (ports, slots, monostables) and processes
+//! (rules S2, S7).
+//!
+//! A [`BehaviorClass`] is a template, defined once per node and instantiated by name (`OBS1`,
+//! `OBS2`, ...). Declaring returns typed handles ([`Port`], [`Slot`], [`Mono`]) that processes
+//! use to reach their registers without string lookups. Every class implicitly has the BLE
+//! ports `Local` (Normal float), `Inhibit` (Normal bool) and `Best` (Max float) — rule S11 —
+//! at the fixed handles [`Port::LOCAL`], [`Port::INHIBIT`], [`Port::BEST`].
+
+use std::fmt;
+use std::sync::Arc;
+
+use crate::error::Error;
+use crate::port::{PortKind, PortSpec};
+use crate::process::Ctx;
+use crate::time::Duration;
+use crate::value::Value;
+
+/// A port of a behavior, as seen by its own processes.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct Port(pub u16);
+/// A slot: a register only the behavior's own processes see.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct Slot(pub u16);
+/// A monostable: true for a while after it is triggered.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct Mono(pub u16);
+
+impl Port {
+    /// BLE: this behavior's local eligibility for its task (Normal float).
+    pub const LOCAL: Port = Port(0);
+    /// BLE: written when this behavior claims its task (Normal bool).
+    pub const INHIBIT: Port = Port(1);
+    /// BLE: the best eligibility heard from peers this cycle (Max float).
+    pub const BEST: Port = Port(2);
+}
+
+/// The names of the implicit BLE ports.
+pub const LOCAL: &str = "Local";
+pub const INHIBIT: &str = "Inhibit";
+pub const BEST: &str = "Best";
+
+/// When a process runs.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum Trigger {
+    /// Every period, phase-locked to the behavior's creation; late activations are skipped
+    /// and counted, never run in a burst.
+    Periodic(Duration),
+    /// Whenever this port of the behavior accepts a value (from a connection or a process).
+    OnWrite(Port),
+    /// Whenever this monostable rises or falls.
+    OnMonostable(Mono),
+}
+
+/// A process body. It runs to completion; it must not block.
+pub type ProcessFn = Arc<dyn Fn(&mut Ctx<'_>) + Send + Sync>;
+
+/// A declared process.
+#[derive(Clone)]
+pub struct ProcessSpec {
+    pub name: String,
+    pub trigger: Trigger,
+    pub body: ProcessFn,
+}
+
+impl fmt::Debug for ProcessSpec {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("ProcessSpec").field("name", &self.name).field("trigger", &self.trigger).finish()
+    }
+}
+
+/// A slot declaration.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SlotSpec {
+    pub name: String,
+    pub default: Value,
+}
+
+/// A behavior class: interface plus processes.
+#[derive(Clone, Debug)]
+pub struct BehaviorClass {
+    pub(crate) name: String,
+    pub(crate) ports: Vec<PortSpec>,
+    pub(crate) slots: Vec<SlotSpec>,
+    pub(crate) monos: Vec<String>,
+    pub(crate) processes: Vec<ProcessSpec>,
+}
+
+impl BehaviorClass {
+    /// A new class with only the implicit BLE ports.
+    pub fn new(name: &str) -> BehaviorClass {
+        BehaviorClass {
+            name: name.to_owned(),
+            ports: vec![
+                PortSpec::new(LOCAL, 0.0),
+                PortSpec::new(INHIBIT, false),
+                PortSpec::new(BEST, 0.0).kind(PortKind::Max),
+            ],
+            slots: Vec::new(),
+            monos: Vec::new(),
+            processes: Vec::new(),
+        }
+    }
+
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn check_new_name(&self, what: &'static str, name: &str) -> Result<(), Error> {
+        if name.is_empty() {
+            return Err(Error::EmptyName { what });
+        }
+        let taken = self.ports.iter().any(|p| p.name == name)
+            || self.slots.iter().any(|s| s.name == name)
+            || self.monos.iter().any(|m| m == name);
+        if taken {
+            return Err(Error::DuplicateName { what: "register", name: format!("{}.{}", self.name, name) });
+        }
+        Ok(())
+    }
+
+    fn next_index(&self, len: usize) -> Result<u16, Error> {
+        u16::try_from(len).map_err(|_| Error::TooManyRegisters { behavior: self.name.clone() })
+    }
+
+    /// Declare a port.
+    pub fn port(&mut self, spec: PortSpec) -> Result<Port, Error> {
+        self.check_new_name("port", &spec.name)?;
+        spec.validate()?;
+        let ix = self.next_index(self.ports.len())?;
+        self.ports.push(spec);
+        Ok(Port(ix))
+    }
+
+    /// Declare a slot (internal register, Normal merge, not connectable).
+    pub fn slot(&mut self, name: &str, default: impl Into<Value>) -> Result<Slot, Error> {
+        self.check_new_name("slot", name)?;
+        let ix = self.next_index(self.slots.len())?;
+        self.slots.push(SlotSpec { name: name.to_owned(), default: default.into() });
+        Ok(Slot(ix))
+    }
+
+    /// Declare a monostable.
+    pub fn monostable(&mut self, name: &str) -> Result<Mono, Error> {
+        self.check_new_name("monostable", name)?;
+        let ix = self.next_index(self.monos.len())?;
+        self.monos.push(name.to_owned());
+        Ok(Mono(ix))
+    }
+
+    /// Declare a process with any trigger.
+    pub fn process(
+        &mut self,
+        name: &str,
+        trigger: Trigger,
+        body: impl Fn(&mut Ctx<'_>) + Send + Sync + 'static,
+    ) -> Result<(), Error> {
+        let spec = ProcessSpec { name: name.to_owned(), trigger, body: Arc::new(body) };
+        validate_process(&self.name, &spec, self.ports.len(), self.monos.len(), &self.processes)?;
+        self.processes.push(spec);
+        Ok(())
+    }
+
+    /// Declare a periodic process at `hz` activations per second (the paper's
+    /// `ratepersecond`).
+    pub fn every_hz(
+        &mut self,
+        name: &str,
+        hz: f64,
+        body: impl Fn(&mut Ctx<'_>) + Send + Sync + 'static,
+    ) -> Result<(), Error> {
+        let period = Duration::try_from_hz(hz)?;
+        self.process(name, Trigger::Periodic(period), body)
+    }
+
+    /// Declare a process that runs when `port` accepts a value.
+    pub fn on_write(
+        &mut self,
+        name: &str,
+        port: Port,
+        body: impl Fn(&mut Ctx<'_>) + Send + Sync + 'static,
+    ) -> Result<(), Error> {
+        self.process(name, Trigger::OnWrite(port), body)
+    }
+
+    /// Declare a process that runs when `mono` rises or falls.
+    pub fn on_monostable(
+        &mut self,
+        name: &str,
+        mono: Mono,
+        body: impl Fn(&mut Ctx<'_>) + Send + Sync + 'static,
+    ) -> Result<(), Error> {
+        self.process(name, Trigger::OnMonostable(mono), body)
+    }
+
+    /// The handle of a declared port, by name.
+    pub fn port_handle(&self, name: &str) -> Option<Port> {
+        self.ports.iter().position(|p| p.name == name).map(|i| Port(i as u16))
+    }
+    pub fn slot_handle(&self, name: &str) -> Option<Slot> {
+        self.slots.iter().position(|p| p.name == name).map(|i| Slot(i as u16))
+    }
+    pub fn mono_handle(&self, name: &str) -> Option<Mono> {
+        self.monos.iter().position(|p| p == name).map(|i| Mono(i as u16))
+    }
+    pub fn ports(&self) -> &[PortSpec] {
+        &self.ports
+    }
+    pub fn slots(&self) -> &[SlotSpec] {
+        &self.slots
+    }
+    pub fn monostables(&self) -> &[String] {
+        &self.monos
+    }
+    pub fn processes(&self) -> &[ProcessSpec] {
+        &self.processes
+    }
+}
+
+pub(crate) fn validate_process(
+    behavior: &str,
+    spec: &ProcessSpec,
+    n_ports: usize,
+    n_monos: usize,
+    existing: &[ProcessSpec],
+) -> Result<(), Error> {
+    if spec.name.is_empty() {
+        return Err(Error::EmptyName { what: "process" });
+    }
+    if existing.iter().any(|p| p.name == spec.name) {
+        return Err(Error::DuplicateName { what: "process", name: format!("{behavior}.{}", spec.name) });
+    }
+    match spec.trigger {
+        Trigger::Periodic(p) if p.is_zero() => Err(Error::InvalidRate { hz: f64::INFINITY }),
+        Trigger::OnWrite(Port(i)) if usize::from(i) >= n_ports => {
+            Err(Error::UnknownPort { behavior: behavior.to_owned(), port: format!("#{i}") })
+        }
+        Trigger::OnMonostable(Mono(i)) if usize::from(i) >= n_monos => {
+            Err(Error::UnknownPort { behavior: behavior.to_owned(), port: format!("monostable #{i}") })
+        }
+        _ => Ok(()),
+    }
+}

@@ -1,0 +1,241 @@
+//! Broadcast of Local Eligibility (rule S11, paper §4.1): cross-inhibition of peer behaviors.
+//!
+//! [`NodeCore::ble_join`] is the one call that makes a behavior take part in a BLE group:
+//! * its `Local` port is broadcast (Normal) to the peers' `Best` ports (Max);
+//! * its `Inhibit` port is broadcast as a WriteInhibit of the peers' output port;
+//! * a select process runs at the claim rate: if `Local` was written during the last cycle and
+//!   beats `Best` (ties go to the lower node id), it writes `Inhibit` — the *claim* — and in
+//!   any case empties `Best` for the next cycle.
+//!
+//! A claim is a lease: it holds only while renewed. If the claimer dies, the peers'
+//! write-inhibition lapses after `inhibit_period` and the task is free. For that to work
+//! without flapping, `inhibit_period` must outlast the gap between two claims as seen by a
+//! peer: about twice the claim period plus network delay. Shorter periods are accepted but
+//! warned about — the paper's own Fig. 2 claims at 1 Hz and inhibits for 0.5 s.
+
+use std::sync::Arc;
+
+use crate::address::{ConnectionId, Endpoint, Source};
+use crate::arbitration::WindowKind;
+use crate::behavior::{Port, Trigger, BEST, INHIBIT, LOCAL};
+use crate::connection::{ConnectOptions, ConnectionKind};
+use crate::error::Error;
+use crate::node::NodeCore;
+use crate::process::Ctx;
+use crate::time::{Duration, Instant};
+
+/// How a behavior joins a BLE group.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BleConfig {
+    /// The broadcast group of peers (the paper's `Peers`).
+    pub group: String,
+    /// The behavior's output port that a claim write-inhibits on the peers (`Rotate`).
+    pub output: String,
+    /// How often the select process runs (the paper: 1 Hz).
+    pub claim_rate_hz: f64,
+    /// How long a claim write-inhibits the peers' output.
+    pub inhibit_period: Duration,
+    /// The network delay the team expects, for the period check.
+    pub network_delay: Duration,
+}
+
+impl BleConfig {
+    /// A config with the recommended inhibit period: twice the claim period plus delay, plus
+    /// a quarter period of margin.
+    pub fn new(group: &str, output: &str, claim_rate_hz: f64) -> Result<BleConfig, Error> {
+        let period = Duration::try_from_hz(claim_rate_hz)?;
+        let network_delay = Duration::from_millis(50);
+        Ok(BleConfig {
+            group: group.to_owned(),
+            output: output.to_owned(),
+            claim_rate_hz,
+            inhibit_period: period * 2 + network_delay + Duration::from_nanos(period.as_nanos() / 4),
+            network_delay,
+        })
+    }
+    pub fn inhibit_period(mut self, d: Duration) -> Self {
+        self.inhibit_period = d;
+        self
+    }
+    pub fn network_delay(mut self, d: Duration) -> Self {
+        self.network_delay = d;
+        self
+    }
+}
+
+/// The shortest inhibit period that keeps a claim alive between renewals.
+pub fn minimum_inhibit_period(claim_rate_hz: f64, network_delay: Duration) -> Result<Duration, Error> {
+    Ok(Duration::try_from_hz(claim_rate_hz)? * 2 + network_delay)
+}
+
+/// A warning if `inhibit_period` is too short for the claim rate (rule S11), else `None`.
+pub fn check_inhibit_period(
+    claim_rate_hz: f64,
+    inhibit_period: Duration,
+    network_delay: Duration,
+) -> Result<Option<String>, Error> {
+    let min = minimum_inhibit_period(claim_rate_hz, network_delay)?;
+    if inhibit_period >= min {
+        return Ok(None);
+    }
+    Ok(Some(format!(
+        "BLE inhibit period {inhibit_period} is shorter than twice the claim period ({}) plus network delay ({network_delay}) = {min}: \
+         claims will lapse between renewals and peers will take the task back and forth (the paper's Fig. 2 claims at 1 Hz and inhibits for 0.5 s)",
+        Duration::try_from_hz(claim_rate_hz)?
+    )))
+}
+
+/// What `ble_join` made.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BleGroup {
+    /// `Local -> (group, behavior, Best)`, Normal.
+    pub eligibility: ConnectionId,
+    /// `Inhibit -> (group, behavior, output)`, WriteInhibit.
+    pub inhibition: ConnectionId,
+    /// Warnings from the period check (also kept in `NodeCore::warnings`).
+    pub warnings: Vec<String>,
+}
+
+/// Per-behavior BLE bookkeeping, for introspection ("who claims which task").
+#[derive(Clone, Debug)]
+pub(crate) struct BleState {
+    pub(crate) group: Arc<str>,
+    pub(crate) output: Port,
+    pub(crate) claim_period: Duration,
+    pub(crate) inhibit_period: Duration,
+    pub(crate) claims: u64,
+    pub(crate) last_claim: Option<Instant>,
+    pub(crate) last_best: Option<(f64, Source)>,
+    pub(crate) last_local: Option<f64>,
+}
+
+/// A behavior's BLE standing at `now`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BleStatus {
+    pub behavior: String,
+    pub group: String,
+    /// This node claimed the task within the last inhibit period.
+    pub claiming: bool,
+    pub last_claim: Option<Instant>,
+    pub claims: u64,
+    /// Eligibility at the last select, if `Local` was fresh.
+    pub local: Option<f64>,
+    /// Best peer eligibility at the last select, and who supplied it.
+    pub best: Option<(f64, Source)>,
+    /// Peers whose claim currently write-inhibits our output, with the time left.
+    pub inhibited_by: Vec<(Source, Duration)>,
+}
+
+impl NodeCore {
+    /// Make `behavior` a member of a BLE peer group (see module docs). One call per behavior.
+    pub fn ble_join(&mut self, behavior: &str, config: &BleConfig) -> Result<BleGroup, Error> {
+        let claim_period = Duration::try_from_hz(config.claim_rate_hz)?;
+        if config.inhibit_period.is_zero() {
+            return Err(Error::ZeroPeriod { kind: ConnectionKind::WriteInhibit(config.inhibit_period) });
+        }
+        if config.group.is_empty() {
+            return Err(Error::EmptyName { what: "group" });
+        }
+        let output = self.port(behavior, &config.output)?.port();
+        if self.behavior(self.behavior_index(behavior)?).is_some_and(|b| b.ble.is_some()) {
+            return Err(Error::Ble { reason: format!("`{behavior}` already belongs to a BLE group") });
+        }
+        let mut warnings = Vec::new();
+        if let Some(w) = check_inhibit_period(config.claim_rate_hz, config.inhibit_period, config.network_delay)? {
+            let w = format!("{behavior}: {w}");
+            self.warnings.push(w.clone());
+            warnings.push(w);
+        }
+        let eligibility = self.connect(
+            &Endpoint::local(behavior, LOCAL),
+            &Endpoint::group(&config.group, behavior, BEST),
+            ConnectionKind::Normal,
+            ConnectOptions::default(),
+        )?;
+        let inhibition = self.connect(
+            &Endpoint::local(behavior, INHIBIT),
+            &Endpoint::group(&config.group, behavior, &config.output),
+            ConnectionKind::WriteInhibit(config.inhibit_period),
+            ConnectOptions::default(),
+        )?;
+        self.join(&config.group);
+        self.add_process(behavior, "BLE_Select", Trigger::Periodic(claim_period), select)?;
+        let b = self.behavior_index(behavior)?;
+        self.behavior_mut(b).expect("indexed").ble = Some(BleState {
+            group: Arc::from(config.group.as_str()),
+            output,
+            claim_period,
+            inhibit_period: config.inhibit_period,
+            claims: 0,
+            last_claim: None,
+            last_best: None,
+            last_local: None,
+        });
+        Ok(BleGroup { eligibility, inhibition, warnings })
+    }
+
+    /// The BLE standing of `behavior`, or `None` if it is in no BLE group.
+    pub fn ble_status(&self, behavior: &str) -> Result<Option<BleStatus>, Error> {
+        let now = self.now();
+        let beh = self.behavior(self.behavior_index(behavior)?).expect("indexed");
+        let Some(ble) = &beh.ble else { return Ok(None) };
+        let inhibited_by = beh.ports[usize::from(ble.output.0)]
+            .windows
+            .active(now)
+            .into_iter()
+            .filter(|w| w.kind == WindowKind::WriteInhibit)
+            .map(|w| (w.holder, w.end - now))
+            .collect();
+        Ok(Some(BleStatus {
+            behavior: beh.name.to_string(),
+            group: ble.group.to_string(),
+            claiming: ble.last_claim.is_some_and(|t| now < t + ble.inhibit_period),
+            last_claim: ble.last_claim,
+            claims: ble.claims,
+            local: ble.last_local,
+            best: ble.last_best,
+            inhibited_by,
+        }))
+    }
+
+    /// Every BLE member on this node, by behavior name.
+    pub fn ble_statuses(&self) -> Vec<BleStatus> {
+        let mut names: Vec<&str> =
+            self.behaviors.iter().flatten().filter(|b| b.ble.is_some()).map(|b| &*b.name).collect();
+        names.sort_unstable();
+        names.into_iter().filter_map(|n| self.ble_status(n).ok().flatten()).collect()
+    }
+}
+
+/// The BLE select process (paper: `BLE_Select`, 1 Hz).
+fn select(ctx: &mut Ctx<'_>) {
+    let now = ctx.now();
+    let me = ctx.node();
+    let Some(period) = ctx.core.behavior(ctx.b).and_then(|b| b.ble.as_ref()).map(|s| s.claim_period) else {
+        return;
+    };
+    // Eligibility counts only if written during the last cycle: no output, no claim.
+    let local = match (ctx.last_accepted(Port::LOCAL), ctx.float(Port::LOCAL)) {
+        (Some(t), Some(x)) if now < t + period && !x.is_nan() => Some(x),
+        _ => None,
+    };
+    let best = ctx.float(Port::BEST).zip(ctx.supplier(Port::BEST));
+    let wins = match (local, best) {
+        (None, _) => false,
+        (Some(_), None) => true,
+        (Some(l), Some((b, who))) => l > b || (l == b && me < who.node),
+    };
+    if wins {
+        // A failed write here would mean the class redefined Inhibit; nothing to claim then.
+        let _ = ctx.write(Port::INHIBIT, true);
+    }
+    ctx.reset(Port::BEST);
+    if let Some(state) = ctx.core.behavior_mut(ctx.b).and_then(|b| b.ble.as_mut()) {
+        state.last_local = local;
+        state.last_best = best;
+        if wins {
+            state.claims += 1;
+            state.last_claim = Some(now);
+        }
+    }
+}

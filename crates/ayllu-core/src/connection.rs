@@ -1,0 +1,97 @@
+//! Connection kinds (rule S6) and the connection record a node keeps.
+//!
+//! Naming is deliberate: the paper's *Suppress* only blocks the destination's inputs; classic
+//! Brooks "suppression" (replace an input for a while) is [`ConnectionKind::OverrideIn`]. The
+//! API never uses the word "suppress" for the replacing behaviour.
+
+use core::fmt;
+
+use crate::address::ConnectionId;
+use crate::time::Duration;
+
+/// What a connection does to its destination port `d` when a message `m` arrives.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash)]
+pub enum ConnectionKind {
+    /// Write `m` into `d` (unless `d` is suppressed); if accepted, propagate.
+    Normal,
+    /// Do not write `m`; block every connection write into `d` for the period.
+    Suppress(Duration),
+    /// Do not write `m`; block all propagation out of `d` for the period.
+    Inhibit(Duration),
+    /// Write and propagate `m`; for the period only this connection may write `d`
+    /// (Brooks's suppression: the input is *replaced*).
+    OverrideIn(Duration),
+    /// Write and propagate `m`; for the period only values that arrive along this connection
+    /// propagate out of `d`.
+    OverrideOut(Duration),
+    /// Do not write `m`; for the period, values written into `d` by its own behavior are stored
+    /// but not propagated (values arriving through connections still are).
+    WriteInhibit(Duration),
+}
+
+impl ConnectionKind {
+    pub fn period(self) -> Option<Duration> {
+        match self {
+            ConnectionKind::Normal => None,
+            ConnectionKind::Suppress(p)
+            | ConnectionKind::Inhibit(p)
+            | ConnectionKind::OverrideIn(p)
+            | ConnectionKind::OverrideOut(p)
+            | ConnectionKind::WriteInhibit(p) => Some(p),
+        }
+    }
+    /// Whether the message itself is written into the destination.
+    pub fn writes(self) -> bool {
+        matches!(self, ConnectionKind::Normal | ConnectionKind::OverrideIn(_) | ConnectionKind::OverrideOut(_))
+    }
+    pub fn name(self) -> &'static str {
+        match self {
+            ConnectionKind::Normal => "normal",
+            ConnectionKind::Suppress(_) => "suppress",
+            ConnectionKind::Inhibit(_) => "inhibit",
+            ConnectionKind::OverrideIn(_) => "override-in",
+            ConnectionKind::OverrideOut(_) => "override-out",
+            ConnectionKind::WriteInhibit(_) => "write-inhibit",
+        }
+    }
+    /// The kind named `name` (as printed by [`ConnectionKind::name`]) with `period`.
+    pub fn from_name(name: &str, period: Duration) -> Option<ConnectionKind> {
+        Some(match name {
+            "normal" => ConnectionKind::Normal,
+            "suppress" => ConnectionKind::Suppress(period),
+            "inhibit" => ConnectionKind::Inhibit(period),
+            "override-in" | "override_in" => ConnectionKind::OverrideIn(period),
+            "override-out" | "override_out" => ConnectionKind::OverrideOut(period),
+            "write-inhibit" | "write_inhibit" => ConnectionKind::WriteInhibit(period),
+            _ => return None,
+        })
+    }
+}
+
+impl fmt::Display for ConnectionKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.period() {
+            None => f.write_str(self.name()),
+            Some(p) => write!(f, "{}({p})", self.name()),
+        }
+    }
+}
+
+/// Options for making a connection beyond source, destination and kind.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Default)]
+pub struct ConnectOptions {
+    /// The priority of this connection's messages at a Priority port.
+    pub priority: i32,
+}
+
+/// Summary of a connection for listing and introspection.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ConnectionInfo {
+    pub id: ConnectionId,
+    pub source: crate::address::Endpoint,
+    pub destination: crate::address::Endpoint,
+    pub kind: ConnectionKind,
+    pub priority: i32,
+    /// Messages sent along this connection so far.
+    pub sent: u64,
+}

@@ -1,0 +1,1126 @@
+//! [`NodeCore`]: one node's behaviors, connections and scheduler, as a sans-IO state machine.
+//!
+//! What it promises:
+//! * It never reads a clock, opens a socket or spawns: time comes in through `poll(now)`,
+//!   `write(now, ..)` and `receive(now, ..)`; messages for other nodes leave through
+//!   [`NodeCore::pop_outgoing`]. Same inputs, same outputs (determinism).
+//! * Propagation (rule S5) is synchronous and depth-first inside one call; every port is
+//!   written at most once per wave, so wiring cycles terminate. The explicit stack and the
+//!   trigger queue are reused, so propagating a scalar allocates nothing.
+//! * Processes (rule S7) run only inside `poll`, one at a time, each to completion.
+//! * Nothing that arrives from outside can make it panic; what cannot be applied is dropped
+//!   and counted by cause.
+
+use std::collections::{HashMap, VecDeque};
+use std::sync::Arc;
+
+use crate::address::{ConnectionId, Endpoint, NodeId, Source};
+use crate::arbitration::{Origin, WindowKind, Windows};
+use crate::behavior::{validate_process, BehaviorClass, Mono, Port, ProcessSpec, Slot, Trigger};
+use crate::ble::BleState;
+use crate::connection::{ConnectOptions, ConnectionInfo, ConnectionKind};
+use crate::counters::{Counters, Drop};
+use crate::error::Error;
+use crate::message::{ControlBody, ControlMessage, Destination, Message, Outgoing, PortMessage};
+use crate::port::PortCell;
+use crate::process::Ctx;
+use crate::time::{Duration, Instant};
+use crate::value::Value;
+
+/// How many (sender, connection) sequence numbers a node remembers (N1). Bounded so a peer
+/// inventing connection ids cannot grow memory; when full the table is cleared and counted.
+const SEQ_TABLE_MAX: usize = 16_384;
+/// How many answered control requests are remembered for idempotent replies (N2).
+const ANSWERED_MAX: usize = 1_024;
+/// Control requests are retried this often until answered...
+const RETRY_INTERVAL: Duration = Duration::from_millis(200);
+/// ...and given up after this many sends.
+const RETRY_LIMIT: u32 = 25;
+
+/// A handle to a port of a live behavior, cheap to copy. It goes stale (and is reported as
+/// unknown) when its behavior is removed, even if another one later takes the same name.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash)]
+pub struct PortRef {
+    pub(crate) b: u32,
+    pub(crate) id: u64,
+    pub(crate) port: Port,
+}
+
+impl PortRef {
+    pub fn port(&self) -> Port {
+        self.port
+    }
+}
+
+/// A handle to a live behavior.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash)]
+pub struct BehaviorRef {
+    pub(crate) b: u32,
+    pub(crate) id: u64,
+}
+
+/// Id of a control request this node sent.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct RequestId(pub u64);
+
+/// Where a control request stands.
+#[derive(Clone, Debug, PartialEq)]
+pub enum RequestStatus {
+    Pending { sends: u32 },
+    Done(ConnectionId),
+    Failed(String),
+}
+
+pub(crate) struct PortState {
+    pub(crate) cell: PortCell,
+    pub(crate) windows: Windows,
+    /// Outgoing connections (indices into `NodeCore::conns`).
+    pub(crate) out: Vec<u32>,
+    /// Processes of this behavior triggered when the port accepts a value.
+    pub(crate) triggers: Vec<u16>,
+    pub(crate) visited: u64,
+    pub(crate) counters: Counters,
+    pub(crate) accepted: u64,
+}
+
+pub(crate) struct MonoState {
+    pub(crate) end: Instant,
+    pub(crate) high: bool,
+    pub(crate) watchers: Vec<u16>,
+}
+
+pub(crate) struct ProcState {
+    pub(crate) spec: ProcessSpec,
+    pub(crate) next_due: Instant,
+    pub(crate) runs: u64,
+    pub(crate) overruns: u64,
+    pub(crate) pending: bool,
+    pub(crate) ran_in_poll: u64,
+}
+
+pub(crate) struct Behavior {
+    pub(crate) id: u64,
+    pub(crate) name: Arc<str>,
+    pub(crate) class: Arc<BehaviorClass>,
+    pub(crate) ports: Vec<PortState>,
+    pub(crate) slots: Vec<Value>,
+    pub(crate) monos: Vec<MonoState>,
+    pub(crate) processes: Vec<ProcState>,
+    pub(crate) ble: Option<BleState>,
+}
+
+#[derive(Clone, Debug)]
+pub(crate) enum Target {
+    Local { b: u32, p: u16 },
+    Remote { to: Destination, behavior: Arc<str>, port: Arc<str> },
+}
+
+pub(crate) struct Conn {
+    pub(crate) id: u64,
+    pub(crate) src: (u32, u16),
+    pub(crate) dst: Target,
+    pub(crate) kind: ConnectionKind,
+    pub(crate) priority: i32,
+    pub(crate) seq: u64,
+    pub(crate) source: Endpoint,
+    pub(crate) destination: Endpoint,
+}
+
+#[derive(Copy, Clone)]
+struct Frame {
+    b: u32,
+    p: u16,
+    next: u32,
+}
+
+struct Request {
+    id: u64,
+    to: NodeId,
+    body: ControlBody,
+    next_send: Instant,
+    sends: u32,
+    status: RequestStatus,
+}
+
+/// One node's behaviors, connections and scheduler. See the module docs.
+pub struct NodeCore {
+    id: NodeId,
+    now: Instant,
+    classes: HashMap<String, Arc<BehaviorClass>>,
+    pub(crate) behaviors: Vec<Option<Behavior>>,
+    free_behaviors: Vec<u32>,
+    names: HashMap<Arc<str>, u32>,
+    next_behavior_id: u64,
+    pub(crate) conns: Vec<Option<Conn>>,
+    free_conns: Vec<u32>,
+    conn_ids: HashMap<u64, u32>,
+    next_conn_id: u64,
+    groups: Vec<Arc<str>>,
+    wave: u64,
+    stack: Vec<Frame>,
+    pending: VecDeque<(u32, u64, u16)>,
+    deferred: Vec<(u32, u64, u16)>,
+    poll_epoch: u64,
+    outbox: VecDeque<Outgoing>,
+    pub(crate) counters: Counters,
+    newest_seq: HashMap<(NodeId, u64), u64>,
+    seq_table_resets: u64,
+    requests: Vec<Request>,
+    next_request: u64,
+    answered: HashMap<(NodeId, u64), Result<ConnectionId, String>>,
+    answered_order: VecDeque<(NodeId, u64)>,
+    pub(crate) warnings: Vec<String>,
+}
+
+impl NodeCore {
+    pub fn new(id: NodeId) -> NodeCore {
+        NodeCore {
+            id,
+            now: Instant::ZERO,
+            classes: HashMap::new(),
+            behaviors: Vec::new(),
+            free_behaviors: Vec::new(),
+            names: HashMap::new(),
+            next_behavior_id: 1,
+            conns: Vec::new(),
+            free_conns: Vec::new(),
+            conn_ids: HashMap::new(),
+            next_conn_id: 1,
+            groups: Vec::new(),
+            wave: 0,
+            stack: Vec::with_capacity(64),
+            pending: VecDeque::with_capacity(64),
+            deferred: Vec::new(),
+            poll_epoch: 0,
+            outbox: VecDeque::new(),
+            counters: Counters::default(),
+            newest_seq: HashMap::new(),
+            seq_table_resets: 0,
+            requests: Vec::new(),
+            next_request: 1,
+            answered: HashMap::new(),
+            answered_order: VecDeque::new(),
+            warnings: Vec::new(),
+        }
+    }
+
+    pub fn id(&self) -> NodeId {
+        self.id
+    }
+
+    /// The latest time this node has been told. Time never goes backwards: an earlier `now`
+    /// passed in later is treated as this one.
+    pub fn now(&self) -> Instant {
+        self.now
+    }
+
+    fn advance(&mut self, now: Instant) {
+        if now > self.now {
+            self.now = now;
+        }
+    }
+
+    // ----- structure (rule S9) -------------------------------------------------------------
+
+    /// Make a behavior class available for [`NodeCore::create`].
+    pub fn define(&mut self, class: BehaviorClass) -> Result<(), Error> {
+        if class.name.is_empty() {
+            return Err(Error::EmptyName { what: "behavior class" });
+        }
+        if self.classes.contains_key(&class.name) {
+            return Err(Error::DuplicateName { what: "behavior class", name: class.name });
+        }
+        self.classes.insert(class.name.clone(), Arc::new(class));
+        Ok(())
+    }
+
+    pub fn has_class(&self, name: &str) -> bool {
+        self.classes.contains_key(name)
+    }
+
+    /// Instantiate class `class` as behavior `name` (the paper's `ayInitBehavior`).
+    pub fn create(&mut self, class: &str, name: &str) -> Result<BehaviorRef, Error> {
+        if name.is_empty() {
+            return Err(Error::EmptyName { what: "behavior" });
+        }
+        let class = self.classes.get(class).cloned().ok_or_else(|| Error::UnknownClass { class: class.to_owned() })?;
+        if self.names.contains_key(name) {
+            return Err(Error::DuplicateName { what: "behavior", name: name.to_owned() });
+        }
+        let now = self.now;
+        let id = self.next_behavior_id;
+        self.next_behavior_id += 1;
+        let mut ports: Vec<PortState> = class
+            .ports
+            .iter()
+            .map(|spec| PortState {
+                cell: PortCell::new(spec),
+                windows: Windows::default(),
+                out: Vec::new(),
+                triggers: Vec::new(),
+                visited: 0,
+                counters: Counters::default(),
+                accepted: 0,
+            })
+            .collect();
+        let mut monos: Vec<MonoState> =
+            class.monos.iter().map(|_| MonoState { end: Instant::ZERO, high: false, watchers: Vec::new() }).collect();
+        let mut processes = Vec::with_capacity(class.processes.len());
+        for (i, spec) in class.processes.iter().enumerate() {
+            attach_trigger(&mut ports, &mut monos, spec.trigger, i as u16);
+            processes.push(ProcState {
+                spec: spec.clone(),
+                next_due: now,
+                runs: 0,
+                overruns: 0,
+                pending: false,
+                ran_in_poll: 0,
+            });
+        }
+        let behavior = Behavior {
+            id,
+            name: Arc::from(name),
+            slots: class.slots.iter().map(|s| s.default.clone()).collect(),
+            class,
+            ports,
+            monos,
+            processes,
+            ble: None,
+        };
+        let b = match self.free_behaviors.pop() {
+            Some(b) => {
+                self.behaviors[b as usize] = Some(behavior);
+                b
+            }
+            None => {
+                self.behaviors.push(Some(behavior));
+                (self.behaviors.len() - 1) as u32
+            }
+        };
+        self.names.insert(Arc::from(name), b);
+        Ok(BehaviorRef { b, id })
+    }
+
+    /// Remove a behavior and every connection into or out of it (rule S9). Messages that
+    /// later arrive for it are dropped and counted as `unknown_behavior`.
+    pub fn remove(&mut self, name: &str) -> Result<(), Error> {
+        let b = *self.names.get(name).ok_or_else(|| Error::UnknownBehavior { behavior: name.to_owned() })?;
+        let doomed: Vec<u64> = self
+            .conns
+            .iter()
+            .flatten()
+            .filter(|c| c.src.0 == b || matches!(c.dst, Target::Local { b: db, .. } if db == b))
+            .map(|c| c.id)
+            .collect();
+        for id in doomed {
+            self.disconnect(ConnectionId(id))?;
+        }
+        self.names.remove(name);
+        self.behaviors[b as usize] = None;
+        self.free_behaviors.push(b);
+        Ok(())
+    }
+
+    /// Add a process to one behavior instance (used by the BLE helper; also for users who
+    /// want an instance-specific process).
+    pub fn add_process(
+        &mut self,
+        behavior: &str,
+        name: &str,
+        trigger: Trigger,
+        body: impl Fn(&mut Ctx<'_>) + Send + Sync + 'static,
+    ) -> Result<(), Error> {
+        let now = self.now;
+        let b = self.behavior_index(behavior)?;
+        let beh = self.behaviors[b as usize].as_mut().expect("indexed behavior exists");
+        let spec = ProcessSpec { name: name.to_owned(), trigger, body: Arc::new(body) };
+        let existing: Vec<ProcessSpec> = beh.processes.iter().map(|p| p.spec.clone()).collect();
+        validate_process(&beh.name, &spec, beh.ports.len(), beh.monos.len(), &existing)?;
+        let ix = u16::try_from(beh.processes.len())
+            .map_err(|_| Error::TooManyRegisters { behavior: behavior.to_owned() })?;
+        attach_trigger(&mut beh.ports, &mut beh.monos, spec.trigger, ix);
+        beh.processes.push(ProcState { spec, next_due: now, runs: 0, overruns: 0, pending: false, ran_in_poll: 0 });
+        Ok(())
+    }
+
+    pub(crate) fn behavior_index(&self, name: &str) -> Result<u32, Error> {
+        self.names.get(name).copied().ok_or_else(|| Error::UnknownBehavior { behavior: name.to_owned() })
+    }
+
+    pub(crate) fn behavior(&self, b: u32) -> Option<&Behavior> {
+        self.behaviors.get(b as usize).and_then(Option::as_ref)
+    }
+
+    pub(crate) fn behavior_mut(&mut self, b: u32) -> Option<&mut Behavior> {
+        self.behaviors.get_mut(b as usize).and_then(Option::as_mut)
+    }
+
+    /// A handle to `behavior.port` for fast repeated writes and reads.
+    pub fn port(&self, behavior: &str, port: &str) -> Result<PortRef, Error> {
+        let b = self.behavior_index(behavior)?;
+        let beh = self.behavior(b).expect("indexed behavior exists");
+        match beh.class.port_handle(port) {
+            Some(p) => Ok(PortRef { b, id: beh.id, port: p }),
+            None if beh.class.slot_handle(port).is_some() => {
+                Err(Error::NotAPort { behavior: behavior.to_owned(), name: port.to_owned() })
+            }
+            None => Err(Error::UnknownPort { behavior: behavior.to_owned(), port: port.to_owned() }),
+        }
+    }
+
+    /// The behavior handle for `name`.
+    pub fn behavior_ref(&self, name: &str) -> Result<BehaviorRef, Error> {
+        let b = self.behavior_index(name)?;
+        Ok(BehaviorRef { b, id: self.behavior(b).expect("indexed behavior exists").id })
+    }
+
+    pub(crate) fn resolve(&self, r: PortRef) -> Result<&PortState, Error> {
+        self.behavior(r.b)
+            .filter(|beh| beh.id == r.id)
+            .and_then(|beh| beh.ports.get(usize::from(r.port.0)))
+            .ok_or(Error::UnknownBehavior { behavior: format!("(removed behavior #{})", r.id) })
+    }
+
+    fn local_port(&self, behavior: &str, port: &str) -> Result<(u32, u16), Error> {
+        let r = self.port(behavior, port)?;
+        Ok((r.b, r.port.0))
+    }
+
+    // ----- connections (rules S6, S10) -----------------------------------------------------
+
+    /// Connect `source` (a port on this node) to `destination` (a port on this node, another
+    /// node, or every node of a group). Returns the new connection's id.
+    pub fn connect(
+        &mut self,
+        source: &Endpoint,
+        destination: &Endpoint,
+        kind: ConnectionKind,
+        options: ConnectOptions,
+    ) -> Result<ConnectionId, Error> {
+        if let Some(p) = kind.period() {
+            if p.is_zero() {
+                return Err(Error::ZeroPeriod { kind });
+            }
+        }
+        let (sb, sp) = match source {
+            Endpoint::Local { behavior, port } => self.local_port(behavior, port)?,
+            Endpoint::Node { node, behavior, port } if *node == self.id => self.local_port(behavior, port)?,
+            Endpoint::Node { .. } => {
+                return Err(Error::NotLocal {
+                    what: format!("the source {source} of connect (use request_connect for another node's port)"),
+                })
+            }
+            Endpoint::Group { .. } => return Err(Error::GroupSource),
+        };
+        let src_ty = self.behavior(sb).expect("resolved").ports[usize::from(sp)].cell.ty();
+        let dst = match destination {
+            Endpoint::Local { behavior, port } => self.local_target(behavior, port, kind, src_ty)?,
+            Endpoint::Node { node, behavior, port } if *node == self.id => {
+                self.local_target(behavior, port, kind, src_ty)?
+            }
+            Endpoint::Node { node, behavior, port } => {
+                check_name(behavior, port)?;
+                Target::Remote { to: Destination::Node(*node), behavior: behavior.clone(), port: port.clone() }
+            }
+            Endpoint::Group { group, behavior, port } => {
+                check_name(behavior, port)?;
+                Target::Remote { to: Destination::Group(group.clone()), behavior: behavior.clone(), port: port.clone() }
+            }
+        };
+        let id = self.next_conn_id;
+        self.next_conn_id += 1;
+        let source = match source {
+            Endpoint::Node { behavior, port, .. } => Endpoint::Local { behavior: behavior.clone(), port: port.clone() },
+            other => other.clone(),
+        };
+        let conn = Conn {
+            id,
+            src: (sb, sp),
+            dst,
+            kind,
+            priority: options.priority,
+            seq: 0,
+            source,
+            destination: destination.clone(),
+        };
+        let c = match self.free_conns.pop() {
+            Some(c) => {
+                self.conns[c as usize] = Some(conn);
+                c
+            }
+            None => {
+                self.conns.push(Some(conn));
+                (self.conns.len() - 1) as u32
+            }
+        };
+        self.conn_ids.insert(id, c);
+        self.behavior_mut(sb).expect("resolved").ports[usize::from(sp)].out.push(c);
+        Ok(ConnectionId(id))
+    }
+
+    fn local_target(
+        &self,
+        behavior: &str,
+        port: &str,
+        kind: ConnectionKind,
+        src_ty: crate::value::ValueType,
+    ) -> Result<Target, Error> {
+        let (b, p) = self.local_port(behavior, port)?;
+        let cell = &self.behavior(b).expect("resolved").ports[usize::from(p)].cell;
+        if kind.writes() && cell.ty() != src_ty {
+            return Err(Error::TypeMismatch {
+                what: format!("port {behavior}.{port}"),
+                expected: cell.ty(),
+                found: src_ty,
+            });
+        }
+        Ok(Target::Local { b, p })
+    }
+
+    /// Remove a connection this node owns. Windows it holds on local ports end at once.
+    pub fn disconnect(&mut self, id: ConnectionId) -> Result<(), Error> {
+        let c = self.conn_ids.remove(&id.0).ok_or(Error::UnknownConnection { id: id.0 })?;
+        let conn = self.conns[c as usize].take().expect("indexed connection exists");
+        self.free_conns.push(c);
+        let me = self.id;
+        if let Some(beh) = self.behavior_mut(conn.src.0) {
+            beh.ports[usize::from(conn.src.1)].out.retain(|&x| x != c);
+        }
+        if let Target::Local { b, p } = conn.dst {
+            if let Some(beh) = self.behavior_mut(b) {
+                beh.ports[usize::from(p)].windows.forget_holder(Source::connection(me, id));
+            }
+        }
+        Ok(())
+    }
+
+    /// Join a broadcast group: messages sent to `(group, behavior, port)` by others reach us.
+    /// The transport decides delivery; the core only records membership for listing.
+    pub fn join(&mut self, group: &str) {
+        if !self.groups.iter().any(|g| &**g == group) {
+            self.groups.push(Arc::from(group));
+        }
+    }
+
+    pub fn leave(&mut self, group: &str) {
+        self.groups.retain(|g| &**g != group);
+    }
+
+    pub fn groups(&self) -> &[Arc<str>] {
+        &self.groups
+    }
+
+    /// Ask `source`'s node to make a connection from its port to `destination` (N2: retried
+    /// until answered, idempotent). `destination` must name a node or group, since "local"
+    /// would be ambiguous on the other side.
+    pub fn request_connect(
+        &mut self,
+        source: &Endpoint,
+        destination: &Endpoint,
+        kind: ConnectionKind,
+        options: ConnectOptions,
+    ) -> Result<RequestId, Error> {
+        if let Some(p) = kind.period() {
+            if p.is_zero() {
+                return Err(Error::ZeroPeriod { kind });
+            }
+        }
+        let Endpoint::Node { node, behavior, port } = source else {
+            return Err(if matches!(source, Endpoint::Group { .. }) {
+                Error::GroupSource
+            } else {
+                Error::NotLocal { what: "request_connect's source must be a (node, behavior, port)".into() }
+            });
+        };
+        let destination = match destination {
+            Endpoint::Local { behavior, port } => {
+                Endpoint::Node { node: self.id, behavior: behavior.clone(), port: port.clone() }
+            }
+            other => other.clone(),
+        };
+        let body = ControlBody::Connect {
+            source_behavior: behavior.clone(),
+            source_port: port.clone(),
+            destination,
+            kind,
+            priority: options.priority,
+        };
+        Ok(self.send_request(*node, body))
+    }
+
+    /// Ask `node` to remove its connection `conn`.
+    pub fn request_disconnect(&mut self, node: NodeId, conn: ConnectionId) -> RequestId {
+        self.send_request(node, ControlBody::Disconnect { conn })
+    }
+
+    fn send_request(&mut self, to: NodeId, body: ControlBody) -> RequestId {
+        let id = self.next_request;
+        self.next_request += 1;
+        self.requests.push(Request {
+            id,
+            to,
+            body,
+            next_send: self.now,
+            sends: 0,
+            status: RequestStatus::Pending { sends: 0 },
+        });
+        self.flush_requests();
+        RequestId(id)
+    }
+
+    pub fn request_status(&self, id: RequestId) -> Option<RequestStatus> {
+        self.requests.iter().find(|r| r.id == id.0).map(|r| r.status.clone())
+    }
+
+    fn flush_requests(&mut self) {
+        let now = self.now;
+        for r in &mut self.requests {
+            if !matches!(r.status, RequestStatus::Pending { .. }) || r.next_send > now {
+                continue;
+            }
+            if r.sends >= RETRY_LIMIT {
+                r.status = RequestStatus::Failed(format!("no answer from {} after {} tries", r.to, r.sends));
+                continue;
+            }
+            r.sends += 1;
+            r.status = RequestStatus::Pending { sends: r.sends };
+            r.next_send = now + RETRY_INTERVAL;
+            self.outbox.push_back(Outgoing {
+                to: Destination::Node(r.to),
+                message: Message::Control(ControlMessage { id: r.id, body: r.body.clone() }),
+            });
+        }
+    }
+
+    // ----- writes and propagation (rules S3–S6) --------------------------------------------
+
+    /// Write `value` into a port as its own behavior would (rule S6: suppression does not stop
+    /// it; inhibition and write-inhibition stop its propagation). Triggered processes run at
+    /// the next `poll`.
+    pub fn write(&mut self, now: Instant, port: PortRef, value: impl Into<Value>) -> Result<(), Error> {
+        self.advance(now);
+        self.resolve(port)?;
+        let value = value.into();
+        self.write_internal(port.b, port.port.0, &value).map_err(|cause| self.drop_error(port, cause, &value))
+    }
+
+    /// Write by name; see [`NodeCore::write`].
+    pub fn write_named(
+        &mut self,
+        now: Instant,
+        behavior: &str,
+        port: &str,
+        value: impl Into<Value>,
+    ) -> Result<(), Error> {
+        let r = self.port(behavior, port)?;
+        self.write(now, r, value)
+    }
+
+    fn drop_error(&self, port: PortRef, cause: Drop, value: &Value) -> Error {
+        let beh = self.behavior(port.b).expect("resolved");
+        let spec = &beh.class.ports[usize::from(port.port.0)];
+        let what = format!("port {}.{}", beh.name, spec.name);
+        match cause {
+            Drop::TypeMismatch => Error::TypeMismatch { what, expected: spec.ty(), found: value.ty() },
+            _ => Error::KindNotSupported { kind: spec.kind, ty: value.ty() },
+        }
+    }
+
+    /// A behavior's own write. `Ok` if the port stored the value (propagated or not);
+    /// `Err(cause)` for a type mismatch or NaN (refused). `Absorbed` is reported as `Ok`.
+    pub(crate) fn write_internal(&mut self, b: u32, p: u16, value: &Value) -> Result<(), Drop> {
+        self.wave += 1;
+        let (now, wave, me) = (self.now, self.wave, self.id);
+        let Some(beh) = self.behaviors.get_mut(b as usize).and_then(Option::as_mut) else {
+            self.counters.add(Drop::UnknownBehavior);
+            return Err(Drop::UnknownBehavior);
+        };
+        let id = beh.id;
+        let Some(port) = beh.ports.get_mut(usize::from(p)) else {
+            self.counters.add(Drop::UnknownPort);
+            return Err(Drop::UnknownPort);
+        };
+        if let Err(cause) = port.cell.merge(now, value, Source::internal(me), 0) {
+            port.counters.add(cause);
+            self.counters.add(cause);
+            return if cause == Drop::Absorbed { Ok(()) } else { Err(cause) };
+        }
+        port.visited = wave;
+        port.accepted += 1;
+        for &pi in &port.triggers {
+            queue(&mut self.pending, &mut beh.processes[usize::from(pi)], b, id, pi);
+        }
+        match port.windows.admit_propagation(now, Origin::Internal) {
+            Ok(()) => {
+                if !port.out.is_empty() {
+                    self.stack.push(Frame { b, p, next: 0 });
+                    self.run_wave();
+                }
+            }
+            Err(cause) => {
+                port.counters.add(cause);
+                self.counters.add(cause);
+            }
+        }
+        Ok(())
+    }
+
+    /// Depth-first propagation from the frames on the stack (rule S5).
+    fn run_wave(&mut self) {
+        let me = self.id;
+        while let Some(top) = self.stack.last_mut() {
+            let Frame { b, p, next } = *top;
+            let Some(beh) = self.behaviors.get(b as usize).and_then(Option::as_ref) else {
+                self.stack.pop();
+                continue;
+            };
+            let port = &beh.ports[usize::from(p)];
+            let Some(&c) = port.out.get(next as usize) else {
+                self.stack.pop();
+                continue;
+            };
+            top.next += 1;
+            let value = port.cell.value.clone();
+            let Some(conn) = self.conns.get_mut(c as usize).and_then(Option::as_mut) else { continue };
+            let from = Source::connection(me, ConnectionId(conn.id));
+            let (kind, priority) = (conn.kind, conn.priority);
+            match &conn.dst {
+                Target::Local { b: db, p: dp } => {
+                    let (db, dp) = (*db, *dp);
+                    if self.deliver(db, dp, kind, from, priority, &value) {
+                        self.stack.push(Frame { b: db, p: dp, next: 0 });
+                    }
+                }
+                Target::Remote { to, behavior, port } => {
+                    conn.seq += 1;
+                    let message = Message::Port(PortMessage {
+                        conn: ConnectionId(conn.id),
+                        seq: conn.seq,
+                        behavior: behavior.clone(),
+                        port: port.clone(),
+                        kind,
+                        priority,
+                        value,
+                    });
+                    self.outbox.push_back(Outgoing { to: to.clone(), message });
+                }
+            }
+        }
+    }
+
+    /// Apply one message arriving along a connection at local port (b, p). Returns whether the
+    /// value was stored *and* may propagate.
+    fn deliver(&mut self, b: u32, p: u16, kind: ConnectionKind, from: Source, priority: i32, value: &Value) -> bool {
+        let (now, wave) = (self.now, self.wave);
+        let Some(beh) = self.behaviors.get_mut(b as usize).and_then(Option::as_mut) else {
+            self.counters.add(Drop::UnknownBehavior);
+            return false;
+        };
+        let id = beh.id;
+        let Some(port) = beh.ports.get_mut(usize::from(p)) else {
+            self.counters.add(Drop::UnknownPort);
+            return false;
+        };
+        // A special connection's window always takes effect when its message arrives; only
+        // the write of `m` itself is subject to the blocks in force (docs/semantics.md, A3).
+        match kind {
+            ConnectionKind::Normal => {}
+            ConnectionKind::Suppress(d) => {
+                port.windows.refresh(now, WindowKind::Suppress, from, now + d);
+                return false;
+            }
+            ConnectionKind::Inhibit(d) => {
+                port.windows.refresh(now, WindowKind::Inhibit, from, now + d);
+                return false;
+            }
+            ConnectionKind::WriteInhibit(d) => {
+                port.windows.refresh(now, WindowKind::WriteInhibit, from, now + d);
+                return false;
+            }
+            ConnectionKind::OverrideIn(d) => port.windows.refresh(now, WindowKind::OverrideIn, from, now + d),
+            ConnectionKind::OverrideOut(d) => port.windows.refresh(now, WindowKind::OverrideOut, from, now + d),
+        }
+        let outcome = if port.visited == wave {
+            Err(Drop::WaveRevisit)
+        } else {
+            port.windows.admit_write(now, from).and_then(|()| port.cell.merge(now, value, from, priority))
+        };
+        if let Err(cause) = outcome {
+            port.counters.add(cause);
+            self.counters.add(cause);
+            return false;
+        }
+        port.visited = wave;
+        port.accepted += 1;
+        for &pi in &port.triggers {
+            queue(&mut self.pending, &mut beh.processes[usize::from(pi)], b, id, pi);
+        }
+        match port.windows.admit_propagation(now, Origin::Connection(from)) {
+            Ok(()) => !port.out.is_empty(),
+            Err(cause) => {
+                port.counters.add(cause);
+                self.counters.add(cause);
+                false
+            }
+        }
+    }
+
+    // ----- messages from other nodes (rules S8, S10; N1, N2, N4) ---------------------------
+
+    /// Apply a message from node `from`. Port messages are applied at once (a new wave);
+    /// triggered processes run at the next `poll`. Never panics; what cannot be applied is
+    /// counted.
+    pub fn receive(&mut self, now: Instant, from: NodeId, message: Message) {
+        self.advance(now);
+        match message {
+            Message::Port(m) => self.receive_port(from, m),
+            Message::Control(c) => self.receive_control(from, c),
+        }
+    }
+
+    fn receive_port(&mut self, from: NodeId, m: PortMessage) {
+        let key = (from, m.conn.0);
+        match self.newest_seq.get(&key) {
+            Some(&newest) if m.seq <= newest => {
+                self.counters.add(Drop::Stale);
+                return;
+            }
+            _ => {}
+        }
+        if !self.newest_seq.contains_key(&key) && self.newest_seq.len() >= SEQ_TABLE_MAX {
+            self.newest_seq.clear();
+            self.seq_table_resets += 1;
+        }
+        self.newest_seq.insert(key, m.seq);
+        let Some(&b) = self.names.get(&*m.behavior) else {
+            self.counters.add(Drop::UnknownBehavior);
+            return;
+        };
+        let Some(port) = self.behavior(b).and_then(|beh| beh.class.port_handle(&m.port)) else {
+            self.counters.add(Drop::UnknownPort);
+            return;
+        };
+        self.wave += 1;
+        let source = Source::connection(from, m.conn);
+        if self.deliver(b, port.0, m.kind, source, m.priority, &m.value) {
+            self.stack.push(Frame { b, p: port.0, next: 0 });
+            self.run_wave();
+        }
+    }
+
+    fn receive_control(&mut self, from: NodeId, c: ControlMessage) {
+        let result = match c.body {
+            ControlBody::Reply { result } => {
+                if let Some(r) = self.requests.iter_mut().find(|r| r.id == c.id && r.to == from) {
+                    if matches!(r.status, RequestStatus::Pending { .. }) {
+                        r.status = match result {
+                            Ok(id) => RequestStatus::Done(id),
+                            Err(e) => RequestStatus::Failed(e),
+                        };
+                    }
+                }
+                return;
+            }
+            body => {
+                if let Some(result) = self.answered.get(&(from, c.id)) {
+                    result.clone()
+                } else {
+                    let result = self.apply_control(body).map_err(|e| e.to_string());
+                    if result.is_err() {
+                        self.counters.add(Drop::BadRequest);
+                    }
+                    if self.answered_order.len() >= ANSWERED_MAX {
+                        if let Some(old) = self.answered_order.pop_front() {
+                            self.answered.remove(&old);
+                        }
+                    }
+                    self.answered.insert((from, c.id), result.clone());
+                    self.answered_order.push_back((from, c.id));
+                    result
+                }
+            }
+        };
+        self.outbox.push_back(Outgoing {
+            to: Destination::Node(from),
+            message: Message::Control(ControlMessage { id: c.id, body: ControlBody::Reply { result } }),
+        });
+    }
+
+    fn apply_control(&mut self, body: ControlBody) -> Result<ConnectionId, Error> {
+        match body {
+            ControlBody::Connect { source_behavior, source_port, destination, kind, priority } => {
+                if matches!(destination, Endpoint::Local { .. }) {
+                    return Err(Error::NotLocal {
+                        what: "a requested connection's destination must name its node".into(),
+                    });
+                }
+                let source = Endpoint::Local { behavior: source_behavior, port: source_port };
+                self.connect(&source, &destination, kind, ConnectOptions { priority })
+            }
+            ControlBody::Disconnect { conn } => self.disconnect(conn).map(|()| conn),
+            ControlBody::Reply { .. } => unreachable!("replies are handled before apply_control"),
+        }
+    }
+
+    /// The next message to send, oldest first.
+    pub fn pop_outgoing(&mut self) -> Option<Outgoing> {
+        self.outbox.pop_front()
+    }
+
+    /// How many messages wait to be sent.
+    pub fn outgoing_len(&self) -> usize {
+        self.outbox.len()
+    }
+
+    // ----- scheduling (rules S7, S8) -------------------------------------------------------
+
+    /// Run everything due at `now`: monostable edges, periodic processes (late ones skip
+    /// missed activations and count them), triggered processes (each at most once per poll,
+    /// so a process that re-triggers itself cannot spin), and control retries. Returns when
+    /// the next call is due (`poll_at`).
+    pub fn poll(&mut self, now: Instant) -> Option<Instant> {
+        self.advance(now);
+        let now = self.now;
+        self.poll_epoch += 1;
+        // Monostable falling edges.
+        for b in 0..self.behaviors.len() as u32 {
+            let Some(beh) = self.behaviors[b as usize].as_mut() else { continue };
+            let id = beh.id;
+            for m in &mut beh.monos {
+                if m.high && now >= m.end {
+                    m.high = false;
+                    for &pi in &m.watchers {
+                        queue(&mut self.pending, &mut beh.processes[usize::from(pi)], b, id, pi);
+                    }
+                }
+            }
+        }
+        self.run_triggered();
+        // Periodic processes, in (behavior slot, declaration) order.
+        for b in 0..self.behaviors.len() as u32 {
+            let mut pi = 0u16;
+            while let Some(proc_) = self
+                .behaviors
+                .get_mut(b as usize)
+                .and_then(Option::as_mut)
+                .and_then(|beh| beh.processes.get_mut(usize::from(pi)))
+            {
+                if let Trigger::Periodic(period) = proc_.spec.trigger {
+                    if proc_.next_due <= now {
+                        let mut next = proc_.next_due + period;
+                        if next <= now {
+                            let missed = (now - next).as_nanos() / period.as_nanos() + 1;
+                            proc_.overruns += missed;
+                            next += period * missed;
+                        }
+                        proc_.next_due = next;
+                        self.run_process(b, pi);
+                        self.run_triggered();
+                    }
+                }
+                pi += 1;
+            }
+        }
+        self.pending.extend(self.deferred.drain(..));
+        self.flush_requests();
+        self.poll_at()
+    }
+
+    fn run_triggered(&mut self) {
+        let epoch = self.poll_epoch;
+        while let Some((b, id, pi)) = self.pending.pop_front() {
+            let Some(beh) = self.behaviors.get_mut(b as usize).and_then(Option::as_mut).filter(|x| x.id == id) else {
+                continue;
+            };
+            let proc_ = &mut beh.processes[usize::from(pi)];
+            if proc_.ran_in_poll == epoch {
+                self.deferred.push((b, id, pi));
+                continue;
+            }
+            proc_.pending = false;
+            proc_.ran_in_poll = epoch;
+            self.run_process(b, pi);
+        }
+    }
+
+    fn run_process(&mut self, b: u32, pi: u16) {
+        let Some(beh) = self.behavior_mut(b) else { return };
+        let proc_ = &mut beh.processes[usize::from(pi)];
+        proc_.runs += 1;
+        let body = proc_.spec.body.clone();
+        let mut ctx = Ctx { core: self, b };
+        body(&mut ctx);
+    }
+
+    /// When `poll` next has work: the earliest periodic activation, monostable edge or
+    /// control retry; `now` if triggered processes wait; `None` if nothing is scheduled.
+    pub fn poll_at(&self) -> Option<Instant> {
+        if !self.pending.is_empty() {
+            return Some(self.now);
+        }
+        let mut at: Option<Instant> = None;
+        let mut consider = |t: Instant| at = Some(at.map_or(t, |a| a.min(t)));
+        for beh in self.behaviors.iter().flatten() {
+            for p in &beh.processes {
+                if matches!(p.spec.trigger, Trigger::Periodic(_)) {
+                    consider(p.next_due);
+                }
+            }
+            for m in &beh.monos {
+                if m.high && !m.watchers.is_empty() {
+                    consider(m.end);
+                }
+            }
+        }
+        for r in &self.requests {
+            if matches!(r.status, RequestStatus::Pending { .. }) {
+                consider(r.next_send);
+            }
+        }
+        at
+    }
+
+    // ----- registers from outside ----------------------------------------------------------
+
+    /// The port's value, or its default while empty (aggregating ports) — see `get` for
+    /// freshness.
+    pub fn read(&self, port: PortRef) -> Result<Value, Error> {
+        let now = self.now;
+        self.resolve(port).map(|ps| current(&ps.cell, now).clone())
+    }
+
+    /// The port's value if fresh (rule S4), else `None`.
+    pub fn get(&self, port: PortRef) -> Result<Option<Value>, Error> {
+        let now = self.now;
+        self.resolve(port).map(|ps| ps.cell.get(now).cloned())
+    }
+
+    pub fn fresh(&self, port: PortRef) -> Result<bool, Error> {
+        let now = self.now;
+        self.resolve(port).map(|ps| ps.cell.fresh(now))
+    }
+
+    /// Empty an aggregating port (a Normal port returns to its default).
+    pub fn reset(&mut self, port: PortRef) -> Result<(), Error> {
+        self.resolve(port)?;
+        self.behavior_mut(port.b).expect("resolved").ports[usize::from(port.port.0)].cell.reset();
+        Ok(())
+    }
+
+    /// Trigger monostable `mono` of `behavior` for `period` (rule S2).
+    pub fn trigger(&mut self, now: Instant, behavior: &str, mono: &str, period: Duration) -> Result<(), Error> {
+        self.advance(now);
+        let b = self.behavior_index(behavior)?;
+        let m = self
+            .behavior(b)
+            .and_then(|beh| beh.class.mono_handle(mono))
+            .ok_or_else(|| Error::UnknownPort { behavior: behavior.to_owned(), port: mono.to_owned() })?;
+        self.trigger_mono(b, m, period);
+        Ok(())
+    }
+
+    pub(crate) fn trigger_mono(&mut self, b: u32, m: Mono, period: Duration) {
+        let now = self.now;
+        let Some(beh) = self.behaviors.get_mut(b as usize).and_then(Option::as_mut) else { return };
+        let id = beh.id;
+        let Some(mono) = beh.monos.get_mut(usize::from(m.0)) else { return };
+        let rising = now >= mono.end;
+        mono.end = mono.end.max(now + period);
+        if rising && mono.end > now {
+            mono.high = true;
+            for &pi in &mono.watchers {
+                queue(&mut self.pending, &mut beh.processes[usize::from(pi)], b, id, pi);
+            }
+        }
+    }
+
+    pub(crate) fn set_slot(&mut self, b: u32, s: Slot, value: Value) -> Result<(), Error> {
+        let Some(beh) = self.behavior_mut(b) else {
+            return Err(Error::UnknownBehavior { behavior: format!("#{b}") });
+        };
+        let name = beh.name.clone();
+        let Some(slot) = beh.slots.get_mut(usize::from(s.0)) else {
+            return Err(Error::UnknownPort { behavior: name.to_string(), port: format!("slot #{}", s.0) });
+        };
+        if slot.ty() != value.ty() {
+            return Err(Error::TypeMismatch {
+                what: format!("slot {name}.{}", beh.class.slots[usize::from(s.0)].name),
+                expected: slot.ty(),
+                found: value.ty(),
+            });
+        }
+        *slot = value;
+        Ok(())
+    }
+
+    /// Node-wide counters of dropped and blocked messages, by cause.
+    pub fn counters(&self) -> &Counters {
+        &self.counters
+    }
+
+    /// How often the sequence table (N1) was full and had to be cleared.
+    pub fn seq_table_resets(&self) -> u64 {
+        self.seq_table_resets
+    }
+
+    /// Warnings the node has raised (e.g. a BLE inhibition too short for its claim rate).
+    pub fn warnings(&self) -> &[String] {
+        &self.warnings
+    }
+
+    pub(crate) fn connection_infos(&self) -> Vec<ConnectionInfo> {
+        let mut v: Vec<ConnectionInfo> = self
+            .conns
+            .iter()
+            .flatten()
+            .map(|c| ConnectionInfo {
+                id: ConnectionId(c.id),
+                source: c.source.clone(),
+                destination: c.destination.clone(),
+                kind: c.kind,
+                priority: c.priority,
+                sent: c.seq,
+            })
+            .collect();
+        v.sort_by_key(|c| c.id);
+        v
+    }
+
+    pub(crate) fn conn_index(&self, id: ConnectionId) -> Option<&Conn> {
+        self.conn_ids.get(&id.0).and_then(|&c| self.conns[c as usize].as_ref())
+    }
+}
+
+/// The readable value of a cell at `now`: its value, or its default once its window closed.
+pub(crate) fn current(cell: &PortCell, now: Instant) -> &Value {
+    if cell.kind.is_aggregating() && (cell.empty || now >= cell.window_end) {
+        &cell.default
+    } else {
+        &cell.value
+    }
+}
+
+fn queue(pending: &mut VecDeque<(u32, u64, u16)>, proc_: &mut ProcState, b: u32, id: u64, pi: u16) {
+    if !proc_.pending {
+        proc_.pending = true;
+        pending.push_back((b, id, pi));
+    }
+}
+
+fn attach_trigger(ports: &mut [PortState], monos: &mut [MonoState], trigger: Trigger, ix: u16) {
+    match trigger {
+        Trigger::OnWrite(Port(p)) => ports[usize::from(p)].triggers.push(ix),
+        Trigger::OnMonostable(Mono(m)) => monos[usize::from(m)].watchers.push(ix),
+        Trigger::Periodic(_) => {}
+    }
+}
+
+fn check_name(behavior: &str, port: &str) -> Result<(), Error> {
+    if behavior.is_empty() {
+        return Err(Error::EmptyName { what: "behavior" });
+    }
+    if port.is_empty() {
+        return Err(Error::EmptyName { what: "port" });
+    }
+    Ok(())
+}

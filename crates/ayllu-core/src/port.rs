@@ -1,0 +1,294 @@
+//! Ports and how they merge what is written into them (rules S2–S4).
+//!
+//! A [`PortSpec`] declares a port: name, kind, type (from its default), and optionally a
+//! freshness lifespan and, for aggregating kinds, a window. A [`PortCell`] is one live port:
+//! its value, who supplied it, when it last accepted a value, and its merge rule. Merging is
+//! a pure function of the cell, the incoming value, its source and `now`, so aggregation can
+//! be tested exhaustively and is order-independent (property-tested).
+
+use core::cmp::Ordering;
+
+use crate::address::Source;
+use crate::counters::Drop;
+use crate::error::Error;
+use crate::time::{Duration, Instant};
+use crate::value::{Value, ValueType};
+
+/// How a port merges an incoming value `m` into its current value `c` (rule S3).
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash)]
+pub enum PortKind {
+    /// `c := m`.
+    Normal,
+    /// `c := max(c, m)`; remembers who supplied the maximum.
+    Max,
+    /// `c := min(c, m)`; remembers who supplied the minimum.
+    Min,
+    /// `c := c + m` (integers wrap, floats add, vectors add element-wise).
+    Sum,
+    /// `c := m` iff `priority(m) > priority(c)`; the current holder may always update.
+    Priority,
+}
+
+impl PortKind {
+    /// Max, Min, Sum and Priority ports start empty and empty again on reset or window end.
+    pub fn is_aggregating(self) -> bool {
+        !matches!(self, PortKind::Normal)
+    }
+    pub fn supports(self, ty: ValueType) -> bool {
+        match self {
+            PortKind::Normal | PortKind::Priority => true,
+            PortKind::Max | PortKind::Min => {
+                matches!(ty, ValueType::Bool | ValueType::Int | ValueType::Float)
+            }
+            PortKind::Sum => matches!(ty, ValueType::Int | ValueType::Float | ValueType::Vector),
+        }
+    }
+    pub fn name(self) -> &'static str {
+        match self {
+            PortKind::Normal => "normal",
+            PortKind::Max => "max",
+            PortKind::Min => "min",
+            PortKind::Sum => "sum",
+            PortKind::Priority => "priority",
+        }
+    }
+}
+
+/// The declaration of a port in a behavior class.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PortSpec {
+    pub name: String,
+    pub kind: PortKind,
+    pub default: Value,
+    /// After this long without an accepted value the port reads as absent (rule S4).
+    pub lifespan: Option<Duration>,
+    /// Aggregating ports only: the port empties this long after the first value of a window.
+    pub window: Option<Duration>,
+}
+
+impl PortSpec {
+    /// A Normal port whose type is the default's type.
+    pub fn new(name: &str, default: impl Into<Value>) -> PortSpec {
+        PortSpec {
+            name: name.to_owned(),
+            kind: PortKind::Normal,
+            default: default.into(),
+            lifespan: None,
+            window: None,
+        }
+    }
+    pub fn kind(mut self, kind: PortKind) -> Self {
+        self.kind = kind;
+        self
+    }
+    pub fn max(self) -> Self {
+        self.kind(PortKind::Max)
+    }
+    pub fn min(self) -> Self {
+        self.kind(PortKind::Min)
+    }
+    pub fn sum(self) -> Self {
+        self.kind(PortKind::Sum)
+    }
+    pub fn priority(self) -> Self {
+        self.kind(PortKind::Priority)
+    }
+    pub fn lifespan(mut self, d: Duration) -> Self {
+        self.lifespan = Some(d);
+        self
+    }
+    pub fn window(mut self, d: Duration) -> Self {
+        self.window = Some(d);
+        self
+    }
+    pub fn ty(&self) -> ValueType {
+        self.default.ty()
+    }
+    pub(crate) fn validate(&self) -> Result<(), Error> {
+        if self.name.is_empty() {
+            return Err(Error::EmptyName { what: "port" });
+        }
+        if !self.kind.supports(self.ty()) {
+            return Err(Error::KindNotSupported { kind: self.kind, ty: self.ty() });
+        }
+        if self.lifespan.is_some_and(Duration::is_zero) || self.window.is_some_and(Duration::is_zero) {
+            return Err(Error::ZeroWindow { port: self.name.clone() });
+        }
+        if self.window.is_some() && !self.kind.is_aggregating() {
+            return Err(Error::WindowOnNormalPort { port: self.name.clone() });
+        }
+        Ok(())
+    }
+}
+
+/// A live port's value state. Arbitration windows live beside it (see `arbitration`).
+#[derive(Clone, Debug)]
+pub struct PortCell {
+    pub(crate) kind: PortKind,
+    pub(crate) default: Value,
+    pub(crate) value: Value,
+    /// Aggregating ports: no value in the current window. Normal ports are never empty.
+    pub(crate) empty: bool,
+    pub(crate) supplier: Option<Source>,
+    pub(crate) supplier_priority: i32,
+    pub(crate) last_accepted: Option<Instant>,
+    pub(crate) window_end: Instant,
+    pub(crate) lifespan: Option<Duration>,
+    pub(crate) window: Option<Duration>,
+}
+
+impl PortCell {
+    pub fn new(spec: &PortSpec) -> PortCell {
+        PortCell {
+            kind: spec.kind,
+            default: spec.default.clone(),
+            value: spec.default.clone(),
+            empty: spec.kind.is_aggregating(),
+            supplier: None,
+            supplier_priority: i32::MIN,
+            last_accepted: None,
+            window_end: Instant::MAX,
+            lifespan: spec.lifespan,
+            window: spec.window,
+        }
+    }
+
+    pub fn kind(&self) -> PortKind {
+        self.kind
+    }
+    pub fn ty(&self) -> ValueType {
+        self.default.ty()
+    }
+
+    /// Lazily close an aggregating window that has ended: the port empties (rule S3).
+    pub(crate) fn expire(&mut self, now: Instant) {
+        if !self.empty && self.kind.is_aggregating() && now >= self.window_end {
+            self.reset();
+        }
+    }
+
+    /// Empty an aggregating port; a Normal port returns to its default.
+    pub fn reset(&mut self) {
+        self.value = self.default.clone();
+        self.empty = self.kind.is_aggregating();
+        self.supplier = None;
+        self.supplier_priority = i32::MIN;
+        self.window_end = Instant::MAX;
+    }
+
+    /// The value, or the default while empty. Does not look at freshness.
+    pub fn value(&self) -> &Value {
+        &self.value
+    }
+
+    /// Whether the port holds a value that is not stale (rule S4): it has accepted a value,
+    /// its aggregating window (if any) is still open, and its lifespan (if any) has not run out.
+    pub fn fresh(&self, now: Instant) -> bool {
+        let Some(t) = self.last_accepted else { return false };
+        if self.kind.is_aggregating() && (self.empty || now >= self.window_end) {
+            return false;
+        }
+        match self.lifespan {
+            Some(l) => now < t + l,
+            None => true,
+        }
+    }
+
+    /// The value if fresh, else `None` ("absent").
+    pub fn get(&self, now: Instant) -> Option<&Value> {
+        self.fresh(now).then_some(&self.value)
+    }
+
+    pub fn supplier(&self) -> Option<Source> {
+        self.supplier
+    }
+
+    /// Merge `m` from `from` at `now` (rule S3). `Ok(())` means the port *accepted* the value
+    /// and it must be propagated (rule S5); `Err(cause)` means it was refused or absorbed.
+    pub fn merge(&mut self, now: Instant, m: &Value, from: Source, priority: i32) -> Result<(), Drop> {
+        if m.ty() != self.ty() {
+            return Err(Drop::TypeMismatch);
+        }
+        self.expire(now);
+        match self.kind {
+            PortKind::Normal => {
+                self.value.clone_from(m);
+                self.supplier = Some(from);
+            }
+            PortKind::Max | PortKind::Min => {
+                if m.is_nan() {
+                    return Err(Drop::NotANumber);
+                }
+                if self.empty {
+                    self.open(now, m, from);
+                } else {
+                    let ord = m.order(&self.value).ok_or(Drop::TypeMismatch)?;
+                    let better = if self.kind == PortKind::Max { Ordering::Greater } else { Ordering::Less };
+                    if ord == better {
+                        self.value.clone_from(m);
+                        self.supplier = Some(from);
+                    } else if ord == Ordering::Equal {
+                        // Ties go to the smaller source, whatever the arrival order.
+                        if self.supplier.is_none_or(|s| from < s) {
+                            self.supplier = Some(from);
+                        }
+                    } else {
+                        return Err(Drop::Absorbed);
+                    }
+                }
+            }
+            PortKind::Sum => {
+                if m.is_nan() {
+                    return Err(Drop::NotANumber);
+                }
+                if self.empty {
+                    self.open(now, m, from);
+                } else {
+                    let sum = match (&self.value, m) {
+                        (Value::Int(a), Value::Int(b)) => Value::Int(a.wrapping_add(*b)),
+                        (Value::Float(a), Value::Float(b)) => Value::Float(a + b),
+                        (Value::Vector(a), Value::Vector(b)) => {
+                            if a.len() != b.len() {
+                                return Err(Drop::ShapeMismatch);
+                            }
+                            if b.iter().any(|x| x.is_nan()) {
+                                return Err(Drop::NotANumber);
+                            }
+                            Value::Vector(a.iter().zip(b.iter()).map(|(x, y)| x + y).collect())
+                        }
+                        _ => return Err(Drop::TypeMismatch),
+                    };
+                    self.value = sum;
+                    self.supplier = Some(from);
+                }
+            }
+            PortKind::Priority => {
+                let wins = self.empty
+                    || priority > self.supplier_priority
+                    || (priority == self.supplier_priority && self.supplier == Some(from));
+                if !wins {
+                    return Err(Drop::Absorbed);
+                }
+                if self.empty {
+                    self.open(now, m, from);
+                } else {
+                    self.value.clone_from(m);
+                    self.supplier = Some(from);
+                }
+                self.supplier_priority = priority;
+            }
+        }
+        self.last_accepted = Some(now);
+        Ok(())
+    }
+
+    fn open(&mut self, now: Instant, m: &Value, from: Source) {
+        self.value.clone_from(m);
+        self.supplier = Some(from);
+        self.empty = false;
+        self.window_end = match self.window {
+            Some(w) => now + w,
+            None => Instant::MAX,
+        };
+    }
+}

@@ -1,0 +1,166 @@
+//! Time as the core sees it: an [`Instant`] on the node's own clock and a [`Duration`].
+//!
+//! The core never reads a clock (rule S8). Whoever drives it — the runtime's monotonic clock,
+//! a test, the simulator — passes `now` in. Both types count nanoseconds in a `u64` (about
+//! 584 years), are `Copy`, and saturate instead of overflowing or panicking, so arithmetic on
+//! values that came from the network can never crash a node.
+
+use core::fmt;
+use core::ops::{Add, AddAssign, Mul, Sub};
+
+use crate::error::Error;
+
+/// A point on one node's clock, in nanoseconds since that clock's origin.
+///
+/// Instants from different nodes are not comparable; nothing in Ayllu needs them to be.
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct Instant {
+    nanos: u64,
+}
+
+/// A span of time in nanoseconds. Never negative: negative spans are rejected where they are
+/// made from user input ([`Duration::try_from_secs_f64`]).
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct Duration {
+    nanos: u64,
+}
+
+impl Instant {
+    /// The clock's origin.
+    pub const ZERO: Instant = Instant { nanos: 0 };
+    /// The far future; used as "never".
+    pub const MAX: Instant = Instant { nanos: u64::MAX };
+
+    pub const fn from_nanos(nanos: u64) -> Self {
+        Instant { nanos }
+    }
+    pub const fn from_micros(us: u64) -> Self {
+        Instant { nanos: us.saturating_mul(1_000) }
+    }
+    pub const fn from_millis(ms: u64) -> Self {
+        Instant { nanos: ms.saturating_mul(1_000_000) }
+    }
+    pub const fn from_secs(s: u64) -> Self {
+        Instant { nanos: s.saturating_mul(1_000_000_000) }
+    }
+    pub const fn as_nanos(self) -> u64 {
+        self.nanos
+    }
+    pub fn as_secs_f64(self) -> f64 {
+        self.nanos as f64 / 1e9
+    }
+    /// The span from `earlier` to `self`, or zero if `earlier` is later.
+    pub const fn saturating_since(self, earlier: Instant) -> Duration {
+        Duration { nanos: self.nanos.saturating_sub(earlier.nanos) }
+    }
+}
+
+impl Duration {
+    pub const ZERO: Duration = Duration { nanos: 0 };
+    pub const MAX: Duration = Duration { nanos: u64::MAX };
+
+    pub const fn from_nanos(nanos: u64) -> Self {
+        Duration { nanos }
+    }
+    pub const fn from_micros(us: u64) -> Self {
+        Duration { nanos: us.saturating_mul(1_000) }
+    }
+    pub const fn from_millis(ms: u64) -> Self {
+        Duration { nanos: ms.saturating_mul(1_000_000) }
+    }
+    pub const fn from_secs(s: u64) -> Self {
+        Duration { nanos: s.saturating_mul(1_000_000_000) }
+    }
+    /// Seconds as a float, as users write them (`0.2`). Negative, NaN or infinite input is an
+    /// error, never a panic: a period typed wrong must be reported, not wrapped.
+    pub fn try_from_secs_f64(secs: f64) -> Result<Self, Error> {
+        if secs.is_nan() || secs.is_infinite() {
+            return Err(Error::InvalidDuration { seconds: secs });
+        }
+        if secs < 0.0 {
+            return Err(Error::NegativePeriod { seconds: secs });
+        }
+        let nanos = secs * 1e9;
+        if nanos >= u64::MAX as f64 {
+            return Err(Error::InvalidDuration { seconds: secs });
+        }
+        Ok(Duration { nanos: nanos.round() as u64 })
+    }
+    /// The period of a rate in hertz. Zero, negative, NaN or infinite rates are errors.
+    pub fn try_from_hz(hz: f64) -> Result<Self, Error> {
+        if !(hz.is_finite() && hz > 0.0) {
+            return Err(Error::InvalidRate { hz });
+        }
+        let d = Duration::try_from_secs_f64(1.0 / hz)?;
+        if d.is_zero() {
+            return Err(Error::InvalidRate { hz });
+        }
+        Ok(d)
+    }
+    pub const fn as_nanos(self) -> u64 {
+        self.nanos
+    }
+    pub fn as_secs_f64(self) -> f64 {
+        self.nanos as f64 / 1e9
+    }
+    pub const fn is_zero(self) -> bool {
+        self.nanos == 0
+    }
+    pub const fn saturating_mul(self, n: u64) -> Duration {
+        Duration { nanos: self.nanos.saturating_mul(n) }
+    }
+}
+
+impl Add<Duration> for Instant {
+    type Output = Instant;
+    fn add(self, d: Duration) -> Instant {
+        Instant { nanos: self.nanos.saturating_add(d.nanos) }
+    }
+}
+impl AddAssign<Duration> for Instant {
+    fn add_assign(&mut self, d: Duration) {
+        *self = *self + d;
+    }
+}
+impl Sub<Instant> for Instant {
+    type Output = Duration;
+    /// Saturating: an earlier minus a later instant is zero.
+    fn sub(self, other: Instant) -> Duration {
+        self.saturating_since(other)
+    }
+}
+impl Add for Duration {
+    type Output = Duration;
+    fn add(self, d: Duration) -> Duration {
+        Duration { nanos: self.nanos.saturating_add(d.nanos) }
+    }
+}
+impl Sub for Duration {
+    type Output = Duration;
+    fn sub(self, d: Duration) -> Duration {
+        Duration { nanos: self.nanos.saturating_sub(d.nanos) }
+    }
+}
+impl Mul<u64> for Duration {
+    type Output = Duration;
+    fn mul(self, n: u64) -> Duration {
+        self.saturating_mul(n)
+    }
+}
+
+impl fmt::Display for Instant {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{:.3}s", self.as_secs_f64())
+    }
+}
+impl fmt::Display for Duration {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if self.nanos < 1_000_000 {
+            write!(f, "{}us", self.nanos / 1_000)
+        } else if self.nanos < 1_000_000_000 {
+            write!(f, "{}ms", self.nanos / 1_000_000)
+        } else {
+            write!(f, "{:.3}s", self.as_secs_f64())
+        }
+    }
+}

@@ -1,0 +1,204 @@
+//! Values a register holds (rule S1).
+//!
+//! A port holds exactly one [`Value`] of the [`ValueType`] it was declared with. Scalars are
+//! plain data; text, bytes and vectors are reference-counted, so a value travelling along a
+//! connection is copied or has a count bumped — propagation never allocates (design §6).
+//! Values are never coerced: an `Int` is not a `Float`.
+
+use core::cmp::Ordering;
+use core::fmt;
+use std::sync::Arc;
+
+/// The type of a register, fixed when it is declared.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum ValueType {
+    Bool,
+    Int,
+    Float,
+    Text,
+    Bytes,
+    /// A short vector of floats: a pose, a velocity, a bearing list.
+    Vector,
+}
+
+/// One register value.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Value {
+    Bool(bool),
+    Int(i64),
+    Float(f64),
+    Text(Arc<str>),
+    Bytes(Arc<[u8]>),
+    Vector(Arc<[f64]>),
+}
+
+impl Value {
+    pub fn ty(&self) -> ValueType {
+        match self {
+            Value::Bool(_) => ValueType::Bool,
+            Value::Int(_) => ValueType::Int,
+            Value::Float(_) => ValueType::Float,
+            Value::Text(_) => ValueType::Text,
+            Value::Bytes(_) => ValueType::Bytes,
+            Value::Vector(_) => ValueType::Vector,
+        }
+    }
+    pub fn text(s: &str) -> Value {
+        Value::Text(Arc::from(s))
+    }
+    pub fn bytes(b: &[u8]) -> Value {
+        Value::Bytes(Arc::from(b))
+    }
+    pub fn vector(v: &[f64]) -> Value {
+        Value::Vector(Arc::from(v))
+    }
+    pub fn as_bool(&self) -> Option<bool> {
+        match self {
+            Value::Bool(b) => Some(*b),
+            _ => None,
+        }
+    }
+    pub fn as_int(&self) -> Option<i64> {
+        match self {
+            Value::Int(i) => Some(*i),
+            _ => None,
+        }
+    }
+    pub fn as_float(&self) -> Option<f64> {
+        match self {
+            Value::Float(x) => Some(*x),
+            _ => None,
+        }
+    }
+    pub fn as_text(&self) -> Option<&str> {
+        match self {
+            Value::Text(s) => Some(s),
+            _ => None,
+        }
+    }
+    pub fn as_bytes(&self) -> Option<&[u8]> {
+        match self {
+            Value::Bytes(b) => Some(b),
+            _ => None,
+        }
+    }
+    pub fn as_vector(&self) -> Option<&[f64]> {
+        match self {
+            Value::Vector(v) => Some(v),
+            _ => None,
+        }
+    }
+    /// True for a float NaN, which has no place in an order and is refused by Max/Min/Sum.
+    pub fn is_nan(&self) -> bool {
+        matches!(self, Value::Float(x) if x.is_nan())
+    }
+    /// The order Max and Min ports use; `None` for types without one (text, bytes, vectors)
+    /// or when the two values differ in type.
+    pub fn order(&self, other: &Value) -> Option<Ordering> {
+        match (self, other) {
+            (Value::Bool(a), Value::Bool(b)) => Some(a.cmp(b)),
+            (Value::Int(a), Value::Int(b)) => Some(a.cmp(b)),
+            (Value::Float(a), Value::Float(b)) => a.partial_cmp(b),
+            _ => None,
+        }
+    }
+    /// The zero of a type, used as the default when a register is declared by type only.
+    pub fn zero(ty: ValueType) -> Value {
+        match ty {
+            ValueType::Bool => Value::Bool(false),
+            ValueType::Int => Value::Int(0),
+            ValueType::Float => Value::Float(0.0),
+            ValueType::Text => Value::text(""),
+            ValueType::Bytes => Value::bytes(&[]),
+            ValueType::Vector => Value::vector(&[]),
+        }
+    }
+}
+
+impl ValueType {
+    pub fn name(self) -> &'static str {
+        match self {
+            ValueType::Bool => "bool",
+            ValueType::Int => "int",
+            ValueType::Float => "float",
+            ValueType::Text => "text",
+            ValueType::Bytes => "bytes",
+            ValueType::Vector => "vector",
+        }
+    }
+}
+
+impl fmt::Display for ValueType {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl fmt::Display for Value {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Value::Bool(b) => write!(f, "{b}"),
+            Value::Int(i) => write!(f, "{i}"),
+            Value::Float(x) => write!(f, "{x}"),
+            Value::Text(s) => write!(f, "{s:?}"),
+            Value::Bytes(b) => {
+                f.write_str("0x")?;
+                for byte in b.iter() {
+                    write!(f, "{byte:02x}")?;
+                }
+                Ok(())
+            }
+            Value::Vector(v) => {
+                f.write_str("[")?;
+                for (i, x) in v.iter().enumerate() {
+                    if i > 0 {
+                        f.write_str(", ")?;
+                    }
+                    write!(f, "{x}")?;
+                }
+                f.write_str("]")
+            }
+        }
+    }
+}
+
+impl From<bool> for Value {
+    fn from(b: bool) -> Value {
+        Value::Bool(b)
+    }
+}
+impl From<i64> for Value {
+    fn from(i: i64) -> Value {
+        Value::Int(i)
+    }
+}
+impl From<i32> for Value {
+    fn from(i: i32) -> Value {
+        Value::Int(i.into())
+    }
+}
+impl From<f64> for Value {
+    fn from(x: f64) -> Value {
+        Value::Float(x)
+    }
+}
+impl From<&str> for Value {
+    fn from(s: &str) -> Value {
+        Value::text(s)
+    }
+}
+impl From<String> for Value {
+    fn from(s: String) -> Value {
+        Value::Text(Arc::from(s))
+    }
+}
+impl From<&[f64]> for Value {
+    fn from(v: &[f64]) -> Value {
+        Value::vector(v)
+    }
+}
+impl From<Vec<f64>> for Value {
+    fn from(v: Vec<f64>) -> Value {
+        Value::Vector(Arc::from(v))
+    }
+}

@@ -1,0 +1,2 @@
+//! placeholder
+pub use ayllu_core as core;
