@@ -12,7 +12,7 @@
 //! is arbitrated steadily stops allocating after its first windows.
 
 use crate::address::Source;
-use crate::counters::Drop;
+use crate::counters::DropCause;
 use crate::time::Instant;
 
 /// Which effect a window has.
@@ -85,7 +85,7 @@ impl Windows {
 
     /// May a connection write from `by` be stored now?
     #[inline]
-    pub fn admit_write(&self, now: Instant, by: Source) -> Result<(), Drop> {
+    pub fn admit_write(&self, now: Instant, by: Source) -> Result<(), DropCause> {
         if self.list.is_empty() {
             return Ok(());
         }
@@ -96,7 +96,7 @@ impl Windows {
                 continue;
             }
             match w.kind {
-                WindowKind::Suppress => return Err(Drop::Suppressed),
+                WindowKind::Suppress => return Err(DropCause::Suppressed),
                 WindowKind::OverrideIn => {
                     overridden = true;
                     has_pass |= w.holder == by;
@@ -105,14 +105,14 @@ impl Windows {
             }
         }
         if overridden && !has_pass {
-            return Err(Drop::OverriddenIn);
+            return Err(DropCause::OverriddenIn);
         }
         Ok(())
     }
 
     /// May a value that was just stored, coming from `origin`, propagate out now?
     #[inline]
-    pub fn admit_propagation(&self, now: Instant, origin: Origin) -> Result<(), Drop> {
+    pub fn admit_propagation(&self, now: Instant, origin: Origin) -> Result<(), DropCause> {
         if self.list.is_empty() {
             return Ok(());
         }
@@ -124,7 +124,7 @@ impl Windows {
                 continue;
             }
             match w.kind {
-                WindowKind::Inhibit => return Err(Drop::Inhibited),
+                WindowKind::Inhibit => return Err(DropCause::Inhibited),
                 WindowKind::OverrideOut => {
                     overridden = true;
                     has_pass |= origin == Origin::Connection(w.holder);
@@ -134,10 +134,10 @@ impl Windows {
             }
         }
         if overridden && !has_pass {
-            return Err(Drop::OverriddenOut);
+            return Err(DropCause::OverriddenOut);
         }
         if write_inhibited && origin == Origin::Internal {
-            return Err(Drop::WriteInhibited);
+            return Err(DropCause::WriteInhibited);
         }
         Ok(())
     }

@@ -1,6 +1,6 @@
 //! Why a message did not get through: one counter per cause, per port and per node.
 //!
-//! Every message that is blocked, refused or lost is counted under exactly one [`Drop`] cause.
+//! Every message that is blocked, refused or lost is counted under exactly one [`DropCause`] cause.
 //! The counters are the raw material of `why` (introspection) and of the later network
 //! counters (N4); they never allocate.
 
@@ -8,7 +8,7 @@ use core::fmt;
 
 /// The cause under which a blocked or refused message is counted.
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub enum Drop {
+pub enum DropCause {
     /// A connection write refused because the destination is suppressed (plain Suppress).
     Suppressed,
     /// A connection write refused because another connection overrides the input (OverrideIn).
@@ -40,70 +40,70 @@ pub enum Drop {
     BadRequest,
 }
 
-impl Drop {
-    pub const ALL: [Drop; 14] = [
-        Drop::Suppressed,
-        Drop::OverriddenIn,
-        Drop::Inhibited,
-        Drop::OverriddenOut,
-        Drop::WriteInhibited,
-        Drop::TypeMismatch,
-        Drop::NotANumber,
-        Drop::ShapeMismatch,
-        Drop::Absorbed,
-        Drop::WaveRevisit,
-        Drop::UnknownBehavior,
-        Drop::UnknownPort,
-        Drop::Stale,
-        Drop::BadRequest,
+impl DropCause {
+    pub const ALL: [DropCause; 14] = [
+        DropCause::Suppressed,
+        DropCause::OverriddenIn,
+        DropCause::Inhibited,
+        DropCause::OverriddenOut,
+        DropCause::WriteInhibited,
+        DropCause::TypeMismatch,
+        DropCause::NotANumber,
+        DropCause::ShapeMismatch,
+        DropCause::Absorbed,
+        DropCause::WaveRevisit,
+        DropCause::UnknownBehavior,
+        DropCause::UnknownPort,
+        DropCause::Stale,
+        DropCause::BadRequest,
     ];
-    pub const COUNT: usize = Drop::ALL.len();
+    pub const COUNT: usize = DropCause::ALL.len();
 
     pub fn name(self) -> &'static str {
         match self {
-            Drop::Suppressed => "suppressed",
-            Drop::OverriddenIn => "overridden_in",
-            Drop::Inhibited => "inhibited",
-            Drop::OverriddenOut => "overridden_out",
-            Drop::WriteInhibited => "write_inhibited",
-            Drop::TypeMismatch => "type_mismatch",
-            Drop::NotANumber => "not_a_number",
-            Drop::ShapeMismatch => "shape_mismatch",
-            Drop::Absorbed => "absorbed",
-            Drop::WaveRevisit => "wave_revisit",
-            Drop::UnknownBehavior => "unknown_behavior",
-            Drop::UnknownPort => "unknown_port",
-            Drop::Stale => "stale",
-            Drop::BadRequest => "bad_request",
+            DropCause::Suppressed => "suppressed",
+            DropCause::OverriddenIn => "overridden_in",
+            DropCause::Inhibited => "inhibited",
+            DropCause::OverriddenOut => "overridden_out",
+            DropCause::WriteInhibited => "write_inhibited",
+            DropCause::TypeMismatch => "type_mismatch",
+            DropCause::NotANumber => "not_a_number",
+            DropCause::ShapeMismatch => "shape_mismatch",
+            DropCause::Absorbed => "absorbed",
+            DropCause::WaveRevisit => "wave_revisit",
+            DropCause::UnknownBehavior => "unknown_behavior",
+            DropCause::UnknownPort => "unknown_port",
+            DropCause::Stale => "stale",
+            DropCause::BadRequest => "bad_request",
         }
     }
 }
 
-impl fmt::Display for Drop {
+impl fmt::Display for DropCause {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(self.name())
     }
 }
 
-/// A fixed array of counters indexed by [`Drop`].
+/// A fixed array of counters indexed by [`DropCause`].
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct Counters {
-    counts: [u64; Drop::COUNT],
+    counts: [u64; DropCause::COUNT],
 }
 
 impl Counters {
-    pub fn add(&mut self, cause: Drop) {
+    pub fn add(&mut self, cause: DropCause) {
         let c = &mut self.counts[cause as usize];
         *c = c.saturating_add(1);
     }
-    pub fn get(&self, cause: Drop) -> u64 {
+    pub fn get(&self, cause: DropCause) -> u64 {
         self.counts[cause as usize]
     }
     pub fn total(&self) -> u64 {
         self.counts.iter().fold(0u64, |a, b| a.saturating_add(*b))
     }
-    /// The non-zero counters, in the order of [`Drop::ALL`].
-    pub fn nonzero(&self) -> impl Iterator<Item = (Drop, u64)> + '_ {
-        Drop::ALL.iter().map(|d| (*d, self.get(*d))).filter(|(_, n)| *n > 0)
+    /// The non-zero counters, in the order of [`DropCause::ALL`].
+    pub fn nonzero(&self) -> impl Iterator<Item = (DropCause, u64)> + '_ {
+        DropCause::ALL.iter().map(|d| (*d, self.get(*d))).filter(|(_, n)| *n > 0)
     }
 }

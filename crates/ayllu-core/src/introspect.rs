@@ -10,7 +10,7 @@ use crate::address::{NodeId, Source};
 use crate::arbitration::{Origin, WindowKind};
 use crate::behavior::Trigger;
 use crate::connection::ConnectionInfo;
-use crate::counters::{Counters, Drop};
+use crate::counters::{Counters, DropCause};
 use crate::error::Error;
 use crate::node::{current, NodeCore, Target};
 use crate::port::PortKind;
@@ -46,11 +46,11 @@ pub struct PortReport {
     pub accepted: u64,
     pub windows: Vec<WindowReport>,
     /// Why a connection without a pass could not write the port now (`None`: it could).
-    pub input_blocked: Option<Drop>,
+    pub input_blocked: Option<DropCause>,
     /// Why the behavior's own writes would not propagate now (`None`: they would).
-    pub internal_output_blocked: Option<Drop>,
+    pub internal_output_blocked: Option<DropCause>,
     /// Why a value arriving along a connection without a pass would not propagate now.
-    pub connection_output_blocked: Option<Drop>,
+    pub connection_output_blocked: Option<DropCause>,
     pub counters: Counters,
     /// Local connections into this port.
     pub incoming: Vec<ConnectionInfo>,
@@ -251,7 +251,7 @@ impl fmt::Display for PortReport {
             Some(s) => writeln!(f, "  supplier  {s}")?,
             None => writeln!(f, "  supplier  none")?,
         }
-        let blocked = |d: Option<Drop>| d.map_or("open".to_owned(), |d| format!("BLOCKED ({d})"));
+        let blocked = |d: Option<DropCause>| d.map_or("open".to_owned(), |d| format!("BLOCKED ({d})"));
         writeln!(f, "  input     {}", blocked(self.input_blocked))?;
         writeln!(
             f,

@@ -13,7 +13,7 @@
 //! * Fast: a write crossing a Normal connection is a few loads and stores, and propagating a
 //!   scalar allocates nothing.
 //! * Robust: misuse returns an [`Error`]; bad input from peers is dropped and counted by cause
-//!   ([`Drop`]); nothing panics on input.
+//!   ([`DropCause`]); nothing panics on input.
 //!
 //! ## Non-goals
 //! * Byte encodings (see `ayllu-wire`), sockets and clocks (see the `ayllu` runtime).
@@ -58,7 +58,7 @@ pub use arbitration::{Origin, Window, WindowKind};
 pub use behavior::{BehaviorClass, Mono, Port, ProcessFn, Slot, Trigger, BEST, INHIBIT, LOCAL};
 pub use ble::{check_inhibit_period, minimum_inhibit_period, BleConfig, BleGroup, BleStatus};
 pub use connection::{ConnectOptions, ConnectionInfo, ConnectionKind};
-pub use counters::{Counters, Drop};
+pub use counters::{Counters, DropCause};
 pub use error::Error;
 pub use introspect::{BehaviorReport, NodeReport, PortReport, ProcessReport, RegisterReport, WindowReport};
 pub use message::{ControlBody, ControlMessage, Destination, Message, Outgoing, PortMessage};

@@ -19,7 +19,7 @@ use crate::arbitration::{Origin, WindowKind, Windows};
 use crate::behavior::{validate_process, BehaviorClass, Mono, Port, ProcessSpec, Slot, Trigger};
 use crate::ble::BleState;
 use crate::connection::{ConnectOptions, ConnectionInfo, ConnectionKind};
-use crate::counters::{Counters, Drop};
+use crate::counters::{Counters, DropCause};
 use crate::error::Error;
 use crate::message::{ControlBody, ControlMessage, Destination, Message, Outgoing, PortMessage};
 use crate::port::PortCell;
@@ -616,34 +616,34 @@ impl NodeCore {
         self.write(now, r, value)
     }
 
-    fn drop_error(&self, port: PortRef, cause: Drop, value: &Value) -> Error {
+    fn drop_error(&self, port: PortRef, cause: DropCause, value: &Value) -> Error {
         let beh = self.behavior(port.b).expect("resolved");
         let spec = &beh.class.ports[usize::from(port.port.0)];
         let what = format!("port {}.{}", beh.name, spec.name);
         match cause {
-            Drop::TypeMismatch => Error::TypeMismatch { what, expected: spec.ty(), found: value.ty() },
+            DropCause::TypeMismatch => Error::TypeMismatch { what, expected: spec.ty(), found: value.ty() },
             _ => Error::KindNotSupported { kind: spec.kind, ty: value.ty() },
         }
     }
 
     /// A behavior's own write. `Ok` if the port stored the value (propagated or not);
     /// `Err(cause)` for a type mismatch or NaN (refused). `Absorbed` is reported as `Ok`.
-    pub(crate) fn write_internal(&mut self, b: u32, p: u16, value: &Value) -> Result<(), Drop> {
+    pub(crate) fn write_internal(&mut self, b: u32, p: u16, value: &Value) -> Result<(), DropCause> {
         self.wave += 1;
         let (now, wave, me) = (self.now, self.wave, self.id);
         let Some(beh) = self.behaviors.get_mut(b as usize).and_then(Option::as_mut) else {
-            self.counters.add(Drop::UnknownBehavior);
-            return Err(Drop::UnknownBehavior);
+            self.counters.add(DropCause::UnknownBehavior);
+            return Err(DropCause::UnknownBehavior);
         };
         let id = beh.id;
         let Some(port) = beh.ports.get_mut(usize::from(p)) else {
-            self.counters.add(Drop::UnknownPort);
-            return Err(Drop::UnknownPort);
+            self.counters.add(DropCause::UnknownPort);
+            return Err(DropCause::UnknownPort);
         };
         if let Err(cause) = port.cell.merge(now, value, Source::internal(me), 0) {
             port.counters.add(cause);
             self.counters.add(cause);
-            return if cause == Drop::Absorbed { Ok(()) } else { Err(cause) };
+            return if cause == DropCause::Absorbed { Ok(()) } else { Err(cause) };
         }
         port.visited = wave;
         port.accepted += 1;
@@ -713,12 +713,12 @@ impl NodeCore {
     fn deliver(&mut self, b: u32, p: u16, kind: ConnectionKind, from: Source, priority: i32, value: &Value) -> bool {
         let (now, wave) = (self.now, self.wave);
         let Some(beh) = self.behaviors.get_mut(b as usize).and_then(Option::as_mut) else {
-            self.counters.add(Drop::UnknownBehavior);
+            self.counters.add(DropCause::UnknownBehavior);
             return false;
         };
         let id = beh.id;
         let Some(port) = beh.ports.get_mut(usize::from(p)) else {
-            self.counters.add(Drop::UnknownPort);
+            self.counters.add(DropCause::UnknownPort);
             return false;
         };
         // A special connection's window always takes effect when its message arrives; only
@@ -741,7 +741,7 @@ impl NodeCore {
             ConnectionKind::OverrideOut(d) => port.windows.refresh(now, WindowKind::OverrideOut, from, now + d),
         }
         let outcome = if port.visited == wave {
-            Err(Drop::WaveRevisit)
+            Err(DropCause::WaveRevisit)
         } else {
             port.windows.admit_write(now, from).and_then(|()| port.cell.merge(now, value, from, priority))
         };
@@ -782,7 +782,7 @@ impl NodeCore {
         let key = (from, m.conn.0);
         match self.newest_seq.get(&key) {
             Some(&newest) if m.seq <= newest => {
-                self.counters.add(Drop::Stale);
+                self.counters.add(DropCause::Stale);
                 return;
             }
             _ => {}
@@ -793,11 +793,11 @@ impl NodeCore {
         }
         self.newest_seq.insert(key, m.seq);
         let Some(&b) = self.names.get(&*m.behavior) else {
-            self.counters.add(Drop::UnknownBehavior);
+            self.counters.add(DropCause::UnknownBehavior);
             return;
         };
         let Some(port) = self.behavior(b).and_then(|beh| beh.class.port_handle(&m.port)) else {
-            self.counters.add(Drop::UnknownPort);
+            self.counters.add(DropCause::UnknownPort);
             return;
         };
         self.wave += 1;
@@ -827,7 +827,7 @@ impl NodeCore {
                 } else {
                     let result = self.apply_control(body).map_err(|e| e.to_string());
                     if result.is_err() {
-                        self.counters.add(Drop::BadRequest);
+                        self.counters.add(DropCause::BadRequest);
                     }
                     if self.answered_order.len() >= ANSWERED_MAX {
                         if let Some(old) = self.answered_order.pop_front() {

@@ -9,7 +9,7 @@
 use core::cmp::Ordering;
 
 use crate::address::Source;
-use crate::counters::Drop;
+use crate::counters::DropCause;
 use crate::error::Error;
 use crate::time::{Duration, Instant};
 use crate::value::{Value, ValueType};
@@ -205,9 +205,9 @@ impl PortCell {
 
     /// Merge `m` from `from` at `now` (rule S3). `Ok(())` means the port *accepted* the value
     /// and it must be propagated (rule S5); `Err(cause)` means it was refused or absorbed.
-    pub fn merge(&mut self, now: Instant, m: &Value, from: Source, priority: i32) -> Result<(), Drop> {
+    pub fn merge(&mut self, now: Instant, m: &Value, from: Source, priority: i32) -> Result<(), DropCause> {
         if m.ty() != self.ty() {
-            return Err(Drop::TypeMismatch);
+            return Err(DropCause::TypeMismatch);
         }
         self.expire(now);
         match self.kind {
@@ -217,12 +217,12 @@ impl PortCell {
             }
             PortKind::Max | PortKind::Min => {
                 if m.is_nan() {
-                    return Err(Drop::NotANumber);
+                    return Err(DropCause::NotANumber);
                 }
                 if self.empty {
                     self.open(now, m, from);
                 } else {
-                    let ord = m.order(&self.value).ok_or(Drop::TypeMismatch)?;
+                    let ord = m.order(&self.value).ok_or(DropCause::TypeMismatch)?;
                     let better = if self.kind == PortKind::Max { Ordering::Greater } else { Ordering::Less };
                     if ord == better {
                         self.value.clone_from(m);
@@ -233,13 +233,13 @@ impl PortCell {
                             self.supplier = Some(from);
                         }
                     } else {
-                        return Err(Drop::Absorbed);
+                        return Err(DropCause::Absorbed);
                     }
                 }
             }
             PortKind::Sum => {
                 if m.is_nan() {
-                    return Err(Drop::NotANumber);
+                    return Err(DropCause::NotANumber);
                 }
                 if self.empty {
                     self.open(now, m, from);
@@ -249,14 +249,14 @@ impl PortCell {
                         (Value::Float(a), Value::Float(b)) => Value::Float(a + b),
                         (Value::Vector(a), Value::Vector(b)) => {
                             if a.len() != b.len() {
-                                return Err(Drop::ShapeMismatch);
+                                return Err(DropCause::ShapeMismatch);
                             }
                             if b.iter().any(|x| x.is_nan()) {
-                                return Err(Drop::NotANumber);
+                                return Err(DropCause::NotANumber);
                             }
                             Value::Vector(a.iter().zip(b.iter()).map(|(x, y)| x + y).collect())
                         }
-                        _ => return Err(Drop::TypeMismatch),
+                        _ => return Err(DropCause::TypeMismatch),
                     };
                     self.value = sum;
                     self.supplier = Some(from);
@@ -267,7 +267,7 @@ impl PortCell {
                     || priority > self.supplier_priority
                     || (priority == self.supplier_priority && self.supplier == Some(from));
                 if !wins {
-                    return Err(Drop::Absorbed);
+                    return Err(DropCause::Absorbed);
                 }
                 if self.empty {
                     self.open(now, m, from);

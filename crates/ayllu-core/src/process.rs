@@ -6,7 +6,7 @@
 
 use crate::address::{NodeId, Source};
 use crate::behavior::{Mono, Port, Slot};
-use crate::counters::Drop;
+use crate::counters::DropCause;
 use crate::error::Error;
 use crate::node::{current, NodeCore};
 use crate::time::{Duration, Instant};
@@ -77,7 +77,7 @@ impl Ctx<'_> {
     /// Write the behavior's own port. Never blocked by suppression; its propagation can be
     /// stopped by inhibition, another's OverrideOut, or WriteInhibit (rule S6). `Err` says why
     /// the port refused the value (type mismatch, NaN into an ordered port).
-    pub fn write(&mut self, p: Port, value: impl Into<Value>) -> Result<(), Drop> {
+    pub fn write(&mut self, p: Port, value: impl Into<Value>) -> Result<(), DropCause> {
         let value = value.into();
         self.core.write_internal(self.b, p.0, &value)
     }

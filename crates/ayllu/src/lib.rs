@@ -1,2 +1,21 @@
-//! placeholder
-pub use ayllu_core as core;
+//! # ayllu — the runtime
+//!
+//! Wraps the sans-IO [`ayllu_core`] in what a program needs to run it: a [`Node`] with a
+//! [`Clock`] (real monotonic or [`ManualClock`]) and a [`Transport`] chosen by URL
+//! (`mem://` in-process now; `udp://` next), and [`Lockstep`] for deterministic teams on
+//! virtual time. Everything in the core is re-exported, so `use ayllu::*` is enough.
+
+pub mod clock;
+pub mod error;
+pub mod lockstep;
+pub mod mem;
+pub mod node;
+pub mod transport;
+
+pub use ayllu_core::*;
+pub use clock::{Clock, ManualClock, MonotonicClock};
+pub use error::Error as RuntimeError;
+pub use lockstep::Lockstep;
+pub use mem::{MemNetwork, MemTransport};
+pub use node::{Node, NodeStats};
+pub use transport::Transport;

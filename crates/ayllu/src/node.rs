@@ -1,0 +1,161 @@
+//! [`Node`]: the core driven by a clock and a transport — what a robot program runs.
+//!
+//! A node owns one [`NodeCore`], one [`Clock`] and one [`Transport`]. Each [`Node::step`]
+//! reads the clock once, applies every message that has arrived, runs what is due, and hands
+//! what the core wants sent to the transport. [`Node::run_for`] repeats that, sleeping on the
+//! transport until the next deadline. With a [`crate::ManualClock`] nothing sleeps and a test
+//! decides time (see [`crate::Lockstep`]).
+//!
+//! Thread-safety: a `Node` is `Send` and is driven by one thread at a time.
+
+use ayllu_core::{
+    BehaviorClass, BehaviorRef, BleConfig, BleGroup, ConnectOptions, ConnectionId, ConnectionKind, Endpoint, Instant,
+    NodeCore, NodeId, PortReport, Value,
+};
+
+use crate::clock::{Clock, MonotonicClock};
+use crate::error::Error;
+use crate::transport::{self, Transport};
+
+/// Traffic figures of one node.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct NodeStats {
+    pub steps: u64,
+    pub sent: u64,
+    pub received: u64,
+}
+
+/// A running Ayllu node. See the module docs.
+pub struct Node {
+    core: NodeCore,
+    clock: Box<dyn Clock>,
+    transport: Box<dyn Transport>,
+    stats: NodeStats,
+}
+
+impl Node {
+    /// A node with an explicit clock and transport.
+    pub fn new(clock: impl Clock + 'static, transport: impl Transport + 'static) -> Node {
+        let id = transport.local();
+        Node {
+            core: NodeCore::new(id),
+            clock: Box::new(clock),
+            transport: Box::new(transport),
+            stats: NodeStats::default(),
+        }
+    }
+
+    /// A node on the real monotonic clock, on the transport `url` names (`mem://team`).
+    pub fn open(id: NodeId, url: &str) -> Result<Node, Error> {
+        Node::open_with_clock(id, url, MonotonicClock::new())
+    }
+
+    /// A node on the transport `url` names, with the given clock.
+    pub fn open_with_clock(id: NodeId, url: &str, clock: impl Clock + 'static) -> Result<Node, Error> {
+        let transport = transport::open(url, id)?;
+        Ok(Node { core: NodeCore::new(id), clock: Box::new(clock), transport, stats: NodeStats::default() })
+    }
+
+    pub fn id(&self) -> NodeId {
+        self.core.id()
+    }
+    pub fn now(&self) -> Instant {
+        self.clock.now()
+    }
+    pub fn core(&self) -> &NodeCore {
+        &self.core
+    }
+    /// The core, for everything this wrapper does not forward. Changes take effect (and
+    /// messages leave) at the next step.
+    pub fn core_mut(&mut self) -> &mut NodeCore {
+        &mut self.core
+    }
+    pub fn stats(&self) -> NodeStats {
+        self.stats
+    }
+
+    pub fn define(&mut self, class: BehaviorClass) -> Result<(), Error> {
+        Ok(self.core.define(class)?)
+    }
+    pub fn create(&mut self, class: &str, name: &str) -> Result<BehaviorRef, Error> {
+        Ok(self.core.create(class, name)?)
+    }
+    pub fn remove(&mut self, name: &str) -> Result<(), Error> {
+        Ok(self.core.remove(name)?)
+    }
+    pub fn connect(
+        &mut self,
+        source: &Endpoint,
+        destination: &Endpoint,
+        kind: ConnectionKind,
+    ) -> Result<ConnectionId, Error> {
+        Ok(self.core.connect(source, destination, kind, ConnectOptions::default())?)
+    }
+    pub fn disconnect(&mut self, id: ConnectionId) -> Result<(), Error> {
+        Ok(self.core.disconnect(id)?)
+    }
+    /// Join a broadcast group, on the core and on the transport.
+    pub fn join(&mut self, group: &str) {
+        self.core.join(group);
+        self.transport.join(group);
+    }
+    pub fn leave(&mut self, group: &str) {
+        self.core.leave(group);
+        self.transport.leave(group);
+    }
+    /// Make `behavior` a BLE peer (rule S11) and join the group on the transport.
+    pub fn ble_join(&mut self, behavior: &str, config: &BleConfig) -> Result<BleGroup, Error> {
+        let g = self.core.ble_join(behavior, config)?;
+        self.transport.join(&config.group);
+        Ok(g)
+    }
+    /// Write a port as its behavior would, now.
+    pub fn write(&mut self, behavior: &str, port: &str, value: impl Into<Value>) -> Result<(), Error> {
+        let now = self.clock.now();
+        Ok(self.core.write_named(now, behavior, port, value)?)
+    }
+    pub fn read(&self, behavior: &str, port: &str) -> Result<Value, Error> {
+        Ok(self.core.read(self.core.port(behavior, port)?)?)
+    }
+    pub fn why(&self, behavior: &str, port: &str) -> Result<PortReport, Error> {
+        Ok(self.core.why(behavior, port)?)
+    }
+
+    /// One turn: receive everything waiting, run what is due, send what is produced.
+    /// Returns when the core next has work.
+    pub fn step(&mut self) -> Option<Instant> {
+        let now = self.clock.now();
+        while let Some((from, message)) = self.transport.recv() {
+            self.stats.received += 1;
+            self.core.receive(now, from, message);
+        }
+        let next = self.core.poll(now);
+        while let Some(out) = self.core.pop_outgoing() {
+            self.stats.sent += 1;
+            self.transport.send(out);
+        }
+        self.stats.steps += 1;
+        next
+    }
+
+    /// Run in real time for `duration`, sleeping on the transport between deadlines.
+    /// With a manual clock, steps once (time is not this node's to move).
+    pub fn run_for(&mut self, duration: std::time::Duration) {
+        if !self.clock.is_real_time() {
+            self.step();
+            return;
+        }
+        let end = self.clock.now() + ayllu_core::Duration::from_nanos(duration.as_nanos().min(u64::MAX as u128) as u64);
+        loop {
+            let next = self.step();
+            let now = self.clock.now();
+            if now >= end {
+                break;
+            }
+            let until = next.map_or(end, |n| n.min(end));
+            if until > now {
+                self.transport.wait(std::time::Duration::from_nanos((until - now).as_nanos()));
+            }
+        }
+    }
+}

@@ -1,0 +1,48 @@
+//! The transport boundary: how a node's outgoing messages leave and incoming ones arrive.
+//!
+//! A transport moves [`Message`] values between nodes. It is chosen by URL:
+//! `mem://NAME` (in-process, this crate), `udp://...` (real networks, a later issue) and
+//! `sim://` (the simulator's radio). The contract every transport keeps:
+//! * `send` never blocks and never fails loudly: port messages are best effort (N1);
+//! * a message to a group reaches every member except the sender;
+//! * `recv` never blocks; `wait` blocks at most until its timeout.
+
+use ayllu_core::{Message, NodeId, Outgoing};
+
+use crate::error::Error;
+use crate::mem::MemNetwork;
+
+/// Moves messages between nodes. See the module docs for the contract.
+pub trait Transport: Send {
+    /// This node's id on the transport.
+    fn local(&self) -> NodeId;
+    /// Hand a message over for delivery (best effort).
+    fn send(&mut self, out: Outgoing);
+    /// The next message that has arrived, if any. Never blocks.
+    fn recv(&mut self) -> Option<(NodeId, Message)>;
+    /// Block until a message may be available or `timeout` passes.
+    fn wait(&mut self, timeout: std::time::Duration);
+    /// Start receiving messages sent to `group`.
+    fn join(&mut self, group: &str);
+    fn leave(&mut self, group: &str);
+}
+
+/// Open the transport a URL names, for node `id`.
+pub fn open(url: &str, id: NodeId) -> Result<Box<dyn Transport>, Error> {
+    let (scheme, rest) = url.split_once("://").ok_or_else(|| Error::BadUrl {
+        url: url.to_owned(),
+        reason: "expected SCHEME://..., e.g. mem://team".into(),
+    })?;
+    match scheme {
+        "mem" => {
+            if rest.is_empty() {
+                return Err(Error::BadUrl { url: url.to_owned(), reason: "mem:// needs a network name".into() });
+            }
+            Ok(Box::new(MemNetwork::named(rest).attach(id)?))
+        }
+        "udp" | "sim" | "zenoh" => {
+            Err(Error::Unsupported { what: format!("the {scheme}:// transport (not yet supported)") })
+        }
+        _ => Err(Error::BadUrl { url: url.to_owned(), reason: format!("unknown transport `{scheme}`") }),
+    }
+}
