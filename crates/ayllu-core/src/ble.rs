@@ -5,7 +5,8 @@
 //! * its `Inhibit` port is broadcast as a WriteInhibit of the peers' output port;
 //! * a select process runs at the claim rate: if `Local` was written during the last cycle and
 //!   beats `Best` (ties go to the lower node id), it writes `Inhibit` — the *claim* — and in
-//!   any case empties `Best` for the next cycle.
+//!   any case empties `Best` for the next cycle. A new member listens for one whole cycle
+//!   before its first claim.
 //!
 //! A claim is a lease: it holds only while renewed. If the claimer dies, the peers'
 //! write-inhibition lapses after `inhibit_period` and the task is free. For that to work
@@ -103,6 +104,8 @@ pub(crate) struct BleState {
     pub(crate) output: Port,
     pub(crate) claim_period: Duration,
     pub(crate) inhibit_period: Duration,
+    /// When the behavior joined: it listens for one full cycle before it may claim.
+    pub(crate) joined_at: Instant,
     pub(crate) claims: u64,
     pub(crate) last_claim: Option<Instant>,
     pub(crate) last_best: Option<(f64, Source)>,
@@ -166,6 +169,7 @@ impl NodeCore {
             output,
             claim_period,
             inhibit_period: config.inhibit_period,
+            joined_at: self.now(),
             claims: 0,
             last_claim: None,
             last_best: None,
@@ -211,9 +215,14 @@ impl NodeCore {
 fn select(ctx: &mut Ctx<'_>) {
     let now = ctx.now();
     let me = ctx.node();
-    let Some(period) = ctx.core.behavior(ctx.b).and_then(|b| b.ble.as_ref()).map(|s| s.claim_period) else {
+    let Some((period, joined_at)) =
+        ctx.core.behavior(ctx.b).and_then(|b| b.ble.as_ref()).map(|s| (s.claim_period, s.joined_at))
+    else {
         return;
     };
+    // A new member first listens for a whole cycle, so that its `Best` has heard every peer;
+    // otherwise everyone joining at once would claim everything once and inhibit each other.
+    let listening = now < joined_at + period;
     // Eligibility counts only if written during the last cycle: no output, no claim.
     let local = match (ctx.last_accepted(Port::LOCAL), ctx.float(Port::LOCAL)) {
         (Some(t), Some(x)) if now < t + period && !x.is_nan() => Some(x),
@@ -221,6 +230,7 @@ fn select(ctx: &mut Ctx<'_>) {
     };
     let best = ctx.float(Port::BEST).zip(ctx.supplier(Port::BEST));
     let wins = match (local, best) {
+        _ if listening => false,
         (None, _) => false,
         (Some(_), None) => true,
         (Some(l), Some((b, who))) => l > b || (l == b && me < who.node),

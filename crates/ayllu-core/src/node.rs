@@ -156,6 +156,7 @@ pub struct NodeCore {
     conn_ids: HashMap<u64, u32>,
     next_conn_id: u64,
     groups: Vec<Arc<str>>,
+    groups_generation: u64,
     wave: u64,
     stack: Vec<Frame>,
     pending: VecDeque<(u32, u64, u16)>,
@@ -187,6 +188,7 @@ impl NodeCore {
             conn_ids: HashMap::new(),
             next_conn_id: 1,
             groups: Vec::new(),
+            groups_generation: 0,
             wave: 0,
             stack: Vec::with_capacity(64),
             pending: VecDeque::with_capacity(64),
@@ -499,11 +501,22 @@ impl NodeCore {
     pub fn join(&mut self, group: &str) {
         if !self.groups.iter().any(|g| &**g == group) {
             self.groups.push(Arc::from(group));
+            self.groups_generation += 1;
         }
     }
 
     pub fn leave(&mut self, group: &str) {
+        let before = self.groups.len();
         self.groups.retain(|g| &**g != group);
+        if self.groups.len() != before {
+            self.groups_generation += 1;
+        }
+    }
+
+    /// Changes whenever the set of joined groups changes, so a runtime can keep its
+    /// transport's memberships in step with the core's without comparing lists every turn.
+    pub fn groups_generation(&self) -> u64 {
+        self.groups_generation
     }
 
     pub fn groups(&self) -> &[Arc<str>] {

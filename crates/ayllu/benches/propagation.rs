@@ -1,1 +1,222 @@
-fn main() {}
+//! Propagation benchmarks: the cost of the core's hot paths next to a plain function call.
+//!
+//! Run with `cargo bench -p ayllu --bench propagation` (about a minute). Criterion prints its
+//! usual report per benchmark; at the end a summary table gives each benchmark's median
+//! ns/op (read back from the estimates Criterion wrote *in this run*) and its ratio to the
+//! plain function call measured in the same run, plus the machine it ran on.
+//!
+//! What is measured (one iteration = one call of `NodeCore::write`, plus `poll` where said):
+//! * `function_call` — baseline: an `#[inline(never)]` function storing an i64 into a field.
+//! * `write_no_connection` — a write into a Normal port with no outgoing connection.
+//! * `normal_hop` — a write into a port with one Normal connection to another port.
+//! * `fan_out_4` — a write into a port with four Normal connections.
+//! * `override_chain_5` — the paper's subsumption chain (Fig. 2, `ayOverrideOut`): layers
+//!   L1 -> L2 -> L3 -> L4 -> L5, each layer's `Rotate` overriding the next one's for 200 ms
+//!   (four OverrideOut hops, each refreshing a window); the write is at the top layer L1.
+//! * `process_activation` — a write into a port with an OnWrite process, then the `poll` that
+//!   runs it (the process reads the port and stores it in a slot).
+//!
+//! The clock advances 1 µs per iteration, so windows are refreshed as in a live system.
+
+use std::fs;
+use std::hint::black_box;
+use std::path::PathBuf;
+use std::time::{Duration as StdDuration, SystemTime};
+
+use ayllu::{
+    BehaviorClass, ConnectOptions, ConnectionKind, Duration, Endpoint, Instant, NodeCore, NodeId, PortRef, PortSpec,
+};
+use criterion::Criterion;
+
+const GROUP: &str = "propagation";
+const BASELINE: &str = "function_call";
+const BENCHES: [&str; 6] =
+    [BASELINE, "write_no_connection", "normal_hop", "fan_out_4", "override_chain_5", "process_activation"];
+
+struct Sink {
+    value: i64,
+}
+
+/// The baseline: one real (not inlined) call that stores an i64 into a struct field.
+#[inline(never)]
+fn store(sink: &mut Sink, v: i64) {
+    sink.value = v;
+}
+
+fn classes(node: &mut NodeCore) {
+    let mut src = BehaviorClass::new("Src");
+    src.port(PortSpec::new("Out", 0i64)).unwrap();
+    node.define(src).unwrap();
+    let mut dst = BehaviorClass::new("Dst");
+    dst.port(PortSpec::new("In", 0i64)).unwrap();
+    node.define(dst).unwrap();
+    let mut layer = BehaviorClass::new("Layer");
+    layer.port(PortSpec::new("Rotate", 0i64)).unwrap();
+    node.define(layer).unwrap();
+    let mut proc_ = BehaviorClass::new("Proc");
+    let input = proc_.port(PortSpec::new("In", 0i64)).unwrap();
+    let last = proc_.slot("Last", 0i64).unwrap();
+    proc_
+        .on_write("Copy", input, move |ctx| {
+            let v = ctx.int(input).unwrap_or(0);
+            ctx.set_slot(last, v).unwrap();
+        })
+        .unwrap();
+    node.define(proc_).unwrap();
+}
+
+fn connect(node: &mut NodeCore, from: (&str, &str), to: (&str, &str), kind: ConnectionKind) {
+    node.connect(&Endpoint::local(from.0, from.1), &Endpoint::local(to.0, to.1), kind, ConnectOptions::default())
+        .unwrap();
+}
+
+/// A node with `Src` behavior `A` whose `Out` feeds `fan` `Dst` behaviors (0 = no connection).
+fn fan_node(fan: usize) -> (NodeCore, PortRef) {
+    let mut node = NodeCore::new(NodeId(1));
+    classes(&mut node);
+    node.create("Src", "A").unwrap();
+    for i in 0..fan {
+        let name = format!("D{i}");
+        node.create("Dst", &name).unwrap();
+        connect(&mut node, ("A", "Out"), (&name, "In"), ConnectionKind::Normal);
+    }
+    let out = node.port("A", "Out").unwrap();
+    (node, out)
+}
+
+/// The subsumption chain L1 -> ... -> L5 (OverrideOut, 200 ms); returns L1.Rotate.
+fn override_node() -> (NodeCore, PortRef) {
+    let mut node = NodeCore::new(NodeId(1));
+    classes(&mut node);
+    for i in 1..=5 {
+        node.create("Layer", &format!("L{i}")).unwrap();
+    }
+    for i in 1..5 {
+        let (a, b) = (format!("L{i}"), format!("L{}", i + 1));
+        connect(&mut node, (&a, "Rotate"), (&b, "Rotate"), ConnectionKind::OverrideOut(Duration::from_millis(200)));
+    }
+    let top = node.port("L1", "Rotate").unwrap();
+    (node, top)
+}
+
+fn process_node() -> (NodeCore, PortRef) {
+    let mut node = NodeCore::new(NodeId(1));
+    classes(&mut node);
+    node.create("Proc", "P").unwrap();
+    let input = node.port("P", "In").unwrap();
+    (node, input)
+}
+
+/// Benchmark `write` (and `poll` if `poll`) on `port`, advancing the clock 1 µs per iteration.
+fn bench_write(
+    c: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>,
+    name: &str,
+    setup: (NodeCore, PortRef),
+    poll: bool,
+) {
+    let (mut node, port) = setup;
+    let mut t = 0u64;
+    c.bench_function(name, |b| {
+        b.iter(|| {
+            t += 1_000;
+            let now = Instant::from_nanos(t);
+            node.write(now, port, black_box(t as i64)).unwrap();
+            if poll {
+                black_box(node.poll(now));
+            }
+        })
+    });
+}
+
+fn benches(c: &mut Criterion) {
+    let mut g = c.benchmark_group(GROUP);
+    let mut sink = Sink { value: 0 };
+    let mut v = 0i64;
+    g.bench_function(BASELINE, |b| {
+        b.iter(|| {
+            v = v.wrapping_add(1);
+            store(black_box(&mut sink), black_box(v));
+        })
+    });
+    black_box(sink.value);
+    bench_write(&mut g, "write_no_connection", fan_node(0), false);
+    bench_write(&mut g, "normal_hop", fan_node(1), false);
+    bench_write(&mut g, "fan_out_4", fan_node(4), false);
+    bench_write(&mut g, "override_chain_5", override_node(), false);
+    bench_write(&mut g, "process_activation", process_node(), true);
+    g.finish();
+}
+
+/// Where Criterion writes its estimates (same rule as Criterion 0.5 itself).
+fn criterion_dir() -> PathBuf {
+    if let Some(home) = std::env::var_os("CRITERION_HOME") {
+        return PathBuf::from(home);
+    }
+    if let Some(target) = std::env::var_os("CARGO_TARGET_DIR") {
+        return PathBuf::from(target).join("criterion");
+    }
+    // The bench binary is <target>/<profile>/deps/propagation-<hash>.
+    std::env::current_exe()
+        .ok()
+        .and_then(|exe| exe.ancestors().nth(3).map(|t| t.join("criterion")))
+        .unwrap_or_else(|| PathBuf::from("target/criterion"))
+}
+
+/// The median (ns/op) Criterion estimated for `name`, if it was written after `since`.
+fn median_ns(dir: &std::path::Path, name: &str, since: SystemTime) -> Option<f64> {
+    let path = dir.join(GROUP).join(name).join("new").join("estimates.json");
+    let modified = fs::metadata(&path).and_then(|m| m.modified()).ok()?;
+    if modified < since {
+        return None; // left over from an earlier run (e.g. filtered out this time)
+    }
+    let json = fs::read_to_string(&path).ok()?;
+    let rest = &json[json.find("\"median\"")?..];
+    let rest = &rest[rest.find("\"point_estimate\"")? + "\"point_estimate\"".len()..];
+    let rest = rest.trim_start().strip_prefix(':')?.trim_start();
+    let end = rest.find([',', '}']).unwrap_or(rest.len());
+    rest[..end].trim().parse().ok()
+}
+
+fn machine() -> String {
+    let cpus = std::thread::available_parallelism().map_or(0, |n| n.get());
+    let model = fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("model name"))
+                .and_then(|l| l.split(':').nth(1))
+                .map(|m| m.trim().to_owned())
+        })
+        .unwrap_or_else(|| "unknown CPU".to_owned());
+    format!("{cpus} CPUs (nproc), {model}, {} {}", std::env::consts::OS, std::env::consts::ARCH)
+}
+
+fn main() {
+    // Files written by Criterion in this run are at least as new as this (minus fs granularity).
+    let start = SystemTime::now() - StdDuration::from_secs(1);
+    let mut c = Criterion::default()
+        .warm_up_time(StdDuration::from_secs(1))
+        .measurement_time(StdDuration::from_secs(3))
+        .sample_size(50)
+        .configure_from_args();
+    benches(&mut c);
+    c.final_summary();
+
+    let dir = criterion_dir();
+    let base = median_ns(&dir, BASELINE, start);
+    println!();
+    println!("Summary (median ns/op from this run; ratio = benchmark / {BASELINE})");
+    println!("machine: {}", machine());
+    println!("{:<22} {:>12} {:>10}", "benchmark", "ns/op", "ratio");
+    for name in BENCHES {
+        match (median_ns(&dir, name, start), base) {
+            (Some(ns), Some(b)) => println!("{name:<22} {ns:>12.2} {:>9.1}x", ns / b),
+            (Some(ns), None) => println!("{name:<22} {ns:>12.2} {:>10}", "n/a"),
+            (None, _) => println!("{name:<22} {:>12} {:>10}", "not run", "-"),
+        }
+    }
+    if let (Some(hop), Some(b)) = (median_ns(&dir, "normal_hop", start), base) {
+        let verdict = if hop <= 10.0 * b { "met" } else { "NOT met" };
+        println!("goal (one Normal hop within 10x of a function call): {verdict} ({:.1}x)", hop / b);
+    }
+}

@@ -10,6 +10,7 @@ pub mod error;
 pub mod lockstep;
 pub mod mem;
 pub mod node;
+pub mod stdlib;
 pub mod transport;
 
 pub use ayllu_core::*;

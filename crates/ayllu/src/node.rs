@@ -31,18 +31,16 @@ pub struct Node {
     clock: Box<dyn Clock>,
     transport: Box<dyn Transport>,
     stats: NodeStats,
+    /// The groups the transport has joined, and the core's generation they reflect.
+    joined: Vec<String>,
+    joined_generation: u64,
 }
 
 impl Node {
     /// A node with an explicit clock and transport.
     pub fn new(clock: impl Clock + 'static, transport: impl Transport + 'static) -> Node {
         let id = transport.local();
-        Node {
-            core: NodeCore::new(id),
-            clock: Box::new(clock),
-            transport: Box::new(transport),
-            stats: NodeStats::default(),
-        }
+        Node::assemble(NodeCore::new(id), Box::new(clock), Box::new(transport))
     }
 
     /// A node on the real monotonic clock, on the transport `url` names (`mem://team`).
@@ -53,7 +51,28 @@ impl Node {
     /// A node on the transport `url` names, with the given clock.
     pub fn open_with_clock(id: NodeId, url: &str, clock: impl Clock + 'static) -> Result<Node, Error> {
         let transport = transport::open(url, id)?;
-        Ok(Node { core: NodeCore::new(id), clock: Box::new(clock), transport, stats: NodeStats::default() })
+        Ok(Node::assemble(NodeCore::new(id), Box::new(clock), transport))
+    }
+
+    fn assemble(core: NodeCore, clock: Box<dyn Clock>, transport: Box<dyn Transport>) -> Node {
+        Node { core, clock, transport, stats: NodeStats::default(), joined: Vec::new(), joined_generation: 0 }
+    }
+
+    /// Make the transport's group memberships match the core's (groups may be joined through
+    /// `core_mut()`, e.g. by `ble_join`).
+    fn sync_groups(&mut self) {
+        if self.core.groups_generation() == self.joined_generation {
+            return;
+        }
+        self.joined_generation = self.core.groups_generation();
+        let wanted: Vec<String> = self.core.groups().iter().map(|g| g.to_string()).collect();
+        for g in self.joined.iter().filter(|g| !wanted.contains(g)) {
+            self.transport.leave(g);
+        }
+        for g in wanted.iter().filter(|g| !self.joined.contains(g)) {
+            self.transport.join(g);
+        }
+        self.joined = wanted;
     }
 
     pub fn id(&self) -> NodeId {
@@ -97,16 +116,16 @@ impl Node {
     /// Join a broadcast group, on the core and on the transport.
     pub fn join(&mut self, group: &str) {
         self.core.join(group);
-        self.transport.join(group);
+        self.sync_groups();
     }
     pub fn leave(&mut self, group: &str) {
         self.core.leave(group);
-        self.transport.leave(group);
+        self.sync_groups();
     }
     /// Make `behavior` a BLE peer (rule S11) and join the group on the transport.
     pub fn ble_join(&mut self, behavior: &str, config: &BleConfig) -> Result<BleGroup, Error> {
         let g = self.core.ble_join(behavior, config)?;
-        self.transport.join(&config.group);
+        self.sync_groups();
         Ok(g)
     }
     /// Write a port as its behavior would, now.
@@ -124,6 +143,7 @@ impl Node {
     /// One turn: receive everything waiting, run what is due, send what is produced.
     /// Returns when the core next has work.
     pub fn step(&mut self) -> Option<Instant> {
+        self.sync_groups();
         let now = self.clock.now();
         while let Some((from, message)) = self.transport.recv() {
             self.stats.received += 1;
