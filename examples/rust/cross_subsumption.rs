@@ -58,7 +58,7 @@ pub fn run(seconds: u64) -> String {
             team.kill(0);
             let _ = writeln!(out, "{t:6.2} | robot 1 stops (its claims are leases: they lapse)");
         }
-        if ms % 100 == 0 {
+        if ms.is_multiple_of(100) {
             for i in 0..team.nodes().len() {
                 let robot = team.nodes()[i].id().0;
                 for n in 1..=TARGETS {
@@ -91,7 +91,7 @@ pub fn run(seconds: u64) -> String {
                 claims[n as usize - 1] = holder;
             }
         }
-        if (ms + 10) % 1000 == 0 {
+        if (ms + 10).is_multiple_of(1000) {
             let mut line = format!("{:6.2} |", team.now().as_secs_f64());
             for r in 1..=ROBOTS {
                 match team.nodes().iter().find(|n| n.id().0 == r) {

@@ -47,7 +47,7 @@ fn team(name: &str, nodes: u32) -> Lockstep {
 fn run(team: &mut Lockstep, sight: &Sight, total: Duration, mut each_tick: impl FnMut(&Lockstep)) {
     let end = team.now() + total;
     while team.now() < end {
-        if team.now().as_nanos() % 100_000_000 == 0 {
+        if team.now().as_nanos().is_multiple_of(100_000_000) {
             for i in 0..team.nodes().len() {
                 let id = team.nodes()[i].id().0 as usize;
                 for n in 1..=LAYERS {
@@ -131,7 +131,7 @@ fn each_node_is_driven_by_its_highest_unclaimed_layer() {
     // Settled: check every 100 ms for 5 s.
     let mut checks = 0;
     run(&mut team, &sight, Duration::from_secs(5), |t| {
-        if t.now().as_nanos() % 100_000_000 == 0 {
+        if t.now().as_nanos().is_multiple_of(100_000_000) {
             check_settled(t, &sight, &[1, 2, 3]);
             checks += 1;
         }
