@@ -238,7 +238,8 @@ impl PortCell {
                 }
             }
             PortKind::Sum => {
-                if m.is_nan() {
+                // A NaN element poisons the sum for the whole window, even as its first value.
+                if m.is_nan() || m.as_vector().is_some_and(|v| v.iter().any(|x| x.is_nan())) {
                     return Err(DropCause::NotANumber);
                 }
                 if self.empty {
@@ -250,9 +251,6 @@ impl PortCell {
                         (Value::Vector(a), Value::Vector(b)) => {
                             if a.len() != b.len() {
                                 return Err(DropCause::ShapeMismatch);
-                            }
-                            if b.iter().any(|x| x.is_nan()) {
-                                return Err(DropCause::NotANumber);
                             }
                             Value::Vector(a.iter().zip(b.iter()).map(|(x, y)| x + y).collect())
                         }

@@ -209,18 +209,21 @@ fn a_message_from_another_node_starts_its_own_wave_into_a_cycle() {
 }
 
 #[test]
-fn remote_hops_leave_through_the_outbox_in_wave_order() {
+fn remote_hops_leave_through_the_outbox_in_depth_first_order() {
     // S5: remote hops are asynchronous: they are queued, in depth-first order, not applied.
+    // A -> B (local, made first), A -> n2 (remote), B -> n3 (remote): depth-first queues
+    // B's hop to n3 before A's own hop to n2.
     let mut node = wiring(&["A", "B"]);
-    node.connect(&Endpoint::local("A", V), &Endpoint::node(NodeId(2), "X", V), ConnectionKind::Normal, ConnectOptions::default())
-        .unwrap();
+    let options = ConnectOptions::default();
     normal(&mut node, "A", "B");
-    node.connect(&Endpoint::local("B", V), &Endpoint::node(NodeId(3), "Y", V), ConnectionKind::Normal, ConnectOptions::default())
+    node.connect(&Endpoint::local("A", V), &Endpoint::node(NodeId(2), "X", V), ConnectionKind::Normal, options)
+        .unwrap();
+    node.connect(&Endpoint::local("B", V), &Endpoint::node(NodeId(3), "Y", V), ConnectionKind::Normal, options)
         .unwrap();
     put(&mut node, at(0), "A", 1);
     let first = node.pop_outgoing().unwrap();
     let second = node.pop_outgoing().unwrap();
     assert!(node.pop_outgoing().is_none());
-    assert_eq!(first.to, Destination::Node(NodeId(2)));
-    assert_eq!(second.to, Destination::Node(NodeId(3)));
+    assert_eq!(first.to, Destination::Node(NodeId(3)));
+    assert_eq!(second.to, Destination::Node(NodeId(2)));
 }

@@ -20,3 +20,8 @@ pub use lockstep::Lockstep;
 pub use mem::{MemNetwork, MemTransport};
 pub use node::{Node, NodeStats};
 pub use transport::Transport;
+
+/// The README's Rust examples, compiled and run by `cargo test`.
+#[cfg(doctest)]
+#[doc = include_str!("../../../README.md")]
+pub struct ReadmeDoctests;
