@@ -380,7 +380,7 @@ impl NodeCore {
         self.behavior(r.b)
             .filter(|beh| beh.id == r.id)
             .and_then(|beh| beh.ports.get(usize::from(r.port.0)))
-            .ok_or(Error::UnknownBehavior { behavior: format!("(removed behavior #{})", r.id) })
+            .ok_or_else(|| Error::UnknownBehavior { behavior: format!("(removed behavior #{})", r.id) })
     }
 
     fn local_port(&self, behavior: &str, port: &str) -> Result<(u32, u16), Error> {

@@ -91,7 +91,7 @@ impl Rig {
 
     fn run(&mut self, step: Step) -> Seen {
         let (d0, e0) = (accepted(&self.node, "D"), accepted(&self.node, "E"));
-        let value = self.next_value;
+        let written = self.next_value;
         self.next_value += 1;
         match step {
             Step::Wait(n) => {
@@ -102,13 +102,13 @@ impl Rig {
                 if let Some(p) = self.kinds[i].period() {
                     self.ends[i] = self.ends[i].max(self.now + p);
                 }
-                put(&mut self.node, self.now, &source(i), value);
+                put(&mut self.node, self.now, &source(i), written);
             }
-            Step::Own => put(&mut self.node, self.now, "D", value),
+            Step::Own => put(&mut self.node, self.now, "D", written),
         }
         Seen {
             step,
-            value,
+            value: written,
             d_took: accepted(&self.node, "D") > d0,
             e_took: accepted(&self.node, "E") > e0,
             d: value(&self.node, "D"),
