@@ -45,7 +45,6 @@ fn window_kind(kind: ConnectionKind) -> Option<WindowKind> {
 /// What one step did to D and E.
 #[derive(Debug)]
 struct Seen {
-    step: Step,
     value: i64,
     d_took: bool,
     e_took: bool,
@@ -107,7 +106,6 @@ impl Rig {
             Step::Own => put(&mut self.node, self.now, "D", written),
         }
         Seen {
-            step,
             value: written,
             d_took: accepted(&self.node, "D") > d0,
             e_took: accepted(&self.node, "E") > e0,

@@ -169,8 +169,13 @@ fn a_behavior_stops_its_output_when_its_input_is_stale() {
     node.define(motor).unwrap();
     node.create("Ctl", "Ctl").unwrap();
     node.create("Motor", "Motor").unwrap();
-    node.connect(&Endpoint::local("Ctl", "Out"), &Endpoint::local("Motor", "Cmd"), ConnectionKind::Normal, ConnectOptions::default())
-        .unwrap();
+    node.connect(
+        &Endpoint::local("Ctl", "Out"),
+        &Endpoint::local("Motor", "Cmd"),
+        ConnectionKind::Normal,
+        ConnectOptions::default(),
+    )
+    .unwrap();
     let commands = |node: &NodeCore| node.why("Motor", "Cmd").unwrap().accepted;
 
     node.poll(ms(0)); // no input yet: no command

@@ -36,7 +36,10 @@ fn why_reports_value_supplier_and_freshness() {
     assert_eq!(why.last_accepted, Some(at(5)));
     assert_eq!(why.accepted, 1);
     assert!(why.fresh);
-    assert_eq!((why.behavior.as_str(), why.port.as_str(), why.kind, why.ty), ("D", V, PortKind::Normal, ValueType::Int));
+    assert_eq!(
+        (why.behavior.as_str(), why.port.as_str(), why.kind, why.ty),
+        ("D", V, PortKind::Normal, ValueType::Int)
+    );
     assert_eq!(why.node, NODE);
     put(&mut node, at(6), "D", 4);
     assert_eq!(node.why("D", V).unwrap().supplier, Some(Source::internal(NODE)));

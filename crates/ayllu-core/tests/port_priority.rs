@@ -112,7 +112,8 @@ fn reset_empties_and_lets_a_lower_priority_in() {
 #[test]
 fn window_end_releases_the_port() {
     // S3 Priority: when the window ends the high-priority holder loses the port.
-    let mut r = FanIn::with_priorities(PortSpec::new("In", 0i64).priority().window(Duration::from_millis(200)), &[1, 9]);
+    let mut r =
+        FanIn::with_priorities(PortSpec::new("In", 0i64).priority().window(Duration::from_millis(200)), &[1, 9]);
     r.send(1, ms(0), 9i64); // window [0, 200)
     r.send(0, ms(199), 1i64);
     assert_eq!(r.read(), Value::Int(9));

@@ -94,12 +94,8 @@ struct Rig {
 
 fn rig() -> Rig {
     let mut node = NodeCore::new(NodeId(1));
-    let types: [(&str, Value); 4] = [
-        ("int", Value::Int(0)),
-        ("float", Value::Float(0.0)),
-        ("bool", Value::Bool(false)),
-        ("text", Value::text("")),
-    ];
+    let types: [(&str, Value); 4] =
+        [("int", Value::Int(0)), ("float", Value::Float(0.0)), ("bool", Value::Bool(false)), ("text", Value::text(""))];
     for (t, default) in &types {
         let mut src = BehaviorClass::new(&format!("Src_{t}"));
         src.port(PortSpec::new("Out", default.clone())).unwrap();
