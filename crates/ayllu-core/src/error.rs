@@ -5,6 +5,7 @@
 use core::fmt;
 
 use crate::connection::ConnectionKind;
+use crate::counters::DropCause;
 use crate::port::PortKind;
 use crate::value::ValueType;
 
@@ -91,6 +92,12 @@ pub enum Error {
     Ble {
         reason: String,
     },
+    /// A port of the right type refused a value by its merge rule (NaN into Max/Min/Sum, a
+    /// vector of another length into a vector Sum).
+    Refused {
+        what: String,
+        cause: DropCause,
+    },
 }
 
 impl fmt::Display for Error {
@@ -140,6 +147,7 @@ impl fmt::Display for Error {
                 write!(f, "behavior `{behavior}` declares more than 65535 registers")
             }
             Error::Ble { reason } => write!(f, "BLE group: {reason}"),
+            Error::Refused { what, cause } => write!(f, "{what} refused the value ({cause})"),
         }
     }
 }

@@ -93,12 +93,13 @@ impl Value {
         matches!(self, Value::Float(x) if x.is_nan())
     }
     /// The order Max and Min ports use; `None` for types without one (text, bytes, vectors)
-    /// or when the two values differ in type.
+    /// or when the two values differ in type. Floats use the IEEE total order, so `-0.0 < 0.0`
+    /// and equal means bit-identical: the value a port keeps never depends on arrival order.
     pub fn order(&self, other: &Value) -> Option<Ordering> {
         match (self, other) {
             (Value::Bool(a), Value::Bool(b)) => Some(a.cmp(b)),
             (Value::Int(a), Value::Int(b)) => Some(a.cmp(b)),
-            (Value::Float(a), Value::Float(b)) => a.partial_cmp(b),
+            (Value::Float(a), Value::Float(b)) => Some(a.total_cmp(b)),
             _ => None,
         }
     }

@@ -109,11 +109,14 @@ fn without_lifespan_a_written_port_stays_fresh() {
     assert!(node.fresh(p).unwrap());
 }
 
+/// (now in ms, int, float, bool, fresh, read) as a process saw them.
+type Seen = (u64, Option<i64>, Option<f64>, Option<bool>, bool, Value);
+
 #[test]
 fn ctx_accessors_return_none_when_stale() {
     // S4: inside a process, int/float/bool/get/fresh report absence once the lifespan ran out;
     // read() still gives the stored value.
-    let seen: Arc<Mutex<Vec<(u64, Option<i64>, Option<f64>, Option<bool>, bool, Value)>>> = Arc::default();
+    let seen: Arc<Mutex<Vec<Seen>>> = Arc::default();
     let mut node = NodeCore::new(NodeId(1));
     let mut c = BehaviorClass::new("C");
     let life = Duration::from_millis(150);
