@@ -635,7 +635,7 @@ impl NodeCore {
         let what = format!("port {}.{}", beh.name, spec.name);
         match cause {
             DropCause::TypeMismatch => Error::TypeMismatch { what, expected: spec.ty(), found: value.ty() },
-            _ => Error::KindNotSupported { kind: spec.kind, ty: value.ty() },
+            _ => Error::Refused { what, cause },
         }
     }
 
@@ -692,7 +692,13 @@ impl NodeCore {
                 self.stack.pop();
                 continue;
             };
-            top.next += 1;
+            // Taking the port's last connection finishes its frame: pop it now rather than
+            // revisit it (same depth-first order; `out` cannot change during a wave).
+            if next as usize + 1 == port.out.len() {
+                self.stack.pop();
+            } else {
+                top.next += 1;
+            }
             let value = port.cell.value.clone();
             let Some(conn) = self.conns.get_mut(c as usize).and_then(Option::as_mut) else { continue };
             let from = Source::connection(me, ConnectionId(conn.id));
@@ -1051,18 +1057,24 @@ impl NodeCore {
         let Some(beh) = self.behavior_mut(b) else {
             return Err(Error::UnknownBehavior { behavior: format!("#{b}") });
         };
-        let name = beh.name.clone();
         let Some(slot) = beh.slots.get_mut(usize::from(s.0)) else {
-            return Err(Error::UnknownPort { behavior: name.to_string(), port: format!("slot #{}", s.0) });
+            return Err(Error::UnknownPort { behavior: beh.name.to_string(), port: format!("slot #{}", s.0) });
         };
         if slot.ty() != value.ty() {
             return Err(Error::TypeMismatch {
-                what: format!("slot {name}.{}", beh.class.slots[usize::from(s.0)].name),
+                what: format!("slot {}.{}", beh.name, beh.class.slots[usize::from(s.0)].name),
                 expected: slot.ty(),
                 found: value.ty(),
             });
         }
-        *slot = value;
+        // Scalars are stored field by field: moving the whole enum in costs a store-forwarding
+        // stall (see `port::assign`).
+        match (slot, value) {
+            (Value::Int(d), Value::Int(x)) => *d = x,
+            (Value::Float(d), Value::Float(x)) => *d = x,
+            (Value::Bool(d), Value::Bool(x)) => *d = x,
+            (slot, value) => *slot = value,
+        }
         Ok(())
     }
 

@@ -205,14 +205,27 @@ impl PortCell {
 
     /// Merge `m` from `from` at `now` (rule S3). `Ok(())` means the port *accepted* the value
     /// and it must be propagated (rule S5); `Err(cause)` means it was refused or absorbed.
+    #[inline]
     pub fn merge(&mut self, now: Instant, m: &Value, from: Source, priority: i32) -> Result<(), DropCause> {
+        // Fast path for the common case, inlined into the hop: a Normal port never expires,
+        // so this is exactly the `PortKind::Normal` arm below.
+        if self.kind == PortKind::Normal && m.ty() == self.ty() {
+            assign(&mut self.value, m);
+            self.supplier = Some(from);
+            self.last_accepted = Some(now);
+            return Ok(());
+        }
+        self.merge_any(now, m, from, priority)
+    }
+
+    fn merge_any(&mut self, now: Instant, m: &Value, from: Source, priority: i32) -> Result<(), DropCause> {
         if m.ty() != self.ty() {
             return Err(DropCause::TypeMismatch);
         }
         self.expire(now);
         match self.kind {
             PortKind::Normal => {
-                self.value.clone_from(m);
+                assign(&mut self.value, m);
                 self.supplier = Some(from);
             }
             PortKind::Max | PortKind::Min => {
@@ -225,7 +238,7 @@ impl PortCell {
                     let ord = m.order(&self.value).ok_or(DropCause::TypeMismatch)?;
                     let better = if self.kind == PortKind::Max { Ordering::Greater } else { Ordering::Less };
                     if ord == better {
-                        self.value.clone_from(m);
+                        assign(&mut self.value, m);
                         self.supplier = Some(from);
                     } else if ord == Ordering::Equal {
                         // Ties go to the smaller source, whatever the arrival order.
@@ -270,7 +283,7 @@ impl PortCell {
                 if self.empty {
                     self.open(now, m, from);
                 } else {
-                    self.value.clone_from(m);
+                    assign(&mut self.value, m);
                     self.supplier = Some(from);
                 }
                 self.supplier_priority = priority;
@@ -281,12 +294,25 @@ impl PortCell {
     }
 
     fn open(&mut self, now: Instant, m: &Value, from: Source) {
-        self.value.clone_from(m);
+        assign(&mut self.value, m);
         self.supplier = Some(from);
         self.empty = false;
         self.window_end = match self.window {
             Some(w) => now + w,
             None => Instant::MAX,
         };
+    }
+}
+
+/// `*dst = m.clone()`, with scalars stored directly. The derived `clone_from` copies the
+/// enum through a stack temporary with overlapping partial stores, which stalls store
+/// forwarding and made it the most expensive step of a hop; this is the same assignment.
+#[inline]
+fn assign(dst: &mut Value, m: &Value) {
+    match (dst, m) {
+        (Value::Int(d), Value::Int(x)) => *d = *x,
+        (Value::Float(d), Value::Float(x)) => *d = *x,
+        (Value::Bool(d), Value::Bool(x)) => *d = *x,
+        (dst, m) => dst.clone_from(m),
     }
 }

@@ -218,5 +218,9 @@ fn main() {
     if let (Some(hop), Some(b)) = (median_ns(&dir, "normal_hop", start), base) {
         let verdict = if hop <= 10.0 * b { "met" } else { "NOT met" };
         println!("goal (one Normal hop within 10x of a function call): {verdict} ({:.1}x)", hop / b);
+        if let Some(w) = median_ns(&dir, "write_no_connection", start) {
+            let extra = hop - w;
+            println!("  of which the hop itself (normal_hop - write_no_connection): {extra:.2} ns ({:.1}x)", extra / b);
+        }
     }
 }

@@ -182,7 +182,7 @@ fn round(rig: &mut Rig, i: u64) {
     let node = &mut rig.node;
     let n = i as i64;
     let x = i as f64 * 0.5;
-    let b = i % 2 == 0;
+    let b = i & 1 == 0;
     node.write(now, rig.hop[0], n).unwrap();
     node.write(now, rig.hop[1], x).unwrap();
     node.write(now, rig.hop[2], b).unwrap();
@@ -221,7 +221,7 @@ fn scalar_propagation_does_not_allocate() {
     assert_eq!(node.read(node.port("HD_int", "In").unwrap()).unwrap(), Value::Int(last as i64));
     assert_eq!(node.read(node.port("HD_float", "In").unwrap()).unwrap(), Value::Float(last as f64 * 0.5));
     assert_eq!(node.read(node.port("FD_float_3", "In").unwrap()).unwrap(), Value::Float(last as f64 * 0.5));
-    assert_eq!(node.read(node.port("FD_bool_3", "In").unwrap()).unwrap(), Value::Bool(last % 2 == 0));
+    assert_eq!(node.read(node.port("FD_bool_3", "In").unwrap()).unwrap(), Value::Bool(last & 1 == 0));
     for i in 0..4 {
         let d = node.port(&format!("FD_int_{i}"), "In").unwrap();
         assert_eq!(node.read(d).unwrap(), Value::Int(last as i64));
