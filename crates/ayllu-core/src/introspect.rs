@@ -131,7 +131,7 @@ impl NodeCore {
         let outgoing = ps
             .out
             .iter()
-            .filter_map(|&c| self.conns[c as usize].as_ref())
+            .filter_map(|e| self.conns[e.conn as usize].as_ref())
             .filter_map(|c| all.iter().find(|i| i.id.0 == c.id).cloned())
             .collect();
         let empty = ps.cell.kind().is_aggregating() && (ps.cell.empty || now >= ps.cell.window_end);

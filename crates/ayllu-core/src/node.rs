@@ -74,8 +74,9 @@ pub enum RequestStatus {
 pub(crate) struct PortState {
     pub(crate) cell: PortCell,
     pub(crate) windows: Windows,
-    /// Outgoing connections (indices into `NodeCore::conns`).
-    pub(crate) out: Vec<u32>,
+    /// Outgoing connections, with what a hop needs copied in so that a local hop never
+    /// touches the connection table (see [`Edge`]).
+    pub(crate) out: Vec<Edge>,
     /// Processes of this behavior triggered when the port accepts a value.
     pub(crate) triggers: Vec<u16>,
     pub(crate) visited: u64,
@@ -124,6 +125,19 @@ pub(crate) struct Conn {
     pub(crate) seq: u64,
     pub(crate) source: Endpoint,
     pub(crate) destination: Endpoint,
+}
+
+/// One outgoing connection as the propagation loop sees it: a copy of the connection's
+/// immutable facts. `conns` stays the owner (sequence numbers, endpoints, remote targets).
+#[derive(Copy, Clone, Debug)]
+pub(crate) struct Edge {
+    /// Index into `NodeCore::conns`.
+    pub(crate) conn: u32,
+    pub(crate) id: u64,
+    /// The destination port when it is on this node.
+    pub(crate) local: Option<(u32, u16)>,
+    pub(crate) kind: ConnectionKind,
+    pub(crate) priority: i32,
 }
 
 #[derive(Copy, Clone)]
@@ -435,6 +449,10 @@ impl NodeCore {
             Endpoint::Node { behavior, port, .. } => Endpoint::Local { behavior: behavior.clone(), port: port.clone() },
             other => other.clone(),
         };
+        let local = match dst {
+            Target::Local { b, p } => Some((b, p)),
+            Target::Remote { .. } => None,
+        };
         let conn = Conn {
             id,
             src: (sb, sp),
@@ -456,7 +474,8 @@ impl NodeCore {
             }
         };
         self.conn_ids.insert(id, c);
-        self.behavior_mut(sb).expect("resolved").ports[usize::from(sp)].out.push(c);
+        let edge = Edge { conn: c, id, local, kind, priority: options.priority };
+        self.behavior_mut(sb).expect("resolved").ports[usize::from(sp)].out.push(edge);
         Ok(ConnectionId(id))
     }
 
@@ -486,7 +505,7 @@ impl NodeCore {
         self.free_conns.push(c);
         let me = self.id;
         if let Some(beh) = self.behavior_mut(conn.src.0) {
-            beh.ports[usize::from(conn.src.1)].out.retain(|&x| x != c);
+            beh.ports[usize::from(conn.src.1)].out.retain(|e| e.conn != c);
         }
         if let Target::Local { b, p } = conn.dst {
             if let Some(beh) = self.behavior_mut(b) {
@@ -688,7 +707,7 @@ impl NodeCore {
                 continue;
             };
             let port = &beh.ports[usize::from(p)];
-            let Some(&c) = port.out.get(next as usize) else {
+            let Some(&edge) = port.out.get(next as usize) else {
                 self.stack.pop();
                 continue;
             };
@@ -700,16 +719,17 @@ impl NodeCore {
                 top.next += 1;
             }
             let value = port.cell.value.clone();
-            let Some(conn) = self.conns.get_mut(c as usize).and_then(Option::as_mut) else { continue };
-            let from = Source::connection(me, ConnectionId(conn.id));
-            let (kind, priority) = (conn.kind, conn.priority);
-            match &conn.dst {
-                Target::Local { b: db, p: dp } => {
-                    let (db, dp) = (*db, *dp);
-                    if self.deliver(db, dp, kind, from, priority, &value) {
-                        self.stack.push(Frame { b: db, p: dp, next: 0 });
-                    }
+            let from = Source::connection(me, ConnectionId(edge.id));
+            let (kind, priority) = (edge.kind, edge.priority);
+            if let Some((db, dp)) = edge.local {
+                if self.deliver(db, dp, kind, from, priority, &value) {
+                    self.stack.push(Frame { b: db, p: dp, next: 0 });
                 }
+                continue;
+            }
+            let Some(conn) = self.conns.get_mut(edge.conn as usize).and_then(Option::as_mut) else { continue };
+            match &conn.dst {
+                Target::Local { .. } => {}
                 Target::Remote { to, behavior, port } => {
                     conn.seq += 1;
                     let message = Message::Port(PortMessage {
@@ -729,6 +749,7 @@ impl NodeCore {
 
     /// Apply one message arriving along a connection at local port (b, p). Returns whether the
     /// value was stored *and* may propagate.
+    #[inline]
     fn deliver(&mut self, b: u32, p: u16, kind: ConnectionKind, from: Source, priority: i32, value: &Value) -> bool {
         let (now, wave) = (self.now, self.wave);
         let Some(beh) = self.behaviors.get_mut(b as usize).and_then(Option::as_mut) else {
@@ -741,7 +762,7 @@ impl NodeCore {
             return false;
         };
         // A special connection's window always takes effect when its message arrives; only
-        // the write of `m` itself is subject to the blocks in force (docs/semantics.md, A3).
+        // the write of `m` itself is subject to the blocks in force (docs/semantics.md, D6.2).
         match kind {
             ConnectionKind::Normal => {}
             ConnectionKind::Suppress(d) => {

@@ -205,7 +205,7 @@ impl PortCell {
 
     /// Merge `m` from `from` at `now` (rule S3). `Ok(())` means the port *accepted* the value
     /// and it must be propagated (rule S5); `Err(cause)` means it was refused or absorbed.
-    #[inline]
+    #[inline(always)]
     pub fn merge(&mut self, now: Instant, m: &Value, from: Source, priority: i32) -> Result<(), DropCause> {
         // Fast path for the common case, inlined into the hop: a Normal port never expires,
         // so this is exactly the `PortKind::Normal` arm below.
@@ -218,6 +218,7 @@ impl PortCell {
         self.merge_any(now, m, from, priority)
     }
 
+    #[inline(never)]
     fn merge_any(&mut self, now: Instant, m: &Value, from: Source, priority: i32) -> Result<(), DropCause> {
         if m.ty() != self.ty() {
             return Err(DropCause::TypeMismatch);
