@@ -9,6 +9,7 @@ use std::sync::Arc;
 
 /// A node: one process running Ayllu. Lower ids win ties (rule S3, S11).
 #[derive(Copy, Clone, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Default)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct NodeId(pub u32);
 
 impl fmt::Display for NodeId {
@@ -20,6 +21,7 @@ impl fmt::Display for NodeId {
 /// A connection id, unique on the node that owns the connection and never reused.
 /// Zero is reserved for "a process of the port's own behavior" in [`Source`].
 #[derive(Copy, Clone, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct ConnectionId(pub u64);
 
 impl fmt::Display for ConnectionId {
@@ -34,6 +36,7 @@ impl fmt::Display for ConnectionId {
 /// The derived order — node first, then connection — is the deterministic tie-break: when two
 /// sources offer equal values to a Max or Min port, the *smaller* source is kept.
 #[derive(Copy, Clone, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Default)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Source {
     pub node: NodeId,
     pub conn: u64,
@@ -63,6 +66,7 @@ impl fmt::Display for Source {
 
 /// One end of a connection.
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum Endpoint {
     /// `(behavior, port)` on this node.
     Local { behavior: Arc<str>, port: Arc<str> },

@@ -17,6 +17,7 @@ use crate::time::Instant;
 
 /// Which effect a window has.
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum WindowKind {
     Suppress,
     Inhibit,
@@ -41,6 +42,7 @@ impl WindowKind {
 
 /// One active (or expired) window.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Window {
     pub kind: WindowKind,
     /// The connection that opened it (and holds the pass, for overrides).

@@ -18,12 +18,15 @@ use crate::value::Value;
 
 /// A port of a behavior, as seen by its own processes.
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Port(pub u16);
 /// A slot: a register only the behavior's own processes see.
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Slot(pub u16);
 /// A monostable: true for a while after it is triggered.
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Mono(pub u16);
 
 impl Port {
@@ -42,6 +45,7 @@ pub const BEST: &str = "Best";
 
 /// When a process runs.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum Trigger {
     /// Every period, phase-locked to the behavior's creation; late activations are skipped
     /// and counted, never run in a burst.

@@ -114,6 +114,7 @@ pub(crate) struct BleState {
 
 /// A behavior's BLE standing at `now`.
 #[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct BleStatus {
     pub behavior: String,
     pub group: String,

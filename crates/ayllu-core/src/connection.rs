@@ -11,6 +11,7 @@ use crate::time::Duration;
 
 /// What a connection does to its destination port `d` when a message `m` arrives.
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum ConnectionKind {
     /// Write `m` into `d` (unless `d` is suppressed); if accepted, propagate.
     Normal,
@@ -86,6 +87,7 @@ pub struct ConnectOptions {
 
 /// Summary of a connection for listing and introspection.
 #[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct ConnectionInfo {
     pub id: ConnectionId,
     pub source: crate::address::Endpoint,

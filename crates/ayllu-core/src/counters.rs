@@ -8,6 +8,7 @@ use core::fmt;
 
 /// The cause under which a blocked or refused message is counted.
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum DropCause {
     /// A connection write refused because the destination is suppressed (plain Suppress).
     Suppressed,
@@ -87,6 +88,7 @@ impl fmt::Display for DropCause {
 
 /// A fixed array of counters indexed by [`DropCause`].
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Counters {
     counts: [u64; DropCause::COUNT],
 }

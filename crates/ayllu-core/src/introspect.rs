@@ -19,6 +19,7 @@ use crate::value::{Value, ValueType};
 
 /// An open arbitration window on a port.
 #[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct WindowReport {
     pub kind: WindowKind,
     /// The connection that opened it (and holds the pass, for overrides).
@@ -29,6 +30,7 @@ pub struct WindowReport {
 
 /// Everything about one port: value, provenance, freshness, windows, counters, wiring.
 #[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct PortReport {
     pub node: NodeId,
     pub now: Instant,
@@ -60,6 +62,7 @@ pub struct PortReport {
 
 /// A process's schedule and statistics.
 #[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct ProcessReport {
     pub name: String,
     pub trigger: Trigger,
@@ -71,6 +74,7 @@ pub struct ProcessReport {
 
 /// A register as listed.
 #[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct RegisterReport {
     pub name: String,
     pub kind: PortKind,
@@ -81,6 +85,7 @@ pub struct RegisterReport {
 
 /// One behavior as listed.
 #[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct BehaviorReport {
     pub name: String,
     pub class: String,
@@ -93,6 +98,7 @@ pub struct BehaviorReport {
 
 /// The whole node.
 #[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct NodeReport {
     pub node: NodeId,
     pub now: Instant,

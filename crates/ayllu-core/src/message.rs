@@ -10,6 +10,7 @@ use std::sync::Arc;
 
 use crate::address::{ConnectionId, Endpoint, NodeId};
 use crate::connection::ConnectionKind;
+use crate::introspect::{NodeReport, PortReport};
 use crate::value::Value;
 
 /// Where an outgoing message goes.
@@ -55,8 +56,25 @@ pub enum ControlBody {
     },
     /// Remove a connection owned by the receiver.
     Disconnect { conn: ConnectionId },
-    /// The answer to request `id`: the connection id, or why not.
-    Reply { result: Result<ConnectionId, String> },
+    /// Describe the whole node (answered with [`ReplyBody::Node`]).
+    List,
+    /// Explain one port (answered with [`ReplyBody::Port`]).
+    Why { behavior: Arc<str>, port: Arc<str> },
+    /// Read one port's value (answered with [`ReplyBody::Value`]).
+    Read { behavior: Arc<str>, port: Arc<str> },
+    /// The answer to request `id`, or why it could not be carried out.
+    Reply { result: Result<ReplyBody, String> },
+}
+
+/// What a successful request returns.
+#[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum ReplyBody {
+    /// CONNECT: the new connection; DISCONNECT: the removed one.
+    Connection(ConnectionId),
+    Value(Value),
+    Node(Box<NodeReport>),
+    Port(Box<PortReport>),
 }
 
 #[derive(Clone, Debug, PartialEq)]

@@ -21,7 +21,7 @@ use crate::ble::BleState;
 use crate::connection::{ConnectOptions, ConnectionInfo, ConnectionKind};
 use crate::counters::{Counters, DropCause};
 use crate::error::Error;
-use crate::message::{ControlBody, ControlMessage, Destination, Message, Outgoing, PortMessage};
+use crate::message::{ControlBody, ControlMessage, Destination, Message, Outgoing, PortMessage, ReplyBody};
 use crate::port::PortCell;
 use crate::process::Ctx;
 use crate::time::{Duration, Instant};
@@ -67,7 +67,7 @@ pub struct RequestId(pub u64);
 #[derive(Clone, Debug, PartialEq)]
 pub enum RequestStatus {
     Pending { sends: u32 },
-    Done(ConnectionId),
+    Done(ReplyBody),
     Failed(String),
 }
 
@@ -182,7 +182,7 @@ pub struct NodeCore {
     seq_table_resets: u64,
     requests: Vec<Request>,
     next_request: u64,
-    answered: HashMap<(NodeId, u64), Result<ConnectionId, String>>,
+    answered: HashMap<(NodeId, u64), Result<ReplyBody, String>>,
     answered_order: VecDeque<(NodeId, u64)>,
     pub(crate) warnings: Vec<String>,
 }
@@ -854,7 +854,7 @@ impl NodeCore {
                 if let Some(r) = self.requests.iter_mut().find(|r| r.id == c.id && r.to == from) {
                     if matches!(r.status, RequestStatus::Pending { .. }) {
                         r.status = match result {
-                            Ok(id) => RequestStatus::Done(id),
+                            Ok(body) => RequestStatus::Done(body),
                             Err(e) => RequestStatus::Failed(e),
                         };
                     }
@@ -886,7 +886,7 @@ impl NodeCore {
         });
     }
 
-    fn apply_control(&mut self, body: ControlBody) -> Result<ConnectionId, Error> {
+    fn apply_control(&mut self, body: ControlBody) -> Result<ReplyBody, Error> {
         match body {
             ControlBody::Connect { source_behavior, source_port, destination, kind, priority } => {
                 if matches!(destination, Endpoint::Local { .. }) {
@@ -895,10 +895,25 @@ impl NodeCore {
                     });
                 }
                 let source = Endpoint::Local { behavior: source_behavior, port: source_port };
-                self.connect(&source, &destination, kind, ConnectOptions { priority })
+                self.connect(&source, &destination, kind, ConnectOptions { priority }).map(ReplyBody::Connection)
             }
-            ControlBody::Disconnect { conn } => self.disconnect(conn).map(|()| conn),
+            ControlBody::Disconnect { conn } => self.disconnect(conn).map(|()| ReplyBody::Connection(conn)),
+            ControlBody::List => Ok(ReplyBody::Node(Box::new(self.report()))),
+            ControlBody::Why { behavior, port } => self.why(&behavior, &port).map(|r| ReplyBody::Port(Box::new(r))),
+            ControlBody::Read { behavior, port } => {
+                let r = self.port(&behavior, &port)?;
+                self.read(r).map(ReplyBody::Value)
+            }
             ControlBody::Reply { .. } => unreachable!("replies are handled before apply_control"),
+        }
+    }
+
+    /// Ask `node` to describe itself (LIST), explain a port (WHY) or read one (READ); the
+    /// answer arrives in [`NodeCore::request_status`].
+    pub fn request(&mut self, node: NodeId, body: ControlBody) -> Result<RequestId, Error> {
+        match body {
+            ControlBody::Reply { .. } => Err(Error::NotLocal { what: "a reply is not a request".into() }),
+            body => Ok(self.send_request(node, body)),
         }
     }
 

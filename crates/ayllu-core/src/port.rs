@@ -16,6 +16,7 @@ use crate::value::{Value, ValueType};
 
 /// How a port merges an incoming value `m` into its current value `c` (rule S3).
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum PortKind {
     /// `c := m`.
     Normal,

@@ -14,6 +14,7 @@ use crate::error::Error;
 ///
 /// Instants from different nodes are not comparable; nothing in Ayllu needs them to be.
 #[derive(Copy, Clone, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Instant {
     nanos: u64,
 }
@@ -21,6 +22,7 @@ pub struct Instant {
 /// A span of time in nanoseconds. Never negative: negative spans are rejected where they are
 /// made from user input ([`Duration::try_from_secs_f64`]).
 #[derive(Copy, Clone, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Duration {
     nanos: u64,
 }

@@ -11,6 +11,7 @@ use std::sync::Arc;
 
 /// The type of a register, fixed when it is declared.
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum ValueType {
     Bool,
     Int,
@@ -23,6 +24,7 @@ pub enum ValueType {
 
 /// One register value.
 #[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum Value {
     Bool(bool),
     Int(i64),

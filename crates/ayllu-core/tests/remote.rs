@@ -353,7 +353,7 @@ fn request_connect_from_a_remote_source_is_idempotent() {
         match &r.message {
             Message::Control(ControlMessage { id, body: ControlBody::Reply { result } }) => {
                 assert_eq!(*id, control_to(&req).1);
-                assert_eq!(result, &Ok(made.id));
+                assert_eq!(result, &Ok(ReplyBody::Connection(made.id)));
             }
             other => panic!("expected a reply, got {other:?}"),
         }
@@ -361,7 +361,7 @@ fn request_connect_from_a_remote_source_is_idempotent() {
     for r in replies {
         t.node(1).receive(ms(3), NodeId(2), r.message);
     }
-    assert_eq!(t.get(1).request_status(rid), Some(RequestStatus::Done(made.id)));
+    assert_eq!(t.get(1).request_status(rid), Some(RequestStatus::Done(ReplyBody::Connection(made.id))));
     // The connection works.
     t.node(2).write_named(ms(4), "Tx", "Out", 12i64).unwrap();
     t.shuttle(ms(4));
@@ -419,7 +419,7 @@ fn a_special_connection_to_a_group_by_request() {
         )
         .unwrap();
     t.shuttle(ms(0));
-    let Some(RequestStatus::Done(c)) = t.get(1).request_status(rid) else { panic!("not done") };
+    let Some(RequestStatus::Done(ReplyBody::Connection(c))) = t.get(1).request_status(rid) else { panic!("not done") };
     t.node(2).write_named(ms(0), "Tx", "Out", 5i64).unwrap();
     t.shuttle(ms(0));
     for n in [1, 3] {
@@ -467,10 +467,10 @@ fn request_disconnect_removes_the_remote_connection() {
         )
         .unwrap();
     t.shuttle(ms(0));
-    let Some(RequestStatus::Done(c)) = t.get(1).request_status(rid) else { panic!("not done") };
+    let Some(RequestStatus::Done(ReplyBody::Connection(c))) = t.get(1).request_status(rid) else { panic!("not done") };
     let d = t.node(1).request_disconnect(NodeId(2), c);
     t.shuttle(ms(1));
-    assert_eq!(t.get(1).request_status(d), Some(RequestStatus::Done(c)));
+    assert_eq!(t.get(1).request_status(d), Some(RequestStatus::Done(ReplyBody::Connection(c))));
     assert!(t.get(2).connection(c).is_none());
     t.node(2).write_named(ms(2), "Tx", "Out", 1i64).unwrap();
     assert_eq!(t.shuttle(ms(2)), 0);

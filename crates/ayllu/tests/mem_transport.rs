@@ -4,7 +4,7 @@
 
 use ayllu::{
     BehaviorClass, ConnectOptions, ConnectionKind, DropCause, Duration, Endpoint, Lockstep, NodeId, PortSpec,
-    RequestStatus, RuntimeError, Value,
+    ReplyBody, RequestStatus, RuntimeError, Value,
 };
 
 const TICK: Duration = Duration::from_millis(1);
@@ -168,7 +168,7 @@ fn s10_request_connect_makes_a_connection_from_another_nodes_port() {
         .unwrap();
     team.advance(TICK * 3, TICK);
     let status = team.nodes()[0].core().request_status(req).unwrap();
-    let RequestStatus::Done(id) = status else { panic!("request not answered: {status:?}") };
+    let RequestStatus::Done(ReplyBody::Connection(id)) = status else { panic!("request not answered: {status:?}") };
     assert!(team.nodes()[2].core().connection(id).is_some(), "the connection lives on the source's node");
     write_and_deliver(&mut team, 2, "SRC", "Out", 42);
     assert_eq!(dst(&team, 0), Value::Int(42));
@@ -250,4 +250,34 @@ fn s8_real_time_nodes_on_threads_exchange_messages() {
     let got = b.read("C", "In").unwrap().as_int().unwrap();
     assert!(got >= 1, "node 2 never heard node 1");
     assert!(a.stats().sent >= 1 && b.stats().received >= 1);
+}
+
+#[test]
+fn s10_list_why_and_read_requests_answer_with_reports() {
+    use ayllu::ControlBody;
+    let mut team = team("mem-list");
+    team.node(1).write("DST", "In", 17i64).unwrap();
+    let core = team.node(0).core_mut();
+    let list = core.request(NodeId(2), ControlBody::List).unwrap();
+    let why = core.request(NodeId(2), ControlBody::Why { behavior: "DST".into(), port: "In".into() }).unwrap();
+    let read = core.request(NodeId(2), ControlBody::Read { behavior: "DST".into(), port: "In".into() }).unwrap();
+    let bad = core.request(NodeId(2), ControlBody::Read { behavior: "NOPE".into(), port: "In".into() }).unwrap();
+    team.advance(TICK * 3, TICK);
+    let core = team.nodes()[0].core();
+    match core.request_status(list) {
+        Some(RequestStatus::Done(ReplyBody::Node(report))) => {
+            assert_eq!(report.node, NodeId(2));
+            assert_eq!(report.behaviors.iter().map(|b| b.name.as_str()).collect::<Vec<_>>(), ["DST", "SINK", "SRC"]);
+        }
+        other => panic!("{other:?}"),
+    }
+    match core.request_status(why) {
+        Some(RequestStatus::Done(ReplyBody::Port(report))) => {
+            assert_eq!(report.value, Value::Int(17));
+            assert_eq!(report.outgoing.len(), 1);
+        }
+        other => panic!("{other:?}"),
+    }
+    assert_eq!(core.request_status(read), Some(RequestStatus::Done(ReplyBody::Value(Value::Int(17)))));
+    assert!(matches!(core.request_status(bad), Some(RequestStatus::Failed(why)) if why.contains("NOPE")));
 }
