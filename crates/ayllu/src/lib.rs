@@ -6,7 +6,9 @@
 //! virtual time. Everything in the core is re-exported, so `use ayllu::*` is enough.
 
 pub mod clock;
+pub mod datagram;
 pub mod error;
+pub mod faults;
 pub mod lockstep;
 pub mod mem;
 pub mod node;
