@@ -14,6 +14,7 @@ pub mod mem;
 pub mod node;
 pub mod stdlib;
 pub mod transport;
+pub mod udp_config;
 
 pub use ayllu_core::*;
 pub use clock::{Clock, ManualClock, MonotonicClock};

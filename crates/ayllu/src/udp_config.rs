@@ -1,0 +1,164 @@
+//! The `udp://` URL: where a node binds, who it talks to, and how.
+//!
+//! ```text
+//! udp://BIND_ADDR:PORT?team=7&key=HEX64&peer=ADDR:PORT&broadcast=ADDR:PORT
+//!                     &group=NAME@ADDR:PORT&hello_ms=1000&mtu=1472&name=robot-1
+//! ```
+//!
+//! * `team` (default 0): the team id; datagrams of other teams are ignored.
+//! * `key`: 64 hex digits, the 32-byte team key. Without it the team is open (N5).
+//! * `peer` (repeatable): addresses to announce ourselves to (bootstrap for unicast teams).
+//! * `broadcast`: where group messages go when the group has no address of its own (the
+//!   paper's `ayMakeBroadcast("10.255.255.255")`).
+//! * `group=NAME@ADDR` (repeatable): a group's own address, broadcast or multicast (joined).
+//!   A group with neither is delivered by unicast to every peer that announced it (HELLO).
+//! * `hello_ms`: liveness period (N6); peers are forgotten after three silent periods.
+//! * `mtu`: the largest datagram sent (batching fills datagrams up to it, N3).
+//!
+//! Parsing never panics; every mistake is an error naming the bad part.
+
+use std::net::{SocketAddr, ToSocketAddrs};
+
+use ayllu_core::Duration;
+
+use crate::error::Error;
+
+/// Largest datagram a node sends by default: Ethernet MTU minus IPv4 and UDP headers.
+pub const DEFAULT_MTU: usize = 1472;
+/// Largest datagram accepted (spec/protocol.md).
+pub const MAX_DATAGRAM: usize = 8192;
+
+/// A parsed `udp://` URL.
+#[derive(Clone, Debug, PartialEq)]
+pub struct UdpConfig {
+    pub bind: SocketAddr,
+    pub team: u32,
+    pub key: Option<[u8; 32]>,
+    pub peers: Vec<SocketAddr>,
+    pub broadcast: Option<SocketAddr>,
+    pub groups: Vec<(String, SocketAddr)>,
+    pub hello_interval: Duration,
+    pub mtu: usize,
+    pub name: String,
+}
+
+impl UdpConfig {
+    /// A config bound to `bind` with defaults for everything else.
+    pub fn new(bind: SocketAddr) -> UdpConfig {
+        UdpConfig {
+            bind,
+            team: 0,
+            key: None,
+            peers: Vec::new(),
+            broadcast: None,
+            groups: Vec::new(),
+            hello_interval: Duration::from_millis(1000),
+            mtu: DEFAULT_MTU,
+            name: String::new(),
+        }
+    }
+
+    pub fn parse(url: &str) -> Result<UdpConfig, Error> {
+        let bad = |reason: String| Error::BadUrl { url: url.to_owned(), reason };
+        let rest = url.strip_prefix("udp://").ok_or_else(|| bad("expected udp://HOST:PORT".into()))?;
+        let (addr, query) = rest.split_once('?').unwrap_or((rest, ""));
+        let mut config = UdpConfig::new(resolve(addr).map_err(bad)?);
+        for pair in query.split('&').filter(|p| !p.is_empty()) {
+            let (k, v) = pair.split_once('=').ok_or_else(|| bad(format!("`{pair}` is not key=value")))?;
+            match k {
+                "team" => config.team = v.parse().map_err(|_| bad(format!("team `{v}` is not a u32")))?,
+                "key" => config.key = Some(parse_key(v).map_err(bad)?),
+                "peer" => config.peers.push(resolve(v).map_err(bad)?),
+                "broadcast" => config.broadcast = Some(resolve(v).map_err(bad)?),
+                "group" => {
+                    let (name, a) =
+                        v.split_once('@').ok_or_else(|| bad(format!("group `{v}` should be NAME@ADDR:PORT")))?;
+                    if name.is_empty() || name.len() > 255 {
+                        return Err(bad(format!("group name `{name}` must be 1 to 255 bytes")));
+                    }
+                    config.groups.push((name.to_owned(), resolve(a).map_err(bad)?));
+                }
+                "hello_ms" => {
+                    let ms: u64 = v.parse().map_err(|_| bad(format!("hello_ms `{v}` is not a number")))?;
+                    if ms == 0 || ms > u64::from(u32::MAX) {
+                        return Err(bad("hello_ms must be between 1 and 4294967295".into()));
+                    }
+                    config.hello_interval = Duration::from_millis(ms);
+                }
+                "mtu" => {
+                    let mtu: usize = v.parse().map_err(|_| bad(format!("mtu `{v}` is not a number")))?;
+                    if !(64..=MAX_DATAGRAM).contains(&mtu) {
+                        return Err(bad(format!("mtu must be between 64 and {MAX_DATAGRAM}")));
+                    }
+                    config.mtu = mtu;
+                }
+                "name" => {
+                    if v.len() > 255 {
+                        return Err(bad("name must be at most 255 bytes".into()));
+                    }
+                    config.name = v.to_owned();
+                }
+                other => return Err(bad(format!("unknown option `{other}`"))),
+            }
+        }
+        Ok(config)
+    }
+}
+
+fn resolve(addr: &str) -> Result<SocketAddr, String> {
+    addr.to_socket_addrs()
+        .map_err(|e| format!("`{addr}` is not HOST:PORT ({e})"))?
+        .find(SocketAddr::is_ipv4)
+        .ok_or_else(|| format!("`{addr}` has no IPv4 address"))
+}
+
+/// 64 hex digits to a 32-byte key.
+pub fn parse_key(hex: &str) -> Result<[u8; 32], String> {
+    if hex.len() != 64 {
+        return Err(format!("key must be 64 hex digits, got {}", hex.len()));
+    }
+    let mut key = [0u8; 32];
+    for (i, byte) in key.iter_mut().enumerate() {
+        *byte = u8::from_str_radix(&hex[2 * i..2 * i + 2], 16).map_err(|_| "key must be hex digits".to_owned())?;
+    }
+    Ok(key)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_full_url_parses() {
+        let key = "00112233445566778899aabbccddeeff00112233445566778899aabbccddeeff";
+        let c = UdpConfig::parse(&format!(
+            "udp://127.0.0.1:7400?team=7&key={key}&peer=127.0.0.1:7401&peer=127.0.0.1:7402&broadcast=127.255.255.255:7400&group=Peers@239.1.2.3:7500&hello_ms=250&mtu=1200&name=r1"
+        ))
+        .unwrap();
+        assert_eq!(c.bind, "127.0.0.1:7400".parse().unwrap());
+        assert_eq!(c.team, 7);
+        assert_eq!(c.key.unwrap()[1], 0x11);
+        assert_eq!(c.peers.len(), 2);
+        assert_eq!(c.groups, vec![("Peers".to_owned(), "239.1.2.3:7500".parse().unwrap())]);
+        assert_eq!(c.hello_interval, Duration::from_millis(250));
+        assert_eq!((c.mtu, c.name.as_str()), (1200, "r1"));
+    }
+
+    #[test]
+    fn mistakes_are_named() {
+        for (url, needle) in [
+            ("udp://nowhere", "HOST:PORT"),
+            ("udp://127.0.0.1:1?team=x", "team"),
+            ("udp://127.0.0.1:1?key=abc", "64 hex"),
+            ("udp://127.0.0.1:1?key=zz112233445566778899aabbccddeeff00112233445566778899aabbccddeeff", "hex"),
+            ("udp://127.0.0.1:1?group=Peers", "NAME@ADDR"),
+            ("udp://127.0.0.1:1?hello_ms=0", "hello_ms"),
+            ("udp://127.0.0.1:1?mtu=10", "mtu"),
+            ("udp://127.0.0.1:1?colour=blue", "unknown option"),
+            ("tcp://127.0.0.1:1", "udp://"),
+        ] {
+            let e = UdpConfig::parse(url).unwrap_err().to_string();
+            assert!(e.contains(needle), "{url}: {e}");
+        }
+    }
+}
