@@ -106,6 +106,8 @@ pub struct NodeReport {
     pub behaviors: Vec<BehaviorReport>,
     pub connections: Vec<ConnectionInfo>,
     pub counters: Counters,
+    /// The transport's counters by cause (datagrams sent/received, drops before the core).
+    pub transport: Vec<(String, u64)>,
     pub warnings: Vec<String>,
 }
 
@@ -217,6 +219,7 @@ impl NodeCore {
             behaviors,
             connections: self.connection_infos(),
             counters: self.counters().clone(),
+            transport: self.transport_counters.clone(),
             warnings: self.warnings().to_vec(),
         }
     }

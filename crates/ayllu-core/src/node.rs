@@ -185,6 +185,7 @@ pub struct NodeCore {
     answered: HashMap<(NodeId, u64), Result<ReplyBody, String>>,
     answered_order: VecDeque<(NodeId, u64)>,
     pub(crate) warnings: Vec<String>,
+    pub(crate) transport_counters: Vec<(String, u64)>,
 }
 
 impl NodeCore {
@@ -217,6 +218,7 @@ impl NodeCore {
             answered: HashMap::new(),
             answered_order: VecDeque::new(),
             warnings: Vec::new(),
+            transport_counters: Vec::new(),
         }
     }
 
@@ -1122,6 +1124,12 @@ impl NodeCore {
     /// How often the sequence table (N1) was full and had to be cleared.
     pub fn seq_table_resets(&self) -> u64 {
         self.seq_table_resets
+    }
+
+    /// Record the runtime transport's counters so that reports (also remote ones: LIST) show
+    /// what was dropped before reaching the core (N4).
+    pub fn set_transport_counters(&mut self, counters: Vec<(String, u64)>) {
+        self.transport_counters = counters;
     }
 
     /// Warnings the node has raised (e.g. a BLE inhibition too short for its claim rate).

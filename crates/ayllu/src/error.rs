@@ -18,6 +18,11 @@ pub enum Error {
     DuplicateNode {
         node: NodeId,
     },
+    /// The operating system refused something (binding a socket, joining a group).
+    Io {
+        what: String,
+        error: String,
+    },
 }
 
 impl fmt::Display for Error {
@@ -27,6 +32,7 @@ impl fmt::Display for Error {
             Error::BadUrl { url, reason } => write!(f, "bad transport URL `{url}`: {reason}"),
             Error::Unsupported { what } => write!(f, "{what}"),
             Error::DuplicateNode { node } => write!(f, "node {node} is already attached to this network"),
+            Error::Io { what, error } => write!(f, "{what}: {error}"),
         }
     }
 }

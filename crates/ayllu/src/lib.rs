@@ -14,6 +14,7 @@ pub mod mem;
 pub mod node;
 pub mod stdlib;
 pub mod transport;
+pub mod udp;
 pub mod udp_config;
 
 pub use ayllu_core::*;
@@ -22,7 +23,9 @@ pub use error::Error as RuntimeError;
 pub use lockstep::Lockstep;
 pub use mem::{MemNetwork, MemTransport};
 pub use node::{Node, NodeStats};
-pub use transport::Transport;
+pub use transport::{PeerInfo, Transport};
+pub use udp::UdpTransport;
+pub use udp_config::UdpConfig;
 
 /// The README's Rust examples, compiled and run by `cargo test`.
 #[cfg(doctest)]

@@ -30,6 +30,13 @@ impl Lockstep {
         Ok(self.nodes.len() - 1)
     }
 
+    /// Add a node built elsewhere (any transport); it must use [`Lockstep::clock`] for the
+    /// team to stay in step. Returns its index.
+    pub fn add_node(&mut self, node: Node) -> usize {
+        self.nodes.push(node);
+        self.nodes.len() - 1
+    }
+
     pub fn now(&self) -> Instant {
         use crate::clock::Clock;
         self.clock.now()

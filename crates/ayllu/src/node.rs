@@ -34,6 +34,8 @@ pub struct Node {
     /// The groups the transport has joined, and the core's generation they reflect.
     joined: Vec<String>,
     joined_generation: u64,
+    counters_generation: u64,
+    transport_due: Option<Instant>,
 }
 
 impl Node {
@@ -55,7 +57,16 @@ impl Node {
     }
 
     fn assemble(core: NodeCore, clock: Box<dyn Clock>, transport: Box<dyn Transport>) -> Node {
-        Node { core, clock, transport, stats: NodeStats::default(), joined: Vec::new(), joined_generation: 0 }
+        Node {
+            core,
+            clock,
+            transport,
+            stats: NodeStats::default(),
+            joined: Vec::new(),
+            joined_generation: 0,
+            counters_generation: 0,
+            transport_due: None,
+        }
     }
 
     /// Make the transport's group memberships match the core's (groups may be joined through
@@ -91,6 +102,14 @@ impl Node {
     }
     pub fn stats(&self) -> NodeStats {
         self.stats
+    }
+    /// The transport's counters (traffic and drops by cause, N4).
+    pub fn transport_counters(&self) -> Vec<(String, u64)> {
+        self.transport.counters()
+    }
+    /// The peers the transport knows of.
+    pub fn peers(&self) -> Vec<crate::transport::PeerInfo> {
+        self.transport.peers()
     }
 
     pub fn define(&mut self, class: BehaviorClass) -> Result<(), Error> {
@@ -145,6 +164,7 @@ impl Node {
     pub fn step(&mut self) -> Option<Instant> {
         self.sync_groups();
         let now = self.clock.now();
+        self.transport_due = self.transport.tick(now);
         while let Some((from, message)) = self.transport.recv() {
             self.stats.received += 1;
             self.core.receive(now, from, message);
@@ -154,8 +174,16 @@ impl Node {
             self.stats.sent += 1;
             self.transport.send(out);
         }
+        self.transport.flush();
+        if self.transport.counters_generation() != self.counters_generation {
+            self.counters_generation = self.transport.counters_generation();
+            self.core.set_transport_counters(self.transport.counters());
+        }
         self.stats.steps += 1;
-        next
+        match (next, self.transport_due) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        }
     }
 
     /// Run in real time for `duration`, sleeping on the transport between deadlines.

@@ -1,16 +1,18 @@
 //! The transport boundary: how a node's outgoing messages leave and incoming ones arrive.
 //!
 //! A transport moves [`Message`] values between nodes. It is chosen by URL:
-//! `mem://NAME` (in-process, this crate), `udp://...` (real networks, a later issue) and
-//! `sim://` (the simulator's radio). The contract every transport keeps:
+//! `mem://NAME` (in-process), `udp://...` (real networks, see [`crate::udp_config`]) and
+//! `sim://` (the simulator's radio, later). The contract every transport keeps:
 //! * `send` never blocks and never fails loudly: port messages are best effort (N1);
 //! * a message to a group reaches every member except the sender;
 //! * `recv` never blocks; `wait` blocks at most until its timeout.
 
-use ayllu_core::{Message, NodeId, Outgoing};
+use ayllu_core::{Instant, Message, NodeId, Outgoing};
 
 use crate::error::Error;
 use crate::mem::MemNetwork;
+use crate::udp::UdpTransport;
+use crate::udp_config::UdpConfig;
 
 /// Moves messages between nodes. See the module docs for the contract.
 pub trait Transport: Send {
@@ -25,6 +27,36 @@ pub trait Transport: Send {
     /// Start receiving messages sent to `group`.
     fn join(&mut self, group: &str);
     fn leave(&mut self, group: &str);
+    /// End of a loop turn: send what `send` batched (N3).
+    fn flush(&mut self) {}
+    /// Let the transport do timed work (liveness announcements, forgetting silent peers).
+    /// Returns when it next needs a tick.
+    fn tick(&mut self, now: Instant) -> Option<Instant> {
+        let _ = now;
+        None
+    }
+    /// Counters by cause: traffic, and everything dropped before reaching the core (N4).
+    fn counters(&self) -> Vec<(String, u64)> {
+        Vec::new()
+    }
+    /// Changes whenever `counters` would return something new.
+    fn counters_generation(&self) -> u64 {
+        0
+    }
+    /// The peers this transport knows of.
+    fn peers(&self) -> Vec<PeerInfo> {
+        Vec::new()
+    }
+}
+
+/// A peer as a transport knows it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PeerInfo {
+    pub node: NodeId,
+    pub addr: String,
+    pub name: String,
+    pub groups: Vec<String>,
+    pub last_heard: Instant,
 }
 
 /// Open the transport a URL names, for node `id`.
@@ -40,9 +72,8 @@ pub fn open(url: &str, id: NodeId) -> Result<Box<dyn Transport>, Error> {
             }
             Ok(Box::new(MemNetwork::named(rest).attach(id)?))
         }
-        "udp" | "sim" | "zenoh" => {
-            Err(Error::Unsupported { what: format!("the {scheme}:// transport (not yet supported)") })
-        }
+        "udp" => Ok(Box::new(UdpTransport::bind(id, UdpConfig::parse(url)?)?)),
+        "sim" | "zenoh" => Err(Error::Unsupported { what: format!("the {scheme}:// transport (not yet supported)") }),
         _ => Err(Error::BadUrl { url: url.to_owned(), reason: format!("unknown transport `{scheme}`") }),
     }
 }

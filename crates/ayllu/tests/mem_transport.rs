@@ -213,7 +213,7 @@ fn n2_requests_to_a_dead_node_are_retried_then_fail() {
 fn transport_urls_are_checked() {
     assert!(matches!(ayllu::Node::open(NodeId(1), "team"), Err(RuntimeError::BadUrl { .. })));
     assert!(matches!(ayllu::Node::open(NodeId(1), "carrier-pigeon://x"), Err(RuntimeError::BadUrl { .. })));
-    let err = ayllu::Node::open(NodeId(1), "udp://0.0.0.0:7400").err().unwrap();
+    let err = ayllu::Node::open(NodeId(1), "sim://arena").err().unwrap();
     assert!(err.to_string().contains("not yet supported"), "{err}");
     let _a = ayllu::Node::open(NodeId(1), "mem://dup").unwrap();
     assert!(matches!(ayllu::Node::open(NodeId(1), "mem://dup"), Err(RuntimeError::DuplicateNode { .. })));

@@ -1,0 +1,435 @@
+//! The decoder: bytes from the network into a [`Datagram`], or the one [`DropReason`] it is
+//! refused for.
+//!
+//! Promises, for any input whatsoever: no panic; no allocation beyond a constant factor of the
+//! datagram's length (every length field is checked against the bytes actually present before
+//! anything is allocated for it); time linear in the length (every loop consumes input).
+//! A datagram is accepted or refused whole: if any message in it is malformed, none is
+//! returned (N4). The checks run in the order `spec/protocol.md` ("Decoding order") gives, so
+//! every implementation names the same cause for the same bytes.
+
+use core::fmt;
+use std::sync::Arc;
+
+use ayllu_core::{ConnectionId, ConnectionKind, ControlBody, Endpoint, NodeId, PortMessage, Value};
+
+use crate::auth::{verify_mac, Key};
+use crate::message::{conn_kind_from, endpoint_tag, reply_code, value_type, ReplyPart, WireMessage};
+use crate::{
+    kind, op, FLAG_AUTH, HEADER_LEN, MAC_LEN, MAGIC, MAX_DATAGRAM_LEN, MAX_REPLY_PARTS, MESSAGE_HEADER_LEN, VERSION,
+};
+
+/// How the receiving node is configured.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ReceiverConfig {
+    /// Our team id: datagrams of other teams are dropped (`wrong_team`).
+    pub team: u32,
+    /// The team key. `Some`: only authenticated datagrams are accepted. `None`: the team is
+    /// open, and authenticated datagrams are refused (`unexpected_auth`) rather than trusted
+    /// unverified.
+    pub key: Option<Key>,
+}
+
+/// A datagram that passed every check.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Datagram {
+    pub sender: NodeId,
+    /// The sender's datagram sequence number; when `authenticated`, the runtime checks it
+    /// against the sender's [`crate::ReplayWindow`] before applying anything.
+    pub seq: u64,
+    /// The MAC was present and verified.
+    pub authenticated: bool,
+    /// The messages in order, including [`WireMessage::Unknown`] for each skipped one.
+    pub messages: Vec<WireMessage>,
+}
+
+/// Why a whole datagram was dropped (spec "Drop causes"; `replayed` is decided by
+/// [`crate::ReplayWindow`] and `unknown_kind` skips a message, not a datagram).
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum DropReason {
+    /// Longer than 8192 bytes.
+    Oversized,
+    /// Shorter than its header (and MAC), or a message running past the end.
+    Truncated,
+    BadMagic,
+    BadVersion,
+    /// A reserved flag bit is set.
+    BadFlags,
+    WrongTeam,
+    /// We hold a key and the datagram has no MAC.
+    Unauthenticated,
+    /// We hold no key and the datagram has a MAC.
+    UnexpectedAuth,
+    BadMac,
+    /// A message of a known kind breaks its layout (short body, invalid UTF-8, a byte out of
+    /// range, an empty name where one is required, ...).
+    Malformed,
+}
+
+impl DropReason {
+    pub const ALL: [DropReason; 10] = [
+        DropReason::Oversized,
+        DropReason::Truncated,
+        DropReason::BadMagic,
+        DropReason::BadVersion,
+        DropReason::BadFlags,
+        DropReason::WrongTeam,
+        DropReason::Unauthenticated,
+        DropReason::UnexpectedAuth,
+        DropReason::BadMac,
+        DropReason::Malformed,
+    ];
+
+    /// The counter name, as in the spec.
+    pub fn name(self) -> &'static str {
+        match self {
+            DropReason::Oversized => "oversized",
+            DropReason::Truncated => "truncated",
+            DropReason::BadMagic => "bad_magic",
+            DropReason::BadVersion => "bad_version",
+            DropReason::BadFlags => "bad_flags",
+            DropReason::WrongTeam => "wrong_team",
+            DropReason::Unauthenticated => "unauthenticated",
+            DropReason::UnexpectedAuth => "unexpected_auth",
+            DropReason::BadMac => "bad_mac",
+            DropReason::Malformed => "malformed",
+        }
+    }
+
+    /// The reason named `name`, if any.
+    pub fn from_name(name: &str) -> Option<DropReason> {
+        DropReason::ALL.into_iter().find(|r| r.name() == name)
+    }
+}
+
+impl fmt::Display for DropReason {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::error::Error for DropReason {}
+
+/// Decode one datagram as a receiver configured by `config` would.
+pub fn decode(bytes: &[u8], config: &ReceiverConfig) -> Result<Datagram, DropReason> {
+    if bytes.len() > MAX_DATAGRAM_LEN {
+        return Err(DropReason::Oversized);
+    }
+    let Some(h) = bytes.first_chunk::<HEADER_LEN>() else {
+        return Err(DropReason::Truncated);
+    };
+    let (magic, version, flags) = ([h[0], h[1]], h[2], h[3]);
+    let team = u32::from_le_bytes([h[4], h[5], h[6], h[7]]);
+    let sender = u32::from_le_bytes([h[8], h[9], h[10], h[11]]);
+    let seq = u64::from_le_bytes([h[12], h[13], h[14], h[15], h[16], h[17], h[18], h[19]]);
+    if magic != MAGIC {
+        return Err(DropReason::BadMagic);
+    }
+    if version != VERSION {
+        return Err(DropReason::BadVersion);
+    }
+    if flags & !FLAG_AUTH != 0 {
+        return Err(DropReason::BadFlags);
+    }
+    if team != config.team {
+        return Err(DropReason::WrongTeam);
+    }
+    let has_mac = flags & FLAG_AUTH != 0;
+    let end = match (&config.key, has_mac) {
+        (Some(_), false) => return Err(DropReason::Unauthenticated),
+        (None, true) => return Err(DropReason::UnexpectedAuth),
+        (None, false) => bytes.len(),
+        (Some(key), true) => {
+            if bytes.len() < HEADER_LEN + MAC_LEN {
+                return Err(DropReason::Truncated);
+            }
+            let end = bytes.len() - MAC_LEN;
+            if !verify_mac(key, &bytes[..end], &bytes[end..]) {
+                return Err(DropReason::BadMac);
+            }
+            end
+        }
+    };
+    let messages = decode_messages(&bytes[HEADER_LEN..end])?;
+    Ok(Datagram { sender: NodeId(sender), seq, authenticated: has_mac, messages })
+}
+
+/// Every message of the messages area, or the reason the datagram is dropped.
+fn decode_messages(mut area: &[u8]) -> Result<Vec<WireMessage>, DropReason> {
+    let mut out = Vec::new();
+    while !area.is_empty() {
+        if area.len() < MESSAGE_HEADER_LEN {
+            return Err(DropReason::Truncated);
+        }
+        let code = area[0];
+        let length = u16::from_le_bytes([area[1], area[2]]);
+        let rest = &area[MESSAGE_HEADER_LEN..];
+        let Some(body) = rest.get(..usize::from(length)) else {
+            return Err(DropReason::Truncated);
+        };
+        area = &rest[usize::from(length)..];
+        let message = match code {
+            kind::PORT => decode_port(body),
+            kind::HELLO => decode_hello(body),
+            kind::REQUEST => decode_request(body),
+            kind::REPLY => decode_reply(body),
+            _ => Some(WireMessage::Unknown { code, length }),
+        };
+        out.push(message.ok_or(DropReason::Malformed)?);
+    }
+    Ok(out)
+}
+
+// Body decoders return `None` for malformed bodies. Bytes after the known fields are ignored:
+// fields are only ever appended to a kind, so an older receiver reads a newer sender's prefix.
+
+fn decode_port(body: &[u8]) -> Option<WireMessage> {
+    let mut r = Reader::new(body);
+    let conn = ConnectionId(r.u64()?);
+    let seq = r.u64()?;
+    let kind = r.kind()?;
+    let priority = r.i32()?;
+    let behavior = r.name()?;
+    let port = r.name()?;
+    let value = r.value()?;
+    Some(WireMessage::Port(PortMessage { conn, seq, behavior, port, kind, priority, value }))
+}
+
+fn decode_hello(body: &[u8]) -> Option<WireMessage> {
+    let mut r = Reader::new(body);
+    let interval_ms = r.u32()?;
+    if interval_ms == 0 {
+        return None;
+    }
+    let name = r.str8()?;
+    let n = r.u8()?;
+    let mut groups = Vec::new();
+    for _ in 0..n {
+        groups.push(r.name()?);
+    }
+    Some(WireMessage::Hello { interval_ms, name, groups })
+}
+
+fn decode_request(body: &[u8]) -> Option<WireMessage> {
+    let mut r = Reader::new(body);
+    let id = r.u64()?;
+    let body = match r.u8()? {
+        op::CONNECT => {
+            let source_behavior = r.str8()?;
+            let source_port = r.str8()?;
+            let destination = r.endpoint()?;
+            let kind = r.kind()?;
+            let priority = r.i32()?;
+            ControlBody::Connect { source_behavior, source_port, destination, kind, priority }
+        }
+        op::DISCONNECT => ControlBody::Disconnect { conn: ConnectionId(r.u64()?) },
+        op::LIST => ControlBody::List,
+        op::WHY => ControlBody::Why { behavior: r.str8()?, port: r.str8()? },
+        op::READ => ControlBody::Read { behavior: r.str8()?, port: r.str8()? },
+        // Not malformed: the receiver answers "unknown operation" (spec, REQUEST).
+        other => return Some(WireMessage::UnknownRequest { id, op: other }),
+    };
+    Some(WireMessage::Request { id, body })
+}
+
+fn decode_reply(body: &[u8]) -> Option<WireMessage> {
+    let mut r = Reader::new(body);
+    let id = r.u64()?;
+    let status = r.u8()?;
+    let part = r.u16()?;
+    let parts = r.u16()?;
+    if parts == 0 || parts > MAX_REPLY_PARTS || part >= parts {
+        return None;
+    }
+    let payload = match status {
+        reply_code::STATUS_ERROR => ReplyPart::Error(r.str16()?.to_owned()),
+        reply_code::STATUS_OK => match r.u8()? {
+            reply_code::RESULT_CONNECTION => ReplyPart::Connection(ConnectionId(r.u64()?)),
+            reply_code::RESULT_VALUE => ReplyPart::Value(r.value()?),
+            reply_code::RESULT_REPORT => ReplyPart::Report(r.str16()?.to_owned()),
+            _ => return None,
+        },
+        _ => return None,
+    };
+    // Only a report is ever cut into parts.
+    if parts != 1 && !matches!(payload, ReplyPart::Report(_)) {
+        return None;
+    }
+    Some(WireMessage::Reply { id, part, parts, payload })
+}
+
+/// A cursor over a body. Every read checks the bytes are there first and returns `None` when
+/// they are not, so nothing is allocated for a length the input cannot back.
+struct Reader<'a> {
+    buf: &'a [u8],
+}
+
+impl<'a> Reader<'a> {
+    fn new(buf: &'a [u8]) -> Self {
+        Reader { buf }
+    }
+
+    fn take(&mut self, n: usize) -> Option<&'a [u8]> {
+        if n > self.buf.len() {
+            return None;
+        }
+        let (head, tail) = self.buf.split_at(n);
+        self.buf = tail;
+        Some(head)
+    }
+
+    fn array<const N: usize>(&mut self) -> Option<[u8; N]> {
+        self.take(N)?.try_into().ok()
+    }
+
+    fn u8(&mut self) -> Option<u8> {
+        Some(self.array::<1>()?[0])
+    }
+    fn u16(&mut self) -> Option<u16> {
+        self.array().map(u16::from_le_bytes)
+    }
+    fn u32(&mut self) -> Option<u32> {
+        self.array().map(u32::from_le_bytes)
+    }
+    fn u64(&mut self) -> Option<u64> {
+        self.array().map(u64::from_le_bytes)
+    }
+    fn i32(&mut self) -> Option<i32> {
+        self.array().map(i32::from_le_bytes)
+    }
+    fn i64(&mut self) -> Option<i64> {
+        self.array().map(i64::from_le_bytes)
+    }
+    fn f64(&mut self) -> Option<f64> {
+        // From bits: NaN payloads and -0.0 survive.
+        self.u64().map(f64::from_bits)
+    }
+
+    fn utf8(&mut self, n: usize) -> Option<&'a str> {
+        core::str::from_utf8(self.take(n)?).ok()
+    }
+    fn str8(&mut self) -> Option<Arc<str>> {
+        let n = self.u8()?;
+        self.utf8(usize::from(n)).map(Arc::from)
+    }
+    /// A behavior, port or group name: a non-empty str8.
+    fn name(&mut self) -> Option<Arc<str>> {
+        self.str8().filter(|s| !s.is_empty())
+    }
+    fn str16(&mut self) -> Option<&'a str> {
+        let n = self.u16()?;
+        self.utf8(usize::from(n))
+    }
+    fn bytes16(&mut self) -> Option<&'a [u8]> {
+        let n = self.u16()?;
+        self.take(usize::from(n))
+    }
+
+    /// Connection kind byte and period, validated together.
+    fn kind(&mut self) -> Option<ConnectionKind> {
+        let code = self.u8()?;
+        let period = self.u64()?;
+        conn_kind_from(code, period)
+    }
+
+    fn value(&mut self) -> Option<Value> {
+        Some(match self.u8()? {
+            value_type::BOOL => match self.u8()? {
+                0 => Value::Bool(false),
+                1 => Value::Bool(true),
+                _ => return None,
+            },
+            value_type::INT => Value::Int(self.i64()?),
+            value_type::FLOAT => Value::Float(self.f64()?),
+            value_type::TEXT => Value::Text(Arc::from(self.str16()?)),
+            value_type::BYTES => Value::Bytes(Arc::from(self.bytes16()?)),
+            value_type::VECTOR => {
+                let n = usize::from(self.u8()?);
+                let raw = self.take(n * 8)?;
+                let xs: Vec<f64> = raw
+                    .chunks_exact(8)
+                    .map(|c| f64::from_bits(u64::from_le_bytes([c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]])))
+                    .collect();
+                Value::Vector(Arc::from(xs))
+            }
+            _ => return None,
+        })
+    }
+
+    fn endpoint(&mut self) -> Option<Endpoint> {
+        match self.u8()? {
+            endpoint_tag::NODE => {
+                Some(Endpoint::Node { node: NodeId(self.u32()?), behavior: self.str8()?, port: self.str8()? })
+            }
+            endpoint_tag::GROUP => {
+                Some(Endpoint::Group { group: self.name()?, behavior: self.str8()?, port: self.str8()? })
+            }
+            // Tag 0 ("local") is never sent; anything else is unknown.
+            _ => None,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const OPEN: ReceiverConfig = ReceiverConfig { team: 7, key: None };
+
+    fn header(flags: u8) -> Vec<u8> {
+        let mut b = vec![0x41, 0x59, 1, flags];
+        b.extend_from_slice(&7u32.to_le_bytes());
+        b.extend_from_slice(&1u32.to_le_bytes());
+        b.extend_from_slice(&5u64.to_le_bytes());
+        b
+    }
+
+    #[test]
+    fn header_checks_in_order() {
+        assert_eq!(decode(&[0; 8193], &OPEN), Err(DropReason::Oversized));
+        assert_eq!(decode(&[0x41, 0x59], &OPEN), Err(DropReason::Truncated));
+        assert_eq!(decode(&header(0), &OPEN).unwrap().messages, vec![]);
+        let mut b = header(0);
+        b[1] = 0x58;
+        assert_eq!(decode(&b, &OPEN), Err(DropReason::BadMagic));
+        let mut b = header(0);
+        b[2] = 2;
+        assert_eq!(decode(&b, &OPEN), Err(DropReason::BadVersion));
+        assert_eq!(decode(&header(0x80), &OPEN), Err(DropReason::BadFlags));
+        assert_eq!(decode(&header(0), &ReceiverConfig { team: 8, key: None }), Err(DropReason::WrongTeam));
+        let keyed = ReceiverConfig { team: 7, key: Some([1; 32]) };
+        assert_eq!(decode(&header(0), &keyed), Err(DropReason::Unauthenticated));
+        assert_eq!(decode(&header(1), &OPEN), Err(DropReason::UnexpectedAuth));
+        assert_eq!(decode(&header(1), &keyed), Err(DropReason::Truncated));
+        let mut b = header(1);
+        b.extend_from_slice(&[0; 16]);
+        assert_eq!(decode(&b, &keyed), Err(DropReason::BadMac));
+    }
+
+    #[test]
+    fn messages_area() {
+        let mut b = header(0);
+        b.extend_from_slice(&[0x7f, 0, 0, 0x7e, 2, 0, 9, 9]);
+        let d = decode(&b, &OPEN).unwrap();
+        assert_eq!(
+            d.messages,
+            vec![WireMessage::Unknown { code: 0x7f, length: 0 }, WireMessage::Unknown { code: 0x7e, length: 2 }]
+        );
+        let mut t = b.clone();
+        t.push(1);
+        assert_eq!(decode(&t, &OPEN), Err(DropReason::Truncated), "partial message header");
+        let mut t = b.clone();
+        t.extend_from_slice(&[0x7f, 1, 0]);
+        assert_eq!(decode(&t, &OPEN), Err(DropReason::Truncated), "body past the end");
+        let mut t = b;
+        t.extend_from_slice(&[kind::PORT, 0, 0]);
+        assert_eq!(decode(&t, &OPEN), Err(DropReason::Malformed), "empty PORT body");
+    }
+
+    #[test]
+    fn names_round_trip() {
+        for r in DropReason::ALL {
+            assert_eq!(DropReason::from_name(r.name()), Some(r));
+        }
+    }
+}

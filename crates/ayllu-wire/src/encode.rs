@@ -1,0 +1,438 @@
+//! The encoder: [`DatagramWriter`] builds one datagram, message by message, within a size
+//! limit, so the runtime can batch everything bound for one destination into as few
+//! datagrams as the path MTU allows (N3).
+//!
+//! Promises: the writer only ever holds a complete, valid datagram — a message that cannot be
+//! encoded, or does not fit, leaves it exactly as it was and says why ([`EncodeError`]); what it
+//! produces is accepted by [`crate::decode`] and decodes to the messages pushed; it never
+//! exceeds the limit it was given (clamped to what receivers accept).
+
+use core::fmt;
+
+use ayllu_core::{ControlBody, Endpoint, NodeId, Value};
+
+use crate::auth::{mac, Key};
+use crate::message::{conn_kind_code, endpoint_tag, reply_code, value_type, ReplyPart, WireMessage};
+use crate::{
+    op, FLAG_AUTH, HEADER_LEN, MAC_LEN, MAGIC, MAX_DATAGRAM_LEN, MAX_REPLY_PARTS, MESSAGE_HEADER_LEN, VERSION,
+};
+
+/// Why a message was not added to a datagram.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum EncodeError {
+    /// The datagram already holds messages and this one does not fit in the space left:
+    /// finish this datagram and push the message into a new one.
+    DoesNotFit { needed: usize, available: usize },
+    /// The message does not fit even in an empty datagram of this size limit: it cannot be sent
+    /// at this MTU.
+    TooLarge { needed: usize, available: usize },
+    /// The message cannot be expressed on the wire at all (an empty or over-long name, a
+    /// local endpoint, a timed connection kind with a zero period, ...). The text says which
+    /// rule of `spec/protocol.md` it breaks.
+    Invalid(&'static str),
+    /// A report needs more than 64 REPLY parts at this MTU.
+    ReportTooLarge { bytes: usize, max_parts: u16 },
+}
+
+impl fmt::Display for EncodeError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            EncodeError::DoesNotFit { needed, available } => {
+                write!(f, "message needs {needed} bytes, {available} left in this datagram")
+            }
+            EncodeError::TooLarge { needed, available } => {
+                write!(f, "message needs {needed} bytes, at most {available} fit in a datagram")
+            }
+            EncodeError::Invalid(why) => write!(f, "message cannot be encoded: {why}"),
+            EncodeError::ReportTooLarge { bytes, max_parts } => {
+                write!(f, "report of {bytes} bytes needs more than {max_parts} parts")
+            }
+        }
+    }
+}
+
+impl std::error::Error for EncodeError {}
+
+/// Builds one datagram: header, then messages appended while they fit, then (with a key) the
+/// MAC written by [`DatagramWriter::finish`].
+#[derive(Clone, Debug)]
+pub struct DatagramWriter {
+    buf: Vec<u8>,
+    key: Option<Key>,
+    /// The most bytes header plus messages may take: the size limit less the MAC.
+    limit: usize,
+    messages: usize,
+}
+
+impl DatagramWriter {
+    /// A datagram from `sender` of `team` with sequence number `seq` (strictly increasing per
+    /// sender, see the spec), authenticated when `key` is given, at most `mtu` bytes long.
+    ///
+    /// `mtu` is clamped to `HEADER_LEN (+ MAC_LEN)..=MAX_DATAGRAM_LEN`: a datagram always has
+    /// its header, and one larger than receivers accept would be dropped as `oversized`.
+    pub fn new(team: u32, sender: NodeId, seq: u64, key: Option<Key>, mtu: usize) -> Self {
+        let mac_len = if key.is_some() { MAC_LEN } else { 0 };
+        let limit = mtu.clamp(HEADER_LEN + mac_len, MAX_DATAGRAM_LEN) - mac_len;
+        let mut buf = Vec::with_capacity(limit + mac_len);
+        buf.extend_from_slice(&MAGIC);
+        buf.push(VERSION);
+        buf.push(if key.is_some() { FLAG_AUTH } else { 0 });
+        buf.extend_from_slice(&team.to_le_bytes());
+        buf.extend_from_slice(&sender.0.to_le_bytes());
+        buf.extend_from_slice(&seq.to_le_bytes());
+        DatagramWriter { buf, key, limit, messages: 0 }
+    }
+
+    /// Append `message`. On error the datagram is unchanged: [`EncodeError::DoesNotFit`]
+    /// means "start a new datagram", anything else means the message can never be sent as is.
+    pub fn push(&mut self, message: &WireMessage) -> Result<(), EncodeError> {
+        let start = self.buf.len();
+        self.buf.push(message.kind_code());
+        self.buf.extend_from_slice(&[0, 0]);
+        if let Err(e) = encode_body(&mut self.buf, message) {
+            self.buf.truncate(start);
+            return Err(e);
+        }
+        self.close_message(start)
+    }
+
+    /// Append a message of any `kind` with a ready-made `body`, unchecked. For tests, tools and
+    /// conformance vectors that need input no encoder produces (unknown kinds, extra trailing
+    /// bytes, malformed bodies); the runtime uses [`DatagramWriter::push`].
+    pub fn push_raw(&mut self, kind: u8, body: &[u8]) -> Result<(), EncodeError> {
+        let start = self.buf.len();
+        self.buf.push(kind);
+        self.buf.extend_from_slice(&[0, 0]);
+        self.buf.extend_from_slice(body);
+        self.close_message(start)
+    }
+
+    /// Check the message that starts at `start` fits, write its length, or take it back.
+    fn close_message(&mut self, start: usize) -> Result<(), EncodeError> {
+        let needed = self.buf.len() - start;
+        let body_len = needed - MESSAGE_HEADER_LEN;
+        let available = self.limit - start;
+        let alone = self.limit - HEADER_LEN;
+        if needed > alone {
+            self.buf.truncate(start);
+            return Err(EncodeError::TooLarge { needed, available: alone });
+        }
+        if needed > available {
+            self.buf.truncate(start);
+            return Err(EncodeError::DoesNotFit { needed, available });
+        }
+        // The limit is at most MAX_DATAGRAM_LEN (8192), so a body that fits has a u16 length.
+        self.buf[start + 1..start + 3].copy_from_slice(&(body_len as u16).to_le_bytes());
+        self.messages += 1;
+        Ok(())
+    }
+
+    /// Number of messages pushed so far.
+    pub fn message_count(&self) -> usize {
+        self.messages
+    }
+
+    /// True when no message has been pushed (the datagram is a bare header).
+    pub fn is_empty(&self) -> bool {
+        self.messages == 0
+    }
+
+    /// Bytes of the datagram so far, without the MAC.
+    pub fn len(&self) -> usize {
+        self.buf.len()
+    }
+
+    /// Bytes still free for messages (each message takes 3 header bytes plus its body).
+    pub fn remaining(&self) -> usize {
+        self.limit - self.buf.len()
+    }
+
+    /// The finished datagram, with its MAC when the writer has a key.
+    pub fn finish(mut self) -> Vec<u8> {
+        if let Some(key) = &self.key {
+            let tag = mac(key, &self.buf);
+            self.buf.extend_from_slice(&tag);
+        }
+        self.buf
+    }
+}
+
+/// Encode `messages` into one datagram of at most [`MAX_DATAGRAM_LEN`] bytes. A convenience for
+/// tools and tests; the runtime batches with a [`DatagramWriter`] at the path MTU.
+pub fn encode_datagram(
+    team: u32,
+    sender: NodeId,
+    seq: u64,
+    key: Option<Key>,
+    messages: &[WireMessage],
+) -> Result<Vec<u8>, EncodeError> {
+    let mut w = DatagramWriter::new(team, sender, seq, key, MAX_DATAGRAM_LEN);
+    for m in messages {
+        w.push(m)?;
+    }
+    Ok(w.finish())
+}
+
+fn encode_body(buf: &mut Vec<u8>, message: &WireMessage) -> Result<(), EncodeError> {
+    match message {
+        WireMessage::Port(p) => {
+            buf.extend_from_slice(&p.conn.0.to_le_bytes());
+            buf.extend_from_slice(&p.seq.to_le_bytes());
+            put_kind(buf, p.kind)?;
+            buf.extend_from_slice(&p.priority.to_le_bytes());
+            put_str8(buf, &p.behavior, NonEmpty::Yes)?;
+            put_str8(buf, &p.port, NonEmpty::Yes)?;
+            put_value(buf, &p.value)
+        }
+        WireMessage::Hello { interval_ms, name, groups } => {
+            if *interval_ms == 0 {
+                return Err(EncodeError::Invalid("HELLO interval_ms must be above zero"));
+            }
+            buf.extend_from_slice(&interval_ms.to_le_bytes());
+            put_str8(buf, name, NonEmpty::No)?;
+            let n = u8::try_from(groups.len()).map_err(|_| EncodeError::Invalid("HELLO lists at most 255 groups"))?;
+            buf.push(n);
+            for g in groups {
+                put_str8(buf, g, NonEmpty::Yes)?;
+            }
+            Ok(())
+        }
+        WireMessage::Request { id, body } => {
+            buf.extend_from_slice(&id.to_le_bytes());
+            put_request(buf, body)
+        }
+        WireMessage::UnknownRequest { id, op } => {
+            if (op::CONNECT..=op::READ).contains(op) {
+                return Err(EncodeError::Invalid("UnknownRequest with a known operation code"));
+            }
+            buf.extend_from_slice(&id.to_le_bytes());
+            buf.push(*op);
+            Ok(())
+        }
+        WireMessage::Reply { id, part, parts, payload } => {
+            if *parts == 0 || *parts > MAX_REPLY_PARTS || part >= parts {
+                return Err(EncodeError::Invalid("REPLY needs 1 <= parts <= 64 and part < parts"));
+            }
+            if *parts != 1 && !matches!(payload, ReplyPart::Report(_)) {
+                return Err(EncodeError::Invalid("only a report REPLY has more than one part"));
+            }
+            buf.extend_from_slice(&id.to_le_bytes());
+            let status =
+                if matches!(payload, ReplyPart::Error(_)) { reply_code::STATUS_ERROR } else { reply_code::STATUS_OK };
+            buf.push(status);
+            buf.extend_from_slice(&part.to_le_bytes());
+            buf.extend_from_slice(&parts.to_le_bytes());
+            match payload {
+                ReplyPart::Error(message) => put_str16(buf, message.as_bytes()),
+                ReplyPart::Connection(c) => {
+                    buf.push(reply_code::RESULT_CONNECTION);
+                    buf.extend_from_slice(&c.0.to_le_bytes());
+                    Ok(())
+                }
+                ReplyPart::Value(v) => {
+                    buf.push(reply_code::RESULT_VALUE);
+                    put_value(buf, v)
+                }
+                ReplyPart::Report(slice) => {
+                    buf.push(reply_code::RESULT_REPORT);
+                    put_str16(buf, slice.as_bytes())
+                }
+            }
+        }
+        WireMessage::Unknown { .. } => Err(EncodeError::Invalid("an unknown message kind has no body to send")),
+    }
+}
+
+fn put_request(buf: &mut Vec<u8>, body: &ControlBody) -> Result<(), EncodeError> {
+    match body {
+        ControlBody::Connect { source_behavior, source_port, destination, kind, priority } => {
+            buf.push(op::CONNECT);
+            put_str8(buf, source_behavior, NonEmpty::No)?;
+            put_str8(buf, source_port, NonEmpty::No)?;
+            put_endpoint(buf, destination)?;
+            put_kind(buf, *kind)?;
+            buf.extend_from_slice(&priority.to_le_bytes());
+            Ok(())
+        }
+        ControlBody::Disconnect { conn } => {
+            buf.push(op::DISCONNECT);
+            buf.extend_from_slice(&conn.0.to_le_bytes());
+            Ok(())
+        }
+        ControlBody::List => {
+            buf.push(op::LIST);
+            Ok(())
+        }
+        ControlBody::Why { behavior, port } => {
+            buf.push(op::WHY);
+            put_str8(buf, behavior, NonEmpty::No)?;
+            put_str8(buf, port, NonEmpty::No)
+        }
+        ControlBody::Read { behavior, port } => {
+            buf.push(op::READ);
+            put_str8(buf, behavior, NonEmpty::No)?;
+            put_str8(buf, port, NonEmpty::No)
+        }
+        ControlBody::Reply { .. } => {
+            Err(EncodeError::Invalid("a reply is sent as REPLY parts (reply_messages), not as a REQUEST"))
+        }
+    }
+}
+
+fn put_endpoint(buf: &mut Vec<u8>, e: &Endpoint) -> Result<(), EncodeError> {
+    match e {
+        Endpoint::Local { .. } => {
+            Err(EncodeError::Invalid("a local endpoint is never sent: it means different things on each side"))
+        }
+        Endpoint::Node { node, behavior, port } => {
+            buf.push(endpoint_tag::NODE);
+            buf.extend_from_slice(&node.0.to_le_bytes());
+            put_str8(buf, behavior, NonEmpty::No)?;
+            put_str8(buf, port, NonEmpty::No)
+        }
+        Endpoint::Group { group, behavior, port } => {
+            buf.push(endpoint_tag::GROUP);
+            put_str8(buf, group, NonEmpty::Yes)?;
+            put_str8(buf, behavior, NonEmpty::No)?;
+            put_str8(buf, port, NonEmpty::No)
+        }
+    }
+}
+
+/// The connection kind byte and its period.
+fn put_kind(buf: &mut Vec<u8>, kind: ayllu_core::ConnectionKind) -> Result<(), EncodeError> {
+    let (code, period) = conn_kind_code(kind);
+    if code != 0 && period == 0 {
+        return Err(EncodeError::Invalid("a timed connection kind needs a period above zero"));
+    }
+    buf.push(code);
+    buf.extend_from_slice(&period.to_le_bytes());
+    Ok(())
+}
+
+fn put_value(buf: &mut Vec<u8>, v: &Value) -> Result<(), EncodeError> {
+    match v {
+        Value::Bool(b) => {
+            buf.push(value_type::BOOL);
+            buf.push(u8::from(*b));
+        }
+        Value::Int(i) => {
+            buf.push(value_type::INT);
+            buf.extend_from_slice(&i.to_le_bytes());
+        }
+        Value::Float(x) => {
+            buf.push(value_type::FLOAT);
+            // Bits, not the number: NaN payloads and -0.0 are preserved.
+            buf.extend_from_slice(&x.to_bits().to_le_bytes());
+        }
+        Value::Text(s) => {
+            buf.push(value_type::TEXT);
+            put_str16(buf, s.as_bytes())?;
+        }
+        Value::Bytes(b) => {
+            buf.push(value_type::BYTES);
+            put_str16(buf, b)?;
+        }
+        Value::Vector(xs) => {
+            buf.push(value_type::VECTOR);
+            let n =
+                u8::try_from(xs.len()).map_err(|_| EncodeError::Invalid("a vector value has at most 255 floats"))?;
+            buf.push(n);
+            for x in xs.iter() {
+                buf.extend_from_slice(&x.to_bits().to_le_bytes());
+            }
+        }
+    }
+    Ok(())
+}
+
+#[derive(Copy, Clone, PartialEq, Eq)]
+enum NonEmpty {
+    Yes,
+    No,
+}
+
+fn put_str8(buf: &mut Vec<u8>, s: &str, non_empty: NonEmpty) -> Result<(), EncodeError> {
+    if non_empty == NonEmpty::Yes && s.is_empty() {
+        return Err(EncodeError::Invalid("behavior, port and group names are not empty"));
+    }
+    let n = u8::try_from(s.len()).map_err(|_| EncodeError::Invalid("names are at most 255 bytes"))?;
+    buf.push(n);
+    buf.extend_from_slice(s.as_bytes());
+    Ok(())
+}
+
+/// `str16` and `bytes16` share a layout; text is valid UTF-8 by construction (`&str`).
+fn put_str16(buf: &mut Vec<u8>, b: &[u8]) -> Result<(), EncodeError> {
+    let n = u16::try_from(b.len()).map_err(|_| EncodeError::Invalid("text and bytes are at most 65535 bytes"))?;
+    buf.extend_from_slice(&n.to_le_bytes());
+    buf.extend_from_slice(b);
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ayllu_core::{ConnectionId, ConnectionKind, Duration, PortMessage};
+
+    fn port(value: Value) -> WireMessage {
+        WireMessage::Port(PortMessage {
+            conn: ConnectionId(1),
+            seq: 1,
+            behavior: "B".into(),
+            port: "P".into(),
+            kind: ConnectionKind::Normal,
+            priority: 0,
+            value,
+        })
+    }
+
+    #[test]
+    fn header_layout() {
+        let w = DatagramWriter::new(0x0403_0201, NodeId(0x0807_0605), 0x100f_0e0d_0c0b_0a09, None, 100);
+        assert_eq!(
+            w.finish(),
+            [0x41, 0x59, 1, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16],
+            "magic, version, flags, team, sender, seq — all little-endian"
+        );
+    }
+
+    #[test]
+    fn refused_messages_leave_the_datagram_unchanged() {
+        // A PORT with an int takes 45 bytes: one fits in 100, a second does not.
+        let mut w = DatagramWriter::new(1, NodeId(1), 1, None, 100);
+        w.push(&port(Value::Int(1))).unwrap();
+        let before = w.clone().finish();
+        assert!(matches!(w.push(&port(Value::Int(2))), Err(EncodeError::DoesNotFit { .. })));
+        assert!(matches!(w.push(&port(Value::text(&"x".repeat(100)))), Err(EncodeError::TooLarge { .. })));
+        let bad = WireMessage::Port(PortMessage {
+            kind: ConnectionKind::Suppress(Duration::ZERO),
+            ..match port(Value::Int(0)) {
+                WireMessage::Port(p) => p,
+                _ => unreachable!(),
+            }
+        });
+        assert!(matches!(w.push(&bad), Err(EncodeError::Invalid(_))));
+        assert!(matches!(w.push(&WireMessage::Unknown { code: 9, length: 0 }), Err(EncodeError::Invalid(_))));
+        assert_eq!(w.message_count(), 1);
+        assert_eq!(w.finish(), before);
+    }
+
+    #[test]
+    fn mtu_is_clamped_and_respected() {
+        let mut w = DatagramWriter::new(1, NodeId(1), 1, Some([7; 32]), 100_000);
+        assert_eq!(w.remaining(), MAX_DATAGRAM_LEN - MAC_LEN - HEADER_LEN);
+        while w.push(&port(Value::Int(1))).is_ok() {}
+        assert!(w.finish().len() <= MAX_DATAGRAM_LEN);
+        let w = DatagramWriter::new(1, NodeId(1), 1, Some([7; 32]), 0);
+        assert_eq!(w.remaining(), 0);
+        assert_eq!(w.finish().len(), HEADER_LEN + MAC_LEN);
+    }
+
+    #[test]
+    fn body_length_limit() {
+        let mut w = DatagramWriter::new(1, NodeId(1), 1, None, MAX_DATAGRAM_LEN);
+        let err = w.push(&port(Value::bytes(&[0; 70_000]))).unwrap_err();
+        assert_eq!(err, EncodeError::Invalid("text and bytes are at most 65535 bytes"));
+    }
+}

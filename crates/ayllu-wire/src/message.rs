@@ -1,0 +1,133 @@
+//! What one message of a datagram says, as a value: [`WireMessage`].
+//!
+//! The core's messages ([`PortMessage`], [`ControlBody`]) are carried as they are; the wire adds
+//! only what exists on the wire alone: HELLO, requests with an operation this node does not
+//! know, REPLY parts (a report may span up to 64 datagrams) and skipped messages of unknown
+//! kinds. Converting a core [`Message`] is [`WireMessage::from_core`]; the code tables shared by
+//! encoder and decoder live here so that the two cannot disagree.
+
+use std::sync::Arc;
+
+use ayllu_core::{ConnectionId, ConnectionKind, ControlBody, Duration, Message, PortMessage, Value};
+
+use crate::encode::EncodeError;
+
+/// One message of a datagram.
+#[derive(Clone, Debug, PartialEq)]
+pub enum WireMessage {
+    /// PORT (0x01): a value travelling along a connection.
+    Port(PortMessage),
+    /// HELLO (0x02): liveness announcement and the sender's broadcast groups.
+    Hello { interval_ms: u32, name: Arc<str>, groups: Vec<Arc<str>> },
+    /// REQUEST (0x10) with a known operation. `body` is never [`ControlBody::Reply`], and a
+    /// `Connect` destination is never [`ayllu_core::Endpoint::Local`].
+    Request { id: u64, body: ControlBody },
+    /// REQUEST with an operation code this implementation does not know. The receiver answers
+    /// it with an error REPLY (`unknown operation`) rather than dropping it, so that tools can
+    /// tell an old node from a lost request. Its arguments, if any, are not kept.
+    UnknownRequest { id: u64, op: u8 },
+    /// REPLY (0x11): part `part` of `parts` of the answer to request `id`.
+    Reply { id: u64, part: u16, parts: u16, payload: ReplyPart },
+    /// A message of an unknown kind, skipped using its length. Decode-only: it is reported so
+    /// the receiver can count it (`unknown_kind`); the encoder refuses it (it has no body).
+    Unknown { code: u8, length: u16 },
+}
+
+/// What one REPLY part carries.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ReplyPart {
+    /// Status 1: why the request failed.
+    Error(String),
+    /// Result 1 (CONNECT, DISCONNECT).
+    Connection(ConnectionId),
+    /// Result 2 (READ).
+    Value(Value),
+    /// Result 3 (LIST, WHY): one UTF-8 slice of the JSON form of a `NodeReport` or
+    /// `PortReport`; the slices of all parts, concatenated in part order, are the document.
+    Report(String),
+}
+
+impl WireMessage {
+    /// The kind byte this message is sent under.
+    pub fn kind_code(&self) -> u8 {
+        match self {
+            WireMessage::Port(_) => crate::kind::PORT,
+            WireMessage::Hello { .. } => crate::kind::HELLO,
+            WireMessage::Request { .. } | WireMessage::UnknownRequest { .. } => crate::kind::REQUEST,
+            WireMessage::Reply { .. } => crate::kind::REPLY,
+            WireMessage::Unknown { code, .. } => *code,
+        }
+    }
+
+    /// The wire messages that carry a core message: one for a port message or a request; for a
+    /// reply, as many REPLY parts as its report needs to fit datagrams of `mtu` bytes (with
+    /// room for a MAC when `auth`), see [`crate::reply_messages`].
+    pub fn from_core(message: &Message, mtu: usize, auth: bool) -> Result<Vec<WireMessage>, EncodeError> {
+        match message {
+            Message::Port(p) => Ok(vec![WireMessage::Port(p.clone())]),
+            Message::Control(c) => match &c.body {
+                ControlBody::Reply { result } => crate::reply::reply_messages(c.id, result, mtu, auth),
+                body => Ok(vec![WireMessage::Request { id: c.id, body: body.clone() }]),
+            },
+        }
+    }
+}
+
+/// Connection kind codes, in the order of the PORT `kind` field.
+pub(crate) fn conn_kind_code(kind: ConnectionKind) -> (u8, u64) {
+    let code = match kind {
+        ConnectionKind::Normal => 0,
+        ConnectionKind::Suppress(_) => 1,
+        ConnectionKind::Inhibit(_) => 2,
+        ConnectionKind::OverrideIn(_) => 3,
+        ConnectionKind::OverrideOut(_) => 4,
+        ConnectionKind::WriteInhibit(_) => 5,
+    };
+    (code, kind.period().map_or(0, Duration::as_nanos))
+}
+
+/// The connection kind for a `kind` byte and `period`, or `None` if the pair is malformed: an
+/// unknown code, a Normal with a period, or a timed kind without one (a zero window would
+/// mean "do nothing", which no sender intends and the core refuses to create).
+pub(crate) fn conn_kind_from(code: u8, period: u64) -> Option<ConnectionKind> {
+    let p = Duration::from_nanos(period);
+    let kind = match code {
+        0 => ConnectionKind::Normal,
+        1 => ConnectionKind::Suppress(p),
+        2 => ConnectionKind::Inhibit(p),
+        3 => ConnectionKind::OverrideIn(p),
+        4 => ConnectionKind::OverrideOut(p),
+        5 => ConnectionKind::WriteInhibit(p),
+        _ => return None,
+    };
+    let valid = match kind {
+        ConnectionKind::Normal => period == 0,
+        _ => period != 0,
+    };
+    valid.then_some(kind)
+}
+
+/// Value type codes.
+pub(crate) mod value_type {
+    pub const BOOL: u8 = 0;
+    pub const INT: u8 = 1;
+    pub const FLOAT: u8 = 2;
+    pub const TEXT: u8 = 3;
+    pub const BYTES: u8 = 4;
+    pub const VECTOR: u8 = 5;
+}
+
+/// REPLY status and result codes.
+pub(crate) mod reply_code {
+    pub const STATUS_OK: u8 = 0;
+    pub const STATUS_ERROR: u8 = 1;
+    pub const RESULT_CONNECTION: u8 = 1;
+    pub const RESULT_VALUE: u8 = 2;
+    pub const RESULT_REPORT: u8 = 3;
+}
+
+/// Endpoint tags (0, "local", is never sent).
+pub(crate) mod endpoint_tag {
+    pub const NODE: u8 = 1;
+    pub const GROUP: u8 = 2;
+}

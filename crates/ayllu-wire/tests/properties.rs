@@ -1,0 +1,260 @@
+//! Properties of the codec over random input: encode→decode gives the messages back (singly
+//! and batched to an MTU), decoding arbitrary or mutated bytes never panics and refuses or
+//! accepts consistently, and the replay window agrees with a plain model of the spec.
+
+use std::collections::BTreeSet;
+use std::sync::Arc;
+
+use ayllu_core::{ConnectionId, ConnectionKind, ControlBody, Duration, Endpoint, NodeId, PortMessage, Value};
+use ayllu_wire::{
+    decode, encode_datagram, DatagramWriter, EncodeError, Key, ReceiverConfig, ReplayWindow, ReplyPart, WireMessage,
+    MAX_DATAGRAM_LEN,
+};
+use proptest::prelude::*;
+
+const KEY: Key = [0x5a; 32];
+
+fn name() -> impl Strategy<Value = Arc<str>> {
+    // Mostly short ASCII, sometimes multi-byte characters; never empty, never over 255 bytes.
+    prop_oneof!["[A-Za-z0-9_]{1,12}", "[a-zé✓🤖]{1,40}",].prop_map(|s| Arc::from(s.as_str()))
+}
+
+fn value() -> impl Strategy<Value = Value> {
+    prop_oneof![
+        any::<bool>().prop_map(Value::Bool),
+        any::<i64>().prop_map(Value::Int),
+        any::<u64>().prop_map(|b| Value::Float(f64::from_bits(b))),
+        ".{0,40}".prop_map(|s| Value::text(&s)),
+        proptest::collection::vec(any::<u8>(), 0..40).prop_map(|b| Value::bytes(&b)),
+        proptest::collection::vec(any::<u64>(), 0..12)
+            .prop_map(|v| Value::vector(&v.into_iter().map(f64::from_bits).collect::<Vec<_>>())),
+    ]
+}
+
+fn conn_kind() -> impl Strategy<Value = ConnectionKind> {
+    (0u8..6, 1u64..u64::MAX).prop_map(|(k, p)| {
+        let p = Duration::from_nanos(p);
+        match k {
+            0 => ConnectionKind::Normal,
+            1 => ConnectionKind::Suppress(p),
+            2 => ConnectionKind::Inhibit(p),
+            3 => ConnectionKind::OverrideIn(p),
+            4 => ConnectionKind::OverrideOut(p),
+            _ => ConnectionKind::WriteInhibit(p),
+        }
+    })
+}
+
+fn endpoint() -> impl Strategy<Value = Endpoint> {
+    prop_oneof![
+        (any::<u32>(), "[A-Za-z0-9]{0,8}", "[A-Za-z0-9]{0,8}").prop_map(|(n, b, p)| Endpoint::node(NodeId(n), &b, &p)),
+        (name(), "[A-Za-z0-9]{0,8}", "[A-Za-z0-9]{0,8}").prop_map(|(g, b, p)| Endpoint::Group {
+            group: g,
+            behavior: b.into(),
+            port: p.into()
+        }),
+    ]
+}
+
+fn request_body() -> impl Strategy<Value = ControlBody> {
+    prop_oneof![
+        (name(), name(), endpoint(), conn_kind(), any::<i32>()).prop_map(|(b, p, d, k, pr)| ControlBody::Connect {
+            source_behavior: b,
+            source_port: p,
+            destination: d,
+            kind: k,
+            priority: pr
+        }),
+        any::<u64>().prop_map(|c| ControlBody::Disconnect { conn: ConnectionId(c) }),
+        Just(ControlBody::List),
+        (name(), name()).prop_map(|(behavior, port)| ControlBody::Why { behavior, port }),
+        (name(), name()).prop_map(|(behavior, port)| ControlBody::Read { behavior, port }),
+    ]
+}
+
+fn reply() -> impl Strategy<Value = WireMessage> {
+    let single = prop_oneof![
+        ".{0,40}".prop_map(ReplyPart::Error),
+        any::<u64>().prop_map(|c| ReplyPart::Connection(ConnectionId(c))),
+        value().prop_map(ReplyPart::Value),
+    ];
+    prop_oneof![
+        (any::<u64>(), single).prop_map(|(id, payload)| WireMessage::Reply { id, part: 0, parts: 1, payload }),
+        (any::<u64>(), 1u16..=64, any::<u16>(), ".{0,60}").prop_map(|(id, parts, part, s)| WireMessage::Reply {
+            id,
+            part: part % parts,
+            parts,
+            payload: ReplyPart::Report(s)
+        }),
+    ]
+}
+
+fn message() -> impl Strategy<Value = WireMessage> {
+    prop_oneof![
+        (any::<u64>(), any::<u64>(), name(), name(), conn_kind(), any::<i32>(), value()).prop_map(
+            |(conn, seq, behavior, port, kind, priority, value)| WireMessage::Port(PortMessage {
+                conn: ConnectionId(conn),
+                seq,
+                behavior,
+                port,
+                kind,
+                priority,
+                value
+            })
+        ),
+        (1u32.., "[a-z0-9-]{0,12}", proptest::collection::vec(name(), 0..4))
+            .prop_map(|(interval_ms, n, groups)| WireMessage::Hello { interval_ms, name: n.into(), groups }),
+        (any::<u64>(), request_body()).prop_map(|(id, body)| WireMessage::Request { id, body }),
+        (any::<u64>(), prop_oneof![Just(0u8), 6u8..=255]).prop_map(|(id, op)| WireMessage::UnknownRequest { id, op }),
+        reply(),
+    ]
+}
+
+/// Equality with floats compared by their bits (NaN == NaN of the same payload, -0.0 != 0.0).
+fn same_value(a: &Value, b: &Value) -> bool {
+    match (a, b) {
+        (Value::Float(x), Value::Float(y)) => x.to_bits() == y.to_bits(),
+        (Value::Vector(x), Value::Vector(y)) => {
+            x.len() == y.len() && x.iter().zip(y.iter()).all(|(p, q)| p.to_bits() == q.to_bits())
+        }
+        _ => a == b,
+    }
+}
+
+fn same(a: &WireMessage, b: &WireMessage) -> bool {
+    match (a, b) {
+        (WireMessage::Port(p), WireMessage::Port(q)) => {
+            let (mut p2, mut q2) = (p.clone(), q.clone());
+            p2.value = Value::Int(0);
+            q2.value = Value::Int(0);
+            p2 == q2 && same_value(&p.value, &q.value)
+        }
+        (
+            WireMessage::Reply { id, part, parts, payload: ReplyPart::Value(v) },
+            WireMessage::Reply { id: i2, part: p2, parts: n2, payload: ReplyPart::Value(w) },
+        ) => (id, part, parts) == (i2, p2, n2) && same_value(v, w),
+        _ => a == b,
+    }
+}
+
+fn all_same(a: &[WireMessage], b: &[WireMessage]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).all(|(x, y)| same(x, y))
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 512, ..ProptestConfig::default() })]
+
+    #[test]
+    fn round_trip(team: u32, sender: u32, seq: u64, auth: bool, msgs in proptest::collection::vec(message(), 0..8)) {
+        let key = auth.then_some(KEY);
+        let bytes = encode_datagram(team, NodeId(sender), seq, key, &msgs).unwrap();
+        prop_assert!(bytes.len() <= MAX_DATAGRAM_LEN);
+        let d = decode(&bytes, &ReceiverConfig { team, key }).unwrap();
+        prop_assert_eq!(d.sender, NodeId(sender));
+        prop_assert_eq!(d.seq, seq);
+        prop_assert_eq!(d.authenticated, auth);
+        prop_assert!(all_same(&d.messages, &msgs), "decoded {:?}\nsent {:?}", d.messages, msgs);
+        // And the other receiver configuration refuses it.
+        let other = ReceiverConfig { team, key: if auth { None } else { Some(KEY) } };
+        prop_assert!(decode(&bytes, &other).is_err());
+    }
+
+    /// N3: batching to an MTU loses nothing and reorders nothing; every datagram fits.
+    #[test]
+    fn batching(mtu in 60usize..1600, msgs in proptest::collection::vec(message(), 0..40)) {
+        let config = ReceiverConfig { team: 1, key: Some(KEY) };
+        let mut datagrams = Vec::new();
+        let mut sent = Vec::new();
+        let mut seq = 1;
+        let mut w = DatagramWriter::new(1, NodeId(1), seq, Some(KEY), mtu);
+        for m in &msgs {
+            match w.push(m) {
+                Ok(()) => sent.push(m.clone()),
+                Err(EncodeError::DoesNotFit { .. }) => {
+                    datagrams.push(std::mem::replace(&mut w, { seq += 1; DatagramWriter::new(1, NodeId(1), seq, Some(KEY), mtu) }).finish());
+                    match w.push(m) {
+                        Ok(()) => sent.push(m.clone()),
+                        Err(EncodeError::TooLarge { .. }) => {}
+                        Err(e) => prop_assert!(false, "{e}"),
+                    }
+                }
+                Err(EncodeError::TooLarge { .. }) => {}
+                Err(e) => prop_assert!(false, "{e}"),
+            }
+        }
+        datagrams.push(w.finish());
+        let mut got = Vec::new();
+        for d in &datagrams {
+            prop_assert!(d.len() <= mtu.max(36));
+            got.extend(decode(d, &config).unwrap().messages);
+        }
+        prop_assert!(all_same(&got, &sent));
+    }
+
+    #[test]
+    fn random_bytes_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..600), auth: bool) {
+        let _ = decode(&bytes, &ReceiverConfig { team: 7, key: auth.then_some(KEY) });
+    }
+
+    /// Random messages areas behind a valid header reach the body decoders.
+    #[test]
+    fn random_bodies_never_panic(body in proptest::collection::vec(any::<u8>(), 0..600)) {
+        let mut bytes = DatagramWriter::new(7, NodeId(1), 1, None, 100).finish();
+        bytes.extend_from_slice(&body);
+        if let Ok(d) = decode(&bytes, &ReceiverConfig { team: 7, key: None }) {
+            check_reencodes(&d.messages)?;
+        }
+    }
+
+    #[test]
+    fn mutated_datagrams_never_panic(
+        msgs in proptest::collection::vec(message(), 1..6),
+        auth: bool,
+        edits in proptest::collection::vec((any::<usize>(), any::<u8>(), 0u8..4), 1..6),
+    ) {
+        let key = auth.then_some(KEY);
+        let mut bytes = encode_datagram(7, NodeId(1), 1, key, &msgs).unwrap();
+        for (at, byte, op) in edits {
+            let at = if bytes.is_empty() { 0 } else { at % bytes.len() };
+            match op {
+                0 if !bytes.is_empty() => bytes[at] = byte,
+                1 if !bytes.is_empty() => bytes[at] ^= 1 << (byte % 8),
+                2 => bytes.insert(at, byte),
+                _ => bytes.truncate(at),
+            }
+        }
+        if let Ok(d) = decode(&bytes, &ReceiverConfig { team: 7, key }) {
+            check_reencodes(&d.messages)?;
+        }
+    }
+
+    /// The replay window against the spec's words: accept a number once, if it is newer than
+    /// the newest accepted or at most 64 below it.
+    #[test]
+    fn replay_window_model(seqs in proptest::collection::vec(0u64..300, 0..400)) {
+        let mut w = ReplayWindow::new();
+        let mut accepted = BTreeSet::new();
+        let mut newest: Option<u64> = None;
+        for s in seqs {
+            let fresh = !accepted.contains(&s) && newest.is_none_or(|n| s > n || n - s <= 64);
+            prop_assert_eq!(w.is_fresh(s), fresh);
+            prop_assert_eq!(w.accept(s), fresh);
+            if fresh {
+                accepted.insert(s);
+                newest = Some(newest.map_or(s, |n| n.max(s)));
+            }
+            prop_assert_eq!(w.newest(), newest);
+        }
+    }
+}
+
+/// Whatever the decoder accepts, the encoder can send: re-encoding the decoded messages (all
+/// but skipped unknown kinds) succeeds and decodes to the same messages.
+fn check_reencodes(messages: &[WireMessage]) -> Result<(), TestCaseError> {
+    let known: Vec<WireMessage> =
+        messages.iter().filter(|m| !matches!(m, WireMessage::Unknown { .. })).cloned().collect();
+    let bytes = encode_datagram(7, NodeId(1), 1, None, &known).map_err(|e| TestCaseError::fail(e.to_string()))?;
+    let again = decode(&bytes, &ReceiverConfig { team: 7, key: None }).map_err(|e| TestCaseError::fail(e.name()))?;
+    prop_assert!(all_same(&again.messages, &known));
+    Ok(())
+}

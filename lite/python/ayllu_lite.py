@@ -1,0 +1,1433 @@
+"""AylluLite for Python: a one-file client of the Ayllu wire protocol, version 1.
+
+What it is for: letting a program that is not an Ayllu node (a planner, a vision process, a
+test harness, a joystick) take part in an Ayllu team -- the paper's "AylluLite" (Werger,
+*Ayllu*, section 3): expose ports that Ayllu nodes write, write Ayllu nodes' ports with any
+connection kind, and ask nodes to connect, read, explain (WHY) and list.
+
+What it promises:
+
+* Bytes on the wire follow ``spec/protocol.md`` exactly; ``decode`` drops what the spec drops,
+  with the spec's cause names (``Dropped.cause``), and ``encode`` refuses (``EncodeError``) what
+  a decoder would drop, so nothing this module sends is malformed.
+* Python 3.11 standard library only; this file can be copied on its own into any program.
+* Lite ports are plain registers (Normal ports): they have no aggregation, no priority and no
+  outgoing connections, so inhibition, override-out and write-inhibition (which only stop
+  *propagation*) have nothing to act on. The windows that decide *storing* are honoured as
+  ``docs/semantics.md`` S6 says: a suppress window blocks every connection write, and open
+  override-in windows admit only their holders. Suppress, inhibit and write-inhibit messages
+  never write the value.
+* With a team key every datagram sent is authenticated, and every datagram received must carry
+  a valid MAC and a sequence number not seen before (replay window of 64 per sender).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import enum
+import hashlib
+import hmac
+import json
+import math
+import os
+import select
+import socket
+import struct
+import threading
+import time
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+__all__ = [
+    "AUTH",
+    "CONN_KINDS",
+    "HEADER_LEN",
+    "MAC_LEN",
+    "MAX_DATAGRAM",
+    "MTU",
+    "ConnKind",
+    "Connection",
+    "Datagram",
+    "Dropped",
+    "EncodeError",
+    "Endpoint",
+    "Hello",
+    "LiteNode",
+    "Op",
+    "Port",
+    "ReplayWindow",
+    "Reply",
+    "Request",
+    "RequestFailed",
+    "RequestTimeout",
+    "Unknown",
+    "Value",
+    "decode",
+    "encode",
+    "encode_message",
+    "is_nan",
+    "key_from_hex",
+    "mac",
+    "message_from_json",
+    "message_to_json",
+    "random_key",
+    "value_from_json",
+    "value_to_json",
+]
+
+# ---------------------------------------------------------------------------------------------
+# Constants from spec/protocol.md
+# ---------------------------------------------------------------------------------------------
+
+MAGIC = b"AY"
+VERSION = 1
+AUTH = 0x01
+HEADER_LEN = 20
+MAC_LEN = 16
+MAX_DATAGRAM = 8192
+MTU = 1472
+
+KIND_PORT = 0x01
+KIND_HELLO = 0x02
+KIND_REQUEST = 0x10
+KIND_REPLY = 0x11
+
+_VT_BOOL, _VT_INT, _VT_FLOAT, _VT_TEXT, _VT_BYTES, _VT_VECTOR = range(6)
+_EP_NODE, _EP_GROUP = 1, 2
+_RESULT_CONNECTION, _RESULT_VALUE, _RESULT_REPORT = 1, 2, 3
+MAX_PARTS = 64
+
+#: How often an unanswered request is sent again, and how many sends at most (N2).
+RETRY_INTERVAL_S = 0.2
+RETRY_LIMIT = 25
+#: How many answered requests a node remembers (spec); the lite node answers only reads.
+_ANSWERED_MAX = 1024
+#: Bounded memory for the per-(sender, connection) newest sequence numbers (N1).
+_SEQ_TABLE_MAX = 16384
+
+_I64_MIN, _I64_MAX = -(1 << 63), (1 << 63) - 1
+_I32_MIN, _I32_MAX = -(1 << 31), (1 << 31) - 1
+_U64_MAX = (1 << 64) - 1
+
+
+class ConnKind(enum.IntEnum):
+    """The connection kinds of ``docs/semantics.md`` S6, with their wire codes."""
+
+    NORMAL = 0
+    SUPPRESS = 1
+    INHIBIT = 2
+    OVERRIDE_IN = 3
+    OVERRIDE_OUT = 4
+    WRITE_INHIBIT = 5
+
+    @property
+    def wire_name(self) -> str:
+        """The name used in the golden vectors (``override-in``)."""
+        return self.name.lower().replace("_", "-")
+
+    @classmethod
+    def from_name(cls, name: str) -> ConnKind:
+        """Parse a wire name (``override-in``) or a Python name (``OVERRIDE_IN``)."""
+        return cls[name.upper().replace("-", "_")]
+
+
+CONN_KINDS: tuple[ConnKind, ...] = tuple(ConnKind)
+
+
+class Op(enum.IntEnum):
+    """REQUEST operations."""
+
+    CONNECT = 1
+    DISCONNECT = 2
+    LIST = 3
+    WHY = 4
+    READ = 5
+
+
+class Vector(tuple[float, ...]):
+    """A float vector value. A plain tuple or list of floats is also accepted when sending."""
+
+    __slots__ = ()
+
+
+#: A port value: bool, int (i64), float (f64), text, bytes, or a float vector.
+Value = bool | int | float | str | bytes | Vector
+
+
+class Dropped(Exception):
+    """A datagram (or message) that is not applied, with its drop cause from the spec (N4)."""
+
+    def __init__(self, cause: str, detail: str = "") -> None:
+        super().__init__(f"{cause}: {detail}" if detail else cause)
+        self.cause = cause
+        self.detail = detail
+
+
+class EncodeError(ValueError):
+    """A message that a conforming decoder would drop, refused before it is sent."""
+
+
+class RequestTimeout(TimeoutError):
+    """No complete answer after every retry (N2)."""
+
+
+class RequestFailed(RuntimeError):
+    """The node answered the request with an error REPLY; the message says why."""
+
+
+# ---------------------------------------------------------------------------------------------
+# Messages
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Endpoint:
+    """A CONNECT destination: exactly one of ``node`` or ``group`` is set."""
+
+    behavior: str
+    port: str
+    node: int | None = None
+    group: str | None = None
+
+
+@dataclass(frozen=True)
+class Port:
+    """PORT: a value travelling along a connection (``period_ns`` is 0 only for NORMAL)."""
+
+    conn: int
+    seq: int
+    conn_kind: ConnKind
+    period_ns: int
+    priority: int
+    behavior: str
+    port: str
+    value: Value
+
+
+@dataclass(frozen=True)
+class Hello:
+    """HELLO: liveness announcement."""
+
+    interval_ms: int
+    name: str = ""
+
+
+@dataclass(frozen=True)
+class Request:
+    """REQUEST. ``op`` is an :class:`Op` or, when decoded, any other operation code.
+
+    CONNECT uses ``src_behavior``, ``src_port``, ``destination``, ``conn_kind``, ``period_ns``
+    and ``priority``; DISCONNECT uses ``conn``; WHY and READ use ``behavior`` and ``port``.
+    """
+
+    id: int
+    op: int
+    src_behavior: str = ""
+    src_port: str = ""
+    destination: Endpoint | None = None
+    conn_kind: ConnKind = ConnKind.NORMAL
+    period_ns: int = 0
+    priority: int = 0
+    conn: int = 0
+    behavior: str = ""
+    port: str = ""
+
+
+@dataclass(frozen=True)
+class Reply:
+    """REPLY: exactly one of ``error``, ``conn``, ``value``, ``report`` is set."""
+
+    id: int
+    part: int = 0
+    parts: int = 1
+    error: str | None = None
+    conn: int | None = None
+    value: Value | None = None
+    report: str | None = None
+
+    @property
+    def ok(self) -> bool:
+        return self.error is None
+
+
+@dataclass(frozen=True)
+class Unknown:
+    """A message of a kind this decoder does not know: skipped and counted (``unknown_kind``)."""
+
+    code: int
+    length: int
+
+
+Message = Port | Hello | Request | Reply | Unknown
+
+
+@dataclass(frozen=True)
+class Datagram:
+    """A decoded datagram: who sent it, its sequence number, and its messages in order."""
+
+    team: int
+    sender: int
+    seq: int
+    auth: bool
+    messages: tuple[Message, ...]
+
+
+# ---------------------------------------------------------------------------------------------
+# Encoding
+# ---------------------------------------------------------------------------------------------
+
+
+def _u(fmt: str, v: int, lo: int, hi: int, what: str) -> bytes:
+    if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+        raise EncodeError(f"{what} out of range: {v!r}")
+    return struct.pack(fmt, v)
+
+
+def _u8(v: int, what: str) -> bytes:
+    return _u("<B", v, 0, 0xFF, what)
+
+
+def _u16(v: int, what: str) -> bytes:
+    return _u("<H", v, 0, 0xFFFF, what)
+
+
+def _u32(v: int, what: str) -> bytes:
+    return _u("<I", v, 0, 0xFFFFFFFF, what)
+
+
+def _u64(v: int, what: str) -> bytes:
+    return _u("<Q", v, 0, _U64_MAX, what)
+
+
+def _i32(v: int, what: str) -> bytes:
+    return _u("<i", v, _I32_MIN, _I32_MAX, what)
+
+
+def _str8(s: str, what: str, nonempty: bool = False) -> bytes:
+    b = s.encode("utf-8")
+    if len(b) > 0xFF:
+        raise EncodeError(f"{what} longer than 255 bytes")
+    if nonempty and not b:
+        raise EncodeError(f"{what} must not be empty")
+    return bytes([len(b)]) + b
+
+
+def _str16(s: str, what: str) -> bytes:
+    b = s.encode("utf-8")
+    if len(b) > 0xFFFF:
+        raise EncodeError(f"{what} longer than 65535 bytes")
+    return struct.pack("<H", len(b)) + b
+
+
+def _encode_value(v: Value) -> bytes:
+    # bool before int: bool is a subclass of int in Python, and the two are different types here.
+    if isinstance(v, bool):
+        return bytes([_VT_BOOL, 1 if v else 0])
+    if isinstance(v, int):
+        if not _I64_MIN <= v <= _I64_MAX:
+            raise EncodeError(f"int value outside i64: {v}")
+        return bytes([_VT_INT]) + struct.pack("<q", v)
+    if isinstance(v, float):
+        return bytes([_VT_FLOAT]) + struct.pack("<d", v)
+    if isinstance(v, str):
+        return bytes([_VT_TEXT]) + _str16(v, "text value")
+    if isinstance(v, (bytes, bytearray, memoryview)):
+        b = bytes(v)
+        if len(b) > 0xFFFF:
+            raise EncodeError("bytes value longer than 65535 bytes")
+        return bytes([_VT_BYTES]) + struct.pack("<H", len(b)) + b
+    if isinstance(v, (tuple, list)):
+        if len(v) > 0xFF:
+            raise EncodeError("vector longer than 255 floats")
+        if not all(isinstance(x, float) for x in v):
+            raise EncodeError("vector elements must be floats")
+        return bytes([_VT_VECTOR, len(v)]) + struct.pack(f"<{len(v)}d", *v)
+    raise EncodeError(f"not a port value: {type(v).__name__}")
+
+
+def _encode_endpoint(e: Endpoint) -> bytes:
+    if (e.node is None) == (e.group is None):
+        raise EncodeError("endpoint needs exactly one of node and group")
+    if e.node is not None:
+        head = bytes([_EP_NODE]) + _u32(e.node, "endpoint node")
+    else:
+        assert e.group is not None
+        head = bytes([_EP_GROUP]) + _str8(e.group, "endpoint group", nonempty=True)
+    return head + _str8(e.behavior, "endpoint behavior") + _str8(e.port, "endpoint port")
+
+
+def _check_period(kind: ConnKind, period_ns: int) -> bytes:
+    kind = ConnKind(kind)
+    if (kind == ConnKind.NORMAL) != (period_ns == 0):
+        raise EncodeError("period must be 0 for normal connections and only for them")
+    return bytes([kind]) + _u64(period_ns, "period")
+
+
+def _encode_body(m: Message) -> tuple[int, bytes]:
+    if isinstance(m, Port):
+        body = (
+            _u64(m.conn, "conn")
+            + _u64(m.seq, "seq")
+            + _check_period(m.conn_kind, m.period_ns)
+            + _i32(m.priority, "priority")
+            + _str8(m.behavior, "behavior", nonempty=True)
+            + _str8(m.port, "port", nonempty=True)
+            + _encode_value(m.value)
+        )
+        return KIND_PORT, body
+    if isinstance(m, Hello):
+        if m.interval_ms <= 0:
+            raise EncodeError("HELLO interval must be above zero")
+        return KIND_HELLO, _u32(m.interval_ms, "interval") + _str8(m.name, "hello name")
+    if isinstance(m, Request):
+        body = _u64(m.id, "request id") + _u8(int(m.op), "op")
+        if m.op == Op.CONNECT:
+            if m.destination is None:
+                raise EncodeError("CONNECT needs a destination")
+            body += (
+                _str8(m.src_behavior, "source behavior")
+                + _str8(m.src_port, "source port")
+                + _encode_endpoint(m.destination)
+                + _check_period(m.conn_kind, m.period_ns)
+                + _i32(m.priority, "priority")
+            )
+        elif m.op == Op.DISCONNECT:
+            body += _u64(m.conn, "conn")
+        elif m.op in (Op.WHY, Op.READ):
+            body += _str8(m.behavior, "behavior") + _str8(m.port, "port")
+        # LIST and operations unknown to this module carry no arguments.
+        return KIND_REQUEST, body
+    if isinstance(m, Reply):
+        if not 1 <= m.parts <= MAX_PARTS or not 0 <= m.part < m.parts:
+            raise EncodeError("REPLY part must be below parts, and parts in 1..=64")
+        results = [x is not None for x in (m.error, m.conn, m.value, m.report)]
+        if sum(results) != 1:
+            raise EncodeError("REPLY needs exactly one of error, conn, value, report")
+        if m.report is None and m.parts != 1:
+            raise EncodeError("only report replies have several parts")
+        body = _u64(m.id, "reply id")
+        if m.error is not None:
+            return KIND_REPLY, body + bytes([1]) + _u16(m.part, "part") + _u16(m.parts, "parts") + _str16(
+                m.error, "error message"
+            )
+        body += bytes([0]) + _u16(m.part, "part") + _u16(m.parts, "parts")
+        if m.conn is not None:
+            body += bytes([_RESULT_CONNECTION]) + _u64(m.conn, "conn")
+        elif m.report is not None:
+            body += bytes([_RESULT_REPORT]) + _str16(m.report, "report")
+        else:
+            assert m.value is not None
+            body += bytes([_RESULT_VALUE]) + _encode_value(m.value)
+        return KIND_REPLY, body
+    raise EncodeError(f"cannot encode {type(m).__name__}")
+
+
+def encode_message(m: Message) -> bytes:
+    """One message with its kind and length header."""
+    kind, body = _encode_body(m)
+    if len(body) > 0xFFFF:
+        raise EncodeError("message body longer than 65535 bytes")
+    return bytes([kind]) + struct.pack("<H", len(body)) + body
+
+
+def mac(key: bytes, data: bytes) -> bytes:
+    """The datagram MAC: HMAC-SHA256 of ``data`` under the team key, first 16 bytes."""
+    return hmac.new(key, data, hashlib.sha256).digest()[:MAC_LEN]
+
+
+def encode(
+    team: int,
+    sender: int,
+    seq: int,
+    messages: Iterable[Message],
+    *,
+    key: bytes | None = None,
+    limit: int = MAX_DATAGRAM,
+) -> bytes:
+    """A whole datagram. With ``key`` it carries AUTH and a MAC.
+
+    ``limit`` bounds the result (default: what receivers accept); pass :data:`MTU` to stay
+    within the default path MTU.
+    """
+    if key is not None and len(key) != 32:
+        raise EncodeError("team keys are 32 bytes")
+    head = (
+        MAGIC
+        + bytes([VERSION, AUTH if key is not None else 0])
+        + _u32(team, "team")
+        + _u32(sender, "sender")
+        + _u64(seq, "sequence")
+    )
+    out = head + b"".join(encode_message(m) for m in messages)
+    if key is not None:
+        out += mac(key, out)
+    if len(out) > limit:
+        raise EncodeError(f"datagram of {len(out)} bytes exceeds {limit}")
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# Decoding
+# ---------------------------------------------------------------------------------------------
+
+
+class _Reader:
+    """Reads one message body; running past its end is ``malformed`` (body shorter than fields)."""
+
+    __slots__ = ("buf", "end", "pos")
+
+    def __init__(self, buf: bytes, pos: int, end: int) -> None:
+        self.buf, self.pos, self.end = buf, pos, end
+
+    def take(self, n: int) -> bytes:
+        if self.end - self.pos < n:
+            raise Dropped("malformed", "body shorter than its fields")
+        b = self.buf[self.pos : self.pos + n]
+        self.pos += n
+        return b
+
+    def unpack(self, fmt: str) -> Any:
+        return struct.unpack(fmt, self.take(struct.calcsize(fmt)))[0]
+
+    def u8(self) -> int:
+        return int(self.unpack("<B"))
+
+    def u16(self) -> int:
+        return int(self.unpack("<H"))
+
+    def u32(self) -> int:
+        return int(self.unpack("<I"))
+
+    def u64(self) -> int:
+        return int(self.unpack("<Q"))
+
+    def i32(self) -> int:
+        return int(self.unpack("<i"))
+
+    def text(self, n: int) -> str:
+        try:
+            return self.take(n).decode("utf-8")
+        except UnicodeDecodeError:
+            raise Dropped("malformed", "invalid UTF-8") from None
+
+    def str8(self, nonempty: bool = False) -> str:
+        s = self.text(self.u8())
+        if nonempty and not s:
+            raise Dropped("malformed", "empty name")
+        return s
+
+    def str16(self) -> str:
+        return self.text(self.u16())
+
+    def kind_period(self) -> tuple[ConnKind, int]:
+        code, period = self.u8(), self.u64()
+        if code > ConnKind.WRITE_INHIBIT:
+            raise Dropped("malformed", f"connection kind {code}")
+        kind = ConnKind(code)
+        if (kind == ConnKind.NORMAL) != (period == 0):
+            raise Dropped("malformed", "period 0 is for normal connections only")
+        return kind, period
+
+    def value(self) -> Value:
+        t = self.u8()
+        if t == _VT_BOOL:
+            b = self.u8()
+            if b > 1:
+                raise Dropped("malformed", f"bool {b}")
+            return b == 1
+        if t == _VT_INT:
+            return int(self.unpack("<q"))
+        if t == _VT_FLOAT:
+            return float(self.unpack("<d"))
+        if t == _VT_TEXT:
+            return self.str16()
+        if t == _VT_BYTES:
+            return bytes(self.take(self.u16()))
+        if t == _VT_VECTOR:
+            n = self.u8()
+            return Vector(struct.unpack(f"<{n}d", self.take(8 * n)))
+        raise Dropped("malformed", f"value type {t}")
+
+    def endpoint(self) -> Endpoint:
+        tag = self.u8()
+        if tag == _EP_NODE:
+            node = self.u32()
+            return Endpoint(self.str8(), self.str8(), node=node)
+        if tag == _EP_GROUP:
+            group = self.str8(nonempty=True)
+            return Endpoint(self.str8(), self.str8(), group=group)
+        raise Dropped("malformed", f"endpoint tag {tag}")
+
+
+def _decode_message(kind: int, r: _Reader) -> Message:
+    if kind == KIND_PORT:
+        conn, seq = r.u64(), r.u64()
+        ck, period = r.kind_period()
+        priority = r.i32()
+        behavior, port = r.str8(nonempty=True), r.str8(nonempty=True)
+        return Port(conn, seq, ck, period, priority, behavior, port, r.value())
+    if kind == KIND_HELLO:
+        interval = r.u32()
+        if interval == 0:
+            raise Dropped("malformed", "HELLO interval 0")
+        return Hello(interval, r.str8())
+    if kind == KIND_REQUEST:
+        rid, op = r.u64(), r.u8()
+        if op == Op.CONNECT:
+            sb, sp = r.str8(), r.str8()
+            dest = r.endpoint()
+            ck, period = r.kind_period()
+            return Request(rid, Op.CONNECT, sb, sp, dest, ck, period, r.i32())
+        if op == Op.DISCONNECT:
+            return Request(rid, Op.DISCONNECT, conn=r.u64())
+        if op in (Op.WHY, Op.READ):
+            return Request(rid, Op(op), behavior=r.str8(), port=r.str8())
+        # LIST has no arguments; an unknown op is decoded (and answered with an error by a
+        # node) rather than dropped, so tools can tell an old node from a lost request.
+        return Request(rid, Op(op) if op == Op.LIST else op)
+    if kind == KIND_REPLY:
+        rid, status, part, parts = r.u64(), r.u8(), r.u16(), r.u16()
+        if status > 1:
+            raise Dropped("malformed", f"reply status {status}")
+        if not 1 <= parts <= MAX_PARTS or part >= parts:
+            raise Dropped("malformed", f"reply part {part} of {parts}")
+        if status == 1:
+            return Reply(rid, part, parts, error=r.str16())
+        result = r.u8()
+        if result == _RESULT_REPORT:
+            return Reply(rid, part, parts, report=r.str16())
+        if parts != 1:
+            raise Dropped("malformed", "only reports have several parts")
+        if result == _RESULT_CONNECTION:
+            return Reply(rid, part, parts, conn=r.u64())
+        if result == _RESULT_VALUE:
+            return Reply(rid, part, parts, value=r.value())
+        raise Dropped("malformed", f"reply result {result}")
+    raise AssertionError("unreachable: caller handles unknown kinds")
+
+
+_KNOWN_KINDS = frozenset((KIND_PORT, KIND_HELLO, KIND_REQUEST, KIND_REPLY))
+
+
+def decode(data: bytes, team: int, key: bytes | None = None) -> Datagram:
+    """Decode and verify one datagram for a receiver of ``team`` holding ``key`` (or open).
+
+    Raises :class:`Dropped` with the spec's cause; nothing of a dropped datagram is returned.
+    Messages of unknown kinds come back as :class:`Unknown` (the caller counts them as
+    ``unknown_kind``). Replay protection needs state: see :class:`ReplayWindow`.
+    """
+    data = bytes(data)
+    n = len(data)
+    if n > MAX_DATAGRAM:
+        raise Dropped("oversized")
+    if n < HEADER_LEN:
+        raise Dropped("truncated", "shorter than the header")
+    if data[0:2] != MAGIC:
+        raise Dropped("bad_magic")
+    if data[2] != VERSION:
+        raise Dropped("bad_version")
+    flags = data[3]
+    if flags & ~AUTH:
+        raise Dropped("bad_flags")
+    dteam, sender, seq = struct.unpack_from("<IIQ", data, 4)
+    if dteam != team:
+        raise Dropped("wrong_team")
+    auth = bool(flags & AUTH)
+    end = n
+    if auth:
+        if key is None:
+            raise Dropped("unexpected_auth")
+        if n < HEADER_LEN + MAC_LEN:
+            raise Dropped("truncated", "no room for the MAC")
+        end = n - MAC_LEN
+        if not hmac.compare_digest(mac(key, data[:end]), data[end:]):
+            raise Dropped("bad_mac")
+    elif key is not None:
+        raise Dropped("unauthenticated")
+    messages: list[Message] = []
+    pos = HEADER_LEN
+    while pos < end:
+        if end - pos < 3:
+            raise Dropped("truncated", "message header cut")
+        kind = data[pos]
+        (length,) = struct.unpack_from("<H", data, pos + 1)
+        body = pos + 3
+        if body + length > end:
+            raise Dropped("truncated", "message runs past the end")
+        if kind in _KNOWN_KINDS:
+            # Extra body bytes are ignored: fields are only ever appended.
+            messages.append(_decode_message(kind, _Reader(data, body, body + length)))
+        else:
+            messages.append(Unknown(kind, length))
+        pos = body + length
+    return Datagram(team, sender, seq, auth, tuple(messages))
+
+
+class ReplayWindow:
+    """One sender's replay window (N5): the newest accepted sequence number and a bitmap of
+    the 64 before it. Only call :meth:`accept` after the MAC was verified, so forged
+    datagrams cannot move the window."""
+
+    __slots__ = ("bits", "newest")
+
+    def __init__(self) -> None:
+        self.newest: int | None = None
+        self.bits = 0  # bit i set: newest - 1 - i was accepted
+
+    def accept(self, seq: int) -> bool:
+        """Record ``seq`` and return True, or return False if it is a replay (or too old)."""
+        if self.newest is None or seq > self.newest:
+            if self.newest is not None:
+                shift = seq - self.newest
+                self.bits = ((self.bits << shift) | (1 << (shift - 1))) & _U64_MAX if shift <= 64 else 0
+            self.newest = seq
+            return True
+        diff = self.newest - seq
+        if diff == 0 or diff > 64 or self.bits & (1 << (diff - 1)):
+            return False
+        self.bits |= 1 << (diff - 1)
+        return True
+
+
+# ---------------------------------------------------------------------------------------------
+# The JSON form of spec/conformance.md (golden vectors; handy for tools and logs)
+# ---------------------------------------------------------------------------------------------
+
+
+def _bits(f: float) -> str:
+    return struct.pack(">d", f).hex()
+
+
+def _from_bits(h: str) -> float:
+    return float(struct.unpack(">d", bytes.fromhex(h))[0])
+
+
+def value_to_json(v: Value) -> dict[str, Any]:
+    """A value in the vectors' JSON form (floats by their bits)."""
+    if isinstance(v, bool):
+        return {"type": "bool", "v": v}
+    if isinstance(v, int):
+        return {"type": "int", "v": v}
+    if isinstance(v, float):
+        return {"type": "float", "bits": _bits(v)}
+    if isinstance(v, str):
+        return {"type": "text", "v": v}
+    if isinstance(v, (bytes, bytearray)):
+        return {"type": "bytes", "hex": bytes(v).hex()}
+    return {"type": "vector", "bits": [_bits(x) for x in v]}
+
+
+def value_from_json(j: dict[str, Any]) -> Value:
+    """Inverse of :func:`value_to_json`."""
+    t = j["type"]
+    if t == "bool":
+        return bool(j["v"])
+    if t == "int":
+        return int(j["v"])
+    if t == "float":
+        return _from_bits(j["bits"])
+    if t == "text":
+        return str(j["v"])
+    if t == "bytes":
+        return bytes.fromhex(j["hex"])
+    if t == "vector":
+        return Vector(_from_bits(b) for b in j["bits"])
+    raise ValueError(f"value type {t!r}")
+
+
+def _endpoint_to_json(e: Endpoint) -> dict[str, Any]:
+    d: dict[str, Any] = {"node": e.node} if e.node is not None else {"group": e.group}
+    d.update(behavior=e.behavior, port=e.port)
+    return d
+
+
+_OP_NAMES = {Op.CONNECT: "connect", Op.DISCONNECT: "disconnect", Op.LIST: "list", Op.WHY: "why", Op.READ: "read"}
+
+
+def message_to_json(m: Message) -> dict[str, Any]:
+    """A message in the vectors' JSON form."""
+    if isinstance(m, Port):
+        return {
+            "kind": "port",
+            "conn": m.conn,
+            "seq": m.seq,
+            "conn_kind": ConnKind(m.conn_kind).wire_name,
+            "period_ns": m.period_ns,
+            "priority": m.priority,
+            "behavior": m.behavior,
+            "port": m.port,
+            "value": value_to_json(m.value),
+        }
+    if isinstance(m, Hello):
+        return {"kind": "hello", "interval_ms": m.interval_ms, "name": m.name}
+    if isinstance(m, Request):
+        d: dict[str, Any] = {"kind": "request", "id": m.id}
+        if m.op in _OP_NAMES:
+            d["op"] = _OP_NAMES[Op(m.op)]
+        else:
+            d.update(op="unknown", code=int(m.op))
+        if m.op == Op.CONNECT:
+            assert m.destination is not None
+            d.update(
+                src_behavior=m.src_behavior,
+                src_port=m.src_port,
+                destination=_endpoint_to_json(m.destination),
+                conn_kind=ConnKind(m.conn_kind).wire_name,
+                period_ns=m.period_ns,
+                priority=m.priority,
+            )
+        elif m.op == Op.DISCONNECT:
+            d["conn"] = m.conn
+        elif m.op in (Op.WHY, Op.READ):
+            d.update(behavior=m.behavior, port=m.port)
+        return d
+    if isinstance(m, Reply):
+        d = {"kind": "reply", "id": m.id, "status": "ok" if m.ok else "error", "part": m.part, "parts": m.parts}
+        if m.error is not None:
+            d["message"] = m.error
+        elif m.conn is not None:
+            d["result"] = {"connection": m.conn}
+        elif m.report is not None:
+            d["result"] = {"report": m.report}
+        else:
+            assert m.value is not None
+            d["result"] = {"value": value_to_json(m.value)}
+        return d
+    return {"kind": "unknown", "code": m.code, "length": m.length}
+
+
+def message_from_json(j: dict[str, Any]) -> Message:
+    """Inverse of :func:`message_to_json`."""
+    k = j["kind"]
+    if k == "port":
+        return Port(
+            j["conn"],
+            j["seq"],
+            ConnKind.from_name(j["conn_kind"]),
+            j["period_ns"],
+            j["priority"],
+            j["behavior"],
+            j["port"],
+            value_from_json(j["value"]),
+        )
+    if k == "hello":
+        return Hello(j["interval_ms"], j["name"])
+    if k == "request":
+        name = j["op"]
+        op: int = j["code"] if name == "unknown" else Op[name.upper()]
+        if op == Op.CONNECT:
+            dj = j["destination"]
+            dest = Endpoint(dj["behavior"], dj["port"], node=dj.get("node"), group=dj.get("group"))
+            return Request(
+                j["id"],
+                op,
+                j["src_behavior"],
+                j["src_port"],
+                dest,
+                ConnKind.from_name(j["conn_kind"]),
+                j["period_ns"],
+                j["priority"],
+            )
+        if op == Op.DISCONNECT:
+            return Request(j["id"], op, conn=j["conn"])
+        if op in (Op.WHY, Op.READ):
+            return Request(j["id"], op, behavior=j["behavior"], port=j["port"])
+        return Request(j["id"], op)
+    if k == "reply":
+        base = {"id": j["id"], "part": j["part"], "parts": j["parts"]}
+        if j["status"] == "error":
+            return Reply(**base, error=j["message"])
+        res = j["result"]
+        if "connection" in res:
+            return Reply(**base, conn=res["connection"])
+        if "report" in res:
+            return Reply(**base, report=res["report"])
+        return Reply(**base, value=value_from_json(res["value"]))
+    if k == "unknown":
+        return Unknown(j["code"], j["length"])
+    raise ValueError(f"message kind {k!r}")
+
+
+# ---------------------------------------------------------------------------------------------
+# The lite node
+# ---------------------------------------------------------------------------------------------
+
+Address = tuple[str, int]
+#: ``on_write(behavior, port, value, sender_node, conn)``: called after a PORT message stored
+#: a value in an exposed port.
+WriteCallback = Callable[[str, str, Value, int, int], None]
+
+
+def _boot_base() -> int:
+    # spec: start at boot_seconds << 32 so that a restarted client's numbers exceed its old
+    # ones. Used for datagram sequence numbers, request ids and per-connection sequence
+    # numbers alike, since receivers remember all three across our restart.
+    return int(time.time()) << 32
+
+
+def _type_name(v: Value) -> str:
+    return str(value_to_json(v)["type"])
+
+
+@dataclass
+class _LitePort:
+    value: Value
+    on_write: WriteCallback | None
+    writes: int = 0
+    # (kind, (sender, conn)) -> end of the window, monotonic ns. Only the windows that decide
+    # storing are kept: lite ports never propagate (see the module docstring).
+    windows: dict[tuple[ConnKind, tuple[int, int]], int] = field(default_factory=dict)
+
+    def refresh(self, kind: ConnKind, holder: tuple[int, int], end: int) -> None:
+        key = (kind, holder)
+        self.windows[key] = max(self.windows.get(key, 0), end)  # refresh, never shorten (D6.1)
+
+    def admit(self, now: int, holder: tuple[int, int]) -> str | None:
+        """Why a connection write from ``holder`` is not stored now (truth table 1), or None."""
+        for key, end in list(self.windows.items()):
+            if end <= now:
+                del self.windows[key]
+        if any(k == ConnKind.SUPPRESS for k, _ in self.windows):
+            return "suppressed"
+        passes = {h for k, h in self.windows if k == ConnKind.OVERRIDE_IN}
+        if passes and holder not in passes:
+            return "overridden_in"
+        return None
+
+
+class Connection:
+    """A connection from this lite node to a port on an Ayllu node.
+
+    It owns a connection id and its own sequence numbers (N1), so the receiver can drop late
+    duplicates and know who holds a pass. Create with :meth:`LiteNode.connection`.
+    """
+
+    def __init__(
+        self,
+        node: LiteNode,
+        to: int | Address,
+        behavior: str,
+        port: str,
+        kind: ConnKind,
+        period_ns: int,
+        priority: int,
+        conn: int,
+    ) -> None:
+        self._node, self.to, self.behavior, self.port = node, to, behavior, port
+        self.kind, self.period_ns, self.priority, self.conn = ConnKind(kind), period_ns, priority, conn
+        self.seq = _boot_base()
+        # Fail now rather than at the first send.
+        _check_period(self.kind, period_ns)
+        _str8(behavior, "behavior", nonempty=True)
+        _str8(port, "port", nonempty=True)
+
+    def send(self, value: Value) -> None:
+        """Send one value along the connection (best effort: a lost value is not resent)."""
+        with self._node._lock:
+            self.seq += 1
+            msg = Port(self.conn, self.seq, self.kind, self.period_ns, self.priority, self.behavior, self.port, value)
+            self._node._send([msg], self._node._resolve(self.to))
+
+
+@dataclass
+class _Pending:
+    request: Request
+    to: Address
+    sends: int = 0
+    next_send: float = 0.0
+    parts: dict[int, Reply] = field(default_factory=dict)
+    done: Reply | None = None  # the single-part answer, or the assembled report
+    failed: str | None = None
+
+
+class LiteNode:
+    """An AylluLite participant: node id, team, optional key, and a UDP socket it owns.
+
+    Thread-safety: every public method may be called from any thread. Incoming datagrams are
+    handled by :meth:`poll`, called by you or by the background thread of :meth:`start`; write
+    callbacks run on whichever thread polls, with no lock held.
+    """
+
+    def __init__(
+        self,
+        node_id: int,
+        team: int,
+        *,
+        key: bytes | None = None,
+        bind: Address = ("0.0.0.0", 0),
+        peers: Iterable[tuple[int, Address]] = (),
+        broadcast: Address | None = None,
+        name: str = "",
+        hello_interval_ms: int = 1000,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        if key is not None and len(key) != 32:
+            raise ValueError("team keys are 32 bytes (64 hex digits)")
+        _u32(node_id, "node id")
+        _u32(team, "team")
+        if hello_interval_ms <= 0:
+            raise ValueError("hello interval must be above zero")
+        self.node_id, self.team, self.key, self.name = node_id, team, key, name
+        self.hello_interval_ms = hello_interval_ms
+        self._clock = clock
+        self._lock = threading.RLock()
+        self._answered = threading.Condition(self._lock)
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.bind(bind)
+        self.broadcast = broadcast
+        if broadcast is not None:
+            self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_BROADCAST, 1)
+        base = _boot_base()
+        self._seq = base
+        self._next_id = base
+        self._next_conn = 1
+        self._ports: dict[str, dict[str, _LitePort]] = {}
+        self._static_peers: dict[int, Address] = dict(peers)
+        # node id -> (address, last heard on our clock, hello interval in seconds)
+        self._heard: dict[int, tuple[Address, float, float]] = {}
+        self._replay: dict[int, ReplayWindow] = {}
+        self._newest_seq: dict[tuple[int, int], int] = {}
+        self._pending: dict[int, _Pending] = {}
+        self._writers: dict[tuple[Any, ...], Connection] = {}
+        self._next_hello = 0.0
+        self._thread: threading.Thread | None = None
+        self._stop = threading.Event()
+        #: Drop and event counters by cause name (N4), plus ``received``/``sent``.
+        self.counters: dict[str, int] = {}
+
+    # ----- lifecycle ---------------------------------------------------------------------
+
+    @property
+    def address(self) -> Address:
+        """The local address of the socket (useful after binding port 0)."""
+        host, port = self.sock.getsockname()[:2]
+        return (host, port)
+
+    def start(self) -> None:
+        """Handle incoming datagrams, HELLOs and retries on a background thread."""
+        with self._lock:
+            if self._thread is not None:
+                return
+            self._stop.clear()
+            self._thread = threading.Thread(target=self._run, name=f"ayllu-lite-{self.node_id}", daemon=True)
+            self._thread.start()
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            self.poll(0.05)
+
+    def close(self) -> None:
+        """Stop the background thread (if any) and close the socket."""
+        self._stop.set()
+        t = self._thread
+        if t is not None and t is not threading.current_thread():
+            t.join()
+        self._thread = None
+        self.sock.close()
+
+    def __enter__(self) -> LiteNode:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # ----- exposed ports -----------------------------------------------------------------
+
+    def expose(self, behavior: str, port: str, default: Value, on_write: WriteCallback | None = None) -> None:
+        """Expose ``behavior.port`` to Ayllu nodes. Its type is the default's type (S1):
+        values of another type are dropped as ``type_mismatch``."""
+        _str8(behavior, "behavior", nonempty=True)
+        _str8(port, "port", nonempty=True)
+        _encode_value(default)
+        with self._lock:
+            self._ports.setdefault(behavior, {})[port] = _LitePort(default, on_write)
+
+    def get(self, behavior: str, port: str) -> Value:
+        """The current value of an exposed port."""
+        with self._lock:
+            return self._ports[behavior][port].value
+
+    def set(self, behavior: str, port: str, value: Value) -> None:
+        """Set an exposed port locally (as its own behavior would: windows do not apply)."""
+        with self._lock:
+            p = self._ports[behavior][port]
+            if _type_name(value) != _type_name(p.value):
+                raise TypeError(f"{behavior}.{port} holds {_type_name(p.value)}, not {_type_name(value)}")
+            p.value = value
+
+    def ports(self) -> dict[str, dict[str, Value]]:
+        """A snapshot of every exposed port: behavior -> port -> value."""
+        with self._lock:
+            return {b: {p: lp.value for p, lp in ps.items()} for b, ps in self._ports.items()}
+
+    # ----- peers -------------------------------------------------------------------------
+
+    def add_peer(self, node_id: int, address: Address) -> None:
+        """Configure a peer: it receives our HELLOs and can be named by node id."""
+        with self._lock:
+            self._static_peers[node_id] = address
+
+    def peers(self) -> dict[int, Address]:
+        """Configured peers and the nodes heard from recently (N6), by node id."""
+        with self._lock:
+            self._expire_peers(self._clock())
+            out = {n: a for n, (a, _, _) in self._heard.items()}
+            out.update(self._static_peers)
+            return out
+
+    def _expire_peers(self, now: float) -> None:
+        for n, (_, last, interval) in list(self._heard.items()):
+            if now - last > 3 * interval:
+                del self._heard[n]
+
+    def _resolve(self, to: int | Address) -> Address:
+        if isinstance(to, tuple):
+            return to
+        if to in self._static_peers:
+            return self._static_peers[to]
+        if to in self._heard:
+            return self._heard[to][0]
+        raise LookupError(f"no address known for node {to}: add_peer() it or wait for its HELLO")
+
+    # ----- sending -----------------------------------------------------------------------
+
+    def _count(self, what: str) -> None:
+        self.counters[what] = self.counters.get(what, 0) + 1
+
+    def _send(self, messages: Sequence[Message], to: Address) -> None:
+        with self._lock:
+            self._seq += 1
+            data = encode(self.team, self.node_id, self._seq, messages, key=self.key, limit=MTU)
+            try:
+                self.sock.sendto(data, to)
+            except OSError:
+                # UDP is best effort (N1): an unreachable peer must not stop the poll loop.
+                self._count("send_failed")
+                return
+            self._count("sent")
+
+    def send_hello(self) -> None:
+        """Announce this node now to every configured and known peer and the broadcast address."""
+        with self._lock:
+            targets = set(self.peers().values())
+            if self.broadcast is not None:
+                targets.add(self.broadcast)
+            hello = Hello(self.hello_interval_ms, self.name)
+            for t in targets:
+                self._send([hello], t)
+            self._next_hello = self._clock() + self.hello_interval_ms / 1000
+
+    def connection(
+        self,
+        to: int | Address,
+        behavior: str,
+        port: str,
+        *,
+        kind: ConnKind = ConnKind.NORMAL,
+        period_s: float = 0.0,
+        priority: int = 0,
+    ) -> Connection:
+        """A new connection from this node to ``behavior.port`` on node ``to`` (a node id or
+        an address). Special kinds need ``period_s > 0``; normal needs 0."""
+        period_ns = round(period_s * 1e9)
+        with self._lock:
+            conn = self._next_conn
+            self._next_conn += 1
+            return Connection(self, to, behavior, port, kind, period_ns, priority, conn)
+
+    def write(
+        self,
+        to: int | Address,
+        behavior: str,
+        port: str,
+        value: Value,
+        *,
+        kind: ConnKind = ConnKind.NORMAL,
+        period_s: float = 0.0,
+        priority: int = 0,
+    ) -> None:
+        """Write a remote port. Repeated writes with the same target, kind, period and priority
+        travel along one connection, so they hold the same pass on the receiver."""
+        key = (to, behavior, port, ConnKind(kind), round(period_s * 1e9), priority)
+        with self._lock:
+            c = self._writers.get(key)
+            if c is None:
+                c = self._writers[key] = self.connection(
+                    to, behavior, port, kind=kind, period_s=period_s, priority=priority
+                )
+        c.send(value)
+
+    # ----- requests (N2) -----------------------------------------------------------------
+
+    def request(self, to: int | Address, request: Request, timeout: float | None = None) -> Reply:
+        """Send a request and wait for its complete answer, retrying every 200 ms up to 25
+        sends. ``request.id`` is replaced by a fresh id. Returns the reply (for reports: one
+        reply whose ``report`` is the reassembled text). Raises :class:`RequestTimeout`."""
+        with self._lock:
+            rid = self._next_id
+            self._next_id += 1
+            req = dataclasses.replace(request, id=rid)
+            encode_message(req)  # refuse a bad request before it is remembered
+            p = self._pending[rid] = _Pending(req, self._resolve(to))
+            self._flush_requests()
+        deadline = None if timeout is None else self._clock() + timeout
+        try:
+            while True:
+                with self._lock:
+                    if p.done is not None:
+                        return p.done
+                    if p.failed is not None:
+                        raise RequestTimeout(p.failed)
+                    if deadline is not None and self._clock() >= deadline:
+                        raise RequestTimeout(f"request {rid}: no answer within {timeout} s")
+                    wait = max(0.0, min(p.next_send - self._clock(), RETRY_INTERVAL_S))
+                    if self._thread is not None and self._thread is not threading.current_thread():
+                        self._answered.wait(wait or 0.01)
+                        continue
+                self.poll(wait or 0.001)
+        finally:
+            with self._lock:
+                self._pending.pop(rid, None)
+
+    def _flush_requests(self) -> None:
+        now = self._clock()
+        for p in self._pending.values():
+            if p.done is not None or p.failed is not None or p.next_send > now:
+                continue
+            if p.sends >= RETRY_LIMIT:
+                p.failed = f"request {p.request.id}: no answer after {p.sends} tries"
+                self._answered.notify_all()
+                continue
+            p.sends += 1
+            p.next_send = now + RETRY_INTERVAL_S
+            self._send([p.request], p.to)
+
+    def _answer(self, to: int | Address, request: Request) -> Reply:
+        r = self.request(to, request)
+        if r.error is not None:
+            raise RequestFailed(r.error)
+        return r
+
+    def connect(
+        self,
+        to: int | Address,
+        src_behavior: str,
+        src_port: str,
+        dest_behavior: str,
+        dest_port: str,
+        *,
+        kind: ConnKind = ConnKind.NORMAL,
+        period_s: float = 0.0,
+        priority: int = 0,
+    ) -> int:
+        """Ask node ``to`` to connect its ``src_behavior.src_port`` to this lite node's
+        ``dest_behavior.dest_port`` (expose it first). Returns the node's connection id."""
+        dest = Endpoint(dest_behavior, dest_port, node=self.node_id)
+        req = Request(0, Op.CONNECT, src_behavior, src_port, dest, ConnKind(kind), round(period_s * 1e9), priority)
+        conn = self._answer(to, req).conn
+        if conn is None:
+            raise RequestFailed("CONNECT answered without a connection id")
+        return conn
+
+    def connect_endpoint(
+        self,
+        to: int | Address,
+        src_behavior: str,
+        src_port: str,
+        destination: Endpoint,
+        *,
+        kind: ConnKind = ConnKind.NORMAL,
+        period_s: float = 0.0,
+        priority: int = 0,
+    ) -> int:
+        """Ask node ``to`` to connect its port to any node or group endpoint."""
+        period_ns = round(period_s * 1e9)
+        req = Request(0, Op.CONNECT, src_behavior, src_port, destination, ConnKind(kind), period_ns, priority)
+        conn = self._answer(to, req).conn
+        if conn is None:
+            raise RequestFailed("CONNECT answered without a connection id")
+        return conn
+
+    def disconnect(self, to: int | Address, conn: int) -> None:
+        """Ask node ``to`` to remove its connection ``conn``."""
+        self._answer(to, Request(0, Op.DISCONNECT, conn=conn))
+
+    def read(self, to: int | Address, behavior: str, port: str) -> Value:
+        """The current value of a port on node ``to``."""
+        r = self._answer(to, Request(0, Op.READ, behavior=behavior, port=port))
+        if r.value is None:
+            raise RequestFailed("READ answered without a value")
+        return r.value
+
+    def why(self, to: int | Address, behavior: str, port: str) -> Any:
+        """The node's ``PortReport`` for ``behavior.port``, as parsed JSON."""
+        r = self._answer(to, Request(0, Op.WHY, behavior=behavior, port=port))
+        return json.loads(r.report or "null")
+
+    def list_node(self, to: int | Address) -> Any:
+        """The node's ``NodeReport``, as parsed JSON."""
+        r = self._answer(to, Request(0, Op.LIST))
+        return json.loads(r.report or "null")
+
+    # ----- receiving ---------------------------------------------------------------------
+
+    def poll(self, timeout: float = 0.0) -> int:
+        """Handle the datagrams that arrive within ``timeout`` seconds (at least those already
+        waiting), then send due HELLOs and retries. Returns how many datagrams were handled."""
+        handled = 0
+        end = self._clock() + timeout
+        while True:
+            left = max(0.0, end - self._clock())
+            try:
+                ready, _, _ = select.select([self.sock], [], [], left if handled == 0 else 0)
+            except (OSError, ValueError):
+                break  # closed underneath us
+            if not ready:
+                break
+            try:
+                data, addr = self.sock.recvfrom(MAX_DATAGRAM + 1)
+            except (BlockingIOError, OSError):
+                break
+            self.handle_datagram(data, (addr[0], addr[1]))
+            handled += 1
+        with self._lock:
+            now = self._clock()
+            if now >= self._next_hello:
+                self.send_hello()
+            self._flush_requests()
+        return handled
+
+    def handle_datagram(self, data: bytes, addr: Address) -> Dropped | None:
+        """Apply one datagram received from ``addr``; returns the drop, if it was dropped.
+
+        Public so that a program with its own socket loop can feed datagrams in.
+        """
+        calls: list[tuple[WriteCallback, tuple[str, str, Value, int, int]]] = []
+        with self._lock:
+            try:
+                d = decode(data, self.team, self.key)
+                if d.auth and not self._replay.setdefault(d.sender, ReplayWindow()).accept(d.seq):
+                    raise Dropped("replayed")
+            except Dropped as e:
+                self._count(e.cause)
+                return e
+            if d.sender == self.node_id:
+                return None  # our own broadcast coming back: a group excludes its sender
+            self._count("received")
+            now = self._clock()
+            self._expire_peers(now)
+            _, _, interval = self._heard.get(d.sender, (addr, now, 1.0))
+            for m in d.messages:
+                if isinstance(m, Hello):
+                    interval = m.interval_ms / 1000
+            self._heard[d.sender] = (addr, now, interval)
+            replies: list[Message] = []
+            for m in d.messages:
+                if isinstance(m, Port):
+                    self._apply_port(d.sender, m, calls)
+                elif isinstance(m, Reply):
+                    self._apply_reply(m)
+                elif isinstance(m, Request):
+                    replies.append(self._serve(m))
+                elif isinstance(m, Unknown):
+                    self._count("unknown_kind")
+            if replies:
+                self._send(replies, addr)
+        for cb, args in calls:
+            cb(*args)
+        return None
+
+    def _apply_port(self, sender: int, m: Port, calls: list[Any]) -> None:
+        # Same order as the core's receive (docs/semantics.md, order of checks): stale,
+        # unknown names, the connection's own window, storing, type.
+        key = (sender, m.conn)
+        newest = self._newest_seq.get(key)
+        if newest is not None and m.seq <= newest:
+            self._count("stale")
+            return
+        if newest is None and len(self._newest_seq) >= _SEQ_TABLE_MAX:
+            self._newest_seq.clear()
+        self._newest_seq[key] = m.seq
+        ports = self._ports.get(m.behavior)
+        if ports is None:
+            self._count("unknown_behavior")
+            return
+        p = ports.get(m.port)
+        if p is None:
+            self._count("unknown_port")
+            return
+        now = time.monotonic_ns()
+        holder = (sender, m.conn)
+        if m.conn_kind != ConnKind.NORMAL:
+            p.refresh(m.conn_kind, holder, now + m.period_ns)
+        if m.conn_kind in (ConnKind.SUPPRESS, ConnKind.INHIBIT, ConnKind.WRITE_INHIBIT):
+            return  # these kinds never write the value
+        blocked = p.admit(now, holder)
+        if blocked is not None:
+            self._count(blocked)
+            return
+        if _type_name(m.value) != _type_name(p.value):
+            self._count("type_mismatch")
+            return
+        p.value = m.value
+        p.writes += 1
+        if p.on_write is not None:
+            calls.append((p.on_write, (m.behavior, m.port, m.value, sender, m.conn)))
+
+    def _apply_reply(self, m: Reply) -> None:
+        p = self._pending.get(m.id)
+        if p is None or p.done is not None:
+            return  # a late duplicate of something already answered
+        if m.report is None:
+            p.done = m
+        else:
+            p.parts[m.part] = m
+            if len(p.parts) == m.parts and all(i in p.parts for i in range(m.parts)):
+                text = "".join(p.parts[i].report or "" for i in range(m.parts))
+                p.done = Reply(m.id, 0, 1, report=text)
+            else:
+                # Ask again soon for the missing parts: the node answers from memory.
+                p.next_send = min(p.next_send, self._clock() + RETRY_INTERVAL_S)
+        self._answered.notify_all()
+
+    def _serve(self, m: Request) -> Reply:
+        # A lite node owns no connections and no behaviors beyond its exposed registers, so it
+        # answers READ and a small LIST, and refuses the rest. Reads are idempotent, so there
+        # is nothing to remember between repeats.
+        if m.op == Op.READ:
+            p = self._ports.get(m.behavior, {}).get(m.port)
+            if p is None:
+                return Reply(m.id, error=f"no port {m.behavior}.{m.port}")
+            return Reply(m.id, value=p.value)
+        if m.op == Op.LIST:
+            report = {
+                "node": self.node_id,
+                "lite": True,
+                "behaviors": [{"name": b, "ports": sorted(ps)} for b, ps in sorted(self._ports.items())],
+            }
+            text = json.dumps(report, separators=(",", ":"))
+            if len(text.encode()) > MTU - 100:
+                return Reply(m.id, error="report too large for an AylluLite node")
+            return Reply(m.id, report=text)
+        if m.op in (Op.CONNECT, Op.DISCONNECT, Op.WHY):
+            return Reply(m.id, error="not supported by an AylluLite node")
+        return Reply(m.id, error="unknown operation")
+
+
+def key_from_hex(text: str) -> bytes:
+    """A team key from its 64-hex-digit form (what tools accept)."""
+    key = bytes.fromhex(text.strip())
+    if len(key) != 32:
+        raise ValueError("team keys are 32 bytes (64 hex digits)")
+    return key
+
+
+def random_key() -> bytes:
+    """A fresh 32-byte team key."""
+    return os.urandom(32)
+
+
+def is_nan(v: Value) -> bool:
+    """True for a float NaN (useful because NaN != NaN when comparing port values)."""
+    return isinstance(v, float) and math.isnan(v)

@@ -1,0 +1,264 @@
+"""LiteNode tests over real UDP sockets on 127.0.0.1: two lite nodes (and, where a node's
+answers are needed, a scripted fake node) exchange datagrams. They check what the module
+promises: port writes with connection-kind semantics for storing, HELLO and peer learning,
+requests with retries and multi-part report reassembly, and authentication with replay
+protection."""
+
+from __future__ import annotations
+
+import json
+import socket
+import threading
+import time
+from collections.abc import Callable, Iterator
+from typing import Any
+
+import pytest
+
+import ayllu_lite as al
+
+TEAM = 42
+KEY = bytes(range(1, 33))
+LOOP = ("127.0.0.1", 0)
+
+
+def wait_for(cond: Callable[[], bool], *nodes: al.LiteNode, timeout: float = 2.0) -> None:
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        for n in nodes:
+            n.poll(0.01)
+        if cond():
+            return
+    raise AssertionError("condition not reached")
+
+
+@pytest.fixture
+def pair() -> Iterator[tuple[al.LiteNode, al.LiteNode]]:
+    a = al.LiteNode(1, TEAM, bind=LOOP, name="a")
+    b = al.LiteNode(2, TEAM, bind=LOOP, name="b")
+    a.add_peer(2, b.address)
+    b.add_peer(1, a.address)
+    yield a, b
+    a.close()
+    b.close()
+
+
+def test_normal_write_stores_and_calls_back(pair: tuple[al.LiteNode, al.LiteNode]) -> None:
+    a, b = pair
+    seen: list[tuple[Any, ...]] = []
+    a.expose("Drive", "Speed", 0.0, on_write=lambda *args: seen.append(args))
+    b.write(1, "Drive", "Speed", 1.5)
+    wait_for(lambda: a.get("Drive", "Speed") == 1.5, a)
+    assert seen == [("Drive", "Speed", 1.5, 2, 1)]
+    assert a.ports() == {"Drive": {"Speed": 1.5}}
+
+
+def test_drops_are_counted(pair: tuple[al.LiteNode, al.LiteNode]) -> None:
+    a, b = pair
+    a.expose("Drive", "Speed", 0.0)
+    b.write(1, "Drive", "Speed", 3)  # an int into a float port
+    b.write(1, "Nope", "Speed", 1.0)
+    b.write(1, "Drive", "Nope", 1.0)
+    wait_for(lambda: sum(a.counters.get(c, 0) for c in ("type_mismatch", "unknown_behavior", "unknown_port")) == 3, a)
+    assert a.get("Drive", "Speed") == 0.0
+
+
+def test_stale_port_messages_are_dropped(pair: tuple[al.LiteNode, al.LiteNode]) -> None:
+    a, _ = pair
+    a.expose("B", "P", 0)
+    raw = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        for i, seq in enumerate((10, 9, 10, 11)):
+            m = al.Port(7, seq, al.ConnKind.NORMAL, 0, 0, "B", "P", seq)
+            raw.sendto(al.encode(TEAM, 9, 100 + i, [m]), a.address)
+        wait_for(lambda: a.counters.get("received", 0) == 4, a)
+        assert a.counters["stale"] == 2
+        assert a.get("B", "P") == 11
+    finally:
+        raw.close()
+
+
+def test_suppress_blocks_connection_writes_for_its_period(pair: tuple[al.LiteNode, al.LiteNode]) -> None:
+    a, b = pair
+    a.expose("B", "P", 0)
+    b.write(1, "B", "P", 5, kind=al.ConnKind.SUPPRESS, period_s=0.3)  # never written itself
+    b.write(1, "B", "P", 1)
+    wait_for(lambda: a.counters.get("suppressed", 0) == 1, a)
+    assert a.get("B", "P") == 0
+    a.set("B", "P", 2)  # the lite program's own writes are never suppressed (D6.5)
+    assert a.get("B", "P") == 2
+    time.sleep(0.35)
+    b.write(1, "B", "P", 3)
+    wait_for(lambda: a.get("B", "P") == 3, a)
+
+
+def test_override_in_admits_only_its_holder(pair: tuple[al.LiteNode, al.LiteNode]) -> None:
+    a, b = pair
+    a.expose("B", "P", 0)
+    b.write(1, "B", "P", 7, kind=al.ConnKind.OVERRIDE_IN, period_s=5.0)
+    b.write(1, "B", "P", 8)  # another connection: no pass
+    wait_for(lambda: a.counters.get("overridden_in", 0) == 1, a)
+    assert a.get("B", "P") == 7
+    b.write(1, "B", "P", 9, kind=al.ConnKind.OVERRIDE_IN, period_s=5.0)  # same connection
+    wait_for(lambda: a.get("B", "P") == 9, a)
+
+
+def test_inhibit_and_write_inhibit_do_not_write(pair: tuple[al.LiteNode, al.LiteNode]) -> None:
+    a, b = pair
+    a.expose("B", "P", 0)
+    b.write(1, "B", "P", 1, kind=al.ConnKind.INHIBIT, period_s=0.1)
+    b.write(1, "B", "P", 2, kind=al.ConnKind.WRITE_INHIBIT, period_s=0.1)
+    b.write(1, "B", "P", 3, kind=al.ConnKind.OVERRIDE_OUT, period_s=0.1)
+    wait_for(lambda: a.get("B", "P") == 3, a)
+
+
+def test_hello_teaches_addresses(pair: tuple[al.LiteNode, al.LiteNode]) -> None:
+    a, _ = pair
+    c = al.LiteNode(3, TEAM, bind=LOOP, peers=[(1, a.address)], hello_interval_ms=50)
+    try:
+        c.poll(0)  # the first poll announces
+        wait_for(lambda: 3 in a.peers(), a)
+        assert a.peers()[3] == c.address
+        a.expose("B", "P", "")
+        c.expose("B", "P", "")
+        a.write(3, "B", "P", "hi")
+        wait_for(lambda: c.get("B", "P") == "hi", c)
+        c.close()
+        time.sleep(0.2)  # 3 x 50 ms without a word: forgotten (N6)
+        assert 3 not in a.peers()
+    finally:
+        c.close()
+
+
+def test_lite_answers_read_and_list_and_refuses_the_rest(pair: tuple[al.LiteNode, al.LiteNode]) -> None:
+    a, b = pair
+    a.expose("Cam", "Target", al.Vector((1.0, 2.0)))
+    a.start()
+    assert b.read(1, "Cam", "Target") == (1.0, 2.0)
+    assert b.list_node(1)["behaviors"] == [{"name": "Cam", "ports": ["Target"]}]
+    with pytest.raises(al.RequestFailed, match="not supported"):
+        b.connect(1, "Cam", "Target", "X", "Y")
+    with pytest.raises(al.RequestFailed, match="no port"):
+        b.read(1, "Cam", "Nope")
+    with pytest.raises(al.RequestFailed, match="unknown operation"):
+        b._answer(1, al.Request(0, 77))
+
+
+class FakeNode:
+    """A scripted Ayllu node on a raw socket: answers requests with `answer(request)` ->
+    list of replies, and can ignore the first few requests or leave out parts once."""
+
+    def __init__(self, answer: Callable[[al.Request], list[al.Reply]], ignore: int = 0, key: bytes | None = None):
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.bind(LOOP)
+        self.sock.settimeout(0.05)
+        self.address = self.sock.getsockname()
+        self.answer, self.ignore, self.key = answer, ignore, key
+        self.requests: list[al.Request] = []
+        self.omit_part_once: int | None = None
+        self.seq = 1 << 32
+        self.stop = False
+        self.thread = threading.Thread(target=self.run, daemon=True)
+        self.thread.start()
+
+    def run(self) -> None:
+        while not self.stop:
+            try:
+                data, addr = self.sock.recvfrom(9000)
+            except (TimeoutError, OSError):
+                continue
+            for m in al.decode(data, TEAM, self.key).messages:
+                if not isinstance(m, al.Request):
+                    continue
+                self.requests.append(m)
+                if len(self.requests) <= self.ignore:
+                    continue
+                for r in self.answer(m):
+                    if r.part == self.omit_part_once:
+                        self.omit_part_once = None
+                        continue
+                    self.seq += 1
+                    self.sock.sendto(al.encode(TEAM, 50, self.seq, [r], key=self.key), addr)
+
+    def close(self) -> None:
+        self.stop = True
+        self.thread.join()
+        self.sock.close()
+
+
+def test_requests_are_retried_until_answered() -> None:
+    node = FakeNode(lambda r: [al.Reply(r.id, conn=12)], ignore=2)
+    lite = al.LiteNode(9, TEAM, bind=LOOP)
+    try:
+        conn = lite.connect(
+            node.address, "Observer", "Rotate", "Motor", "Turn", kind=al.ConnKind.OVERRIDE_IN, period_s=0.2, priority=3
+        )
+        assert conn == 12
+        assert len(node.requests) == 3
+        assert len({r.id for r in node.requests}) == 1  # the same id every time (idempotent)
+        r = node.requests[0]
+        assert r.destination == al.Endpoint("Motor", "Turn", node=9)
+        assert (r.conn_kind, r.period_ns, r.priority) == (al.ConnKind.OVERRIDE_IN, 200_000_000, 3)
+    finally:
+        lite.close()
+        node.close()
+
+
+def test_request_gives_up_after_the_retry_limit(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(al, "RETRY_INTERVAL_S", 0.02)
+    monkeypatch.setattr(al, "RETRY_LIMIT", 4)
+    node = FakeNode(lambda r: [], ignore=1000)
+    lite = al.LiteNode(9, TEAM, bind=LOOP)
+    try:
+        with pytest.raises(al.RequestTimeout, match="4 tries"):
+            lite.read(node.address, "B", "P")
+        assert len(node.requests) == 4
+    finally:
+        lite.close()
+        node.close()
+
+
+def test_multipart_report_is_reassembled_and_missing_parts_asked_again() -> None:
+    report = json.dumps({"node": 50, "behaviors": [{"name": f"B{i}", "text": "ñ" * 40} for i in range(30)]})
+    chunks = [report[i : i + 400] for i in range(0, len(report), 400)]
+
+    def answer(r: al.Request) -> list[al.Reply]:
+        return [al.Reply(r.id, part=i, parts=len(chunks), report=c) for i, c in enumerate(chunks)]
+
+    node = FakeNode(answer, key=KEY)
+    node.omit_part_once = 1
+    lite = al.LiteNode(9, TEAM, bind=LOOP, key=KEY)
+    try:
+        lite.start()  # the background thread handles the replies this time
+        assert lite.list_node(node.address) == json.loads(report)
+        assert len(node.requests) == 2
+    finally:
+        lite.close()
+        node.close()
+
+
+def test_keyed_team_authenticates_and_refuses_replays() -> None:
+    a = al.LiteNode(1, TEAM, bind=LOOP, key=KEY)
+    b = al.LiteNode(2, TEAM, bind=LOOP, key=KEY)
+    intruder = al.LiteNode(3, TEAM, bind=LOOP, key=bytes(32))
+    open_node = al.LiteNode(4, TEAM, bind=LOOP)
+    try:
+        a.expose("B", "P", 0)
+        b.write(a.address, "B", "P", 1)
+        wait_for(lambda: a.get("B", "P") == 1, a)
+        intruder.write(a.address, "B", "P", 2)
+        open_node.write(a.address, "B", "P", 3)
+        wait_for(lambda: a.counters.get("bad_mac") == 1 and a.counters.get("unauthenticated") == 1, a)
+        # Capture one of b's datagrams and send it twice: the second is a replay.
+        raw = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        raw.bind(LOOP)
+        b.write(raw.getsockname(), "B", "P", 4)
+        data, _ = raw.recvfrom(9000)
+        raw.sendto(data, a.address)
+        raw.sendto(data, a.address)
+        raw.close()
+        wait_for(lambda: a.counters.get("replayed") == 1, a)
+        assert a.get("B", "P") == 4
+    finally:
+        for n in (a, b, intruder, open_node):
+            n.close()
