@@ -1,0 +1,335 @@
+//! The UDP transport's network rules (N1, N3–N6, S10) on the deterministic in-memory datagram
+//! bus, with a hostile peer that crafts datagrams byte by byte with `ayllu-wire`.
+
+use std::net::SocketAddr;
+
+use ayllu::datagram::{BusSocket, DatagramBus, DatagramSocket};
+use ayllu::{
+    BehaviorClass, ConnectionId, ConnectionKind, DropCause, Duration, Endpoint, Lockstep, Node, NodeId, PortMessage,
+    PortSpec, UdpConfig, UdpTransport, Value,
+};
+use ayllu_wire::{decode, encode_datagram, DatagramWriter, ReceiverConfig, ReplyPart, WireMessage};
+
+const TICK: Duration = Duration::from_millis(1);
+const KEY: [u8; 32] = [7; 32];
+const TEAM: u32 = 7;
+
+fn addr(i: u32) -> SocketAddr {
+    format!("10.0.0.{i}:7400").parse().unwrap()
+}
+
+/// A node `id` at 10.0.0.id:7400 on `bus` with a Relay behavior `R` (int ports In, Out; text
+/// port Txt) and the group `team` joined.
+fn node(team: &mut Lockstep, bus: &DatagramBus, id: u32, key: Option<[u8; 32]>, team_id: u32) -> usize {
+    let mut config = UdpConfig::new(addr(id));
+    config.broadcast = Some("10.0.0.255:7400".parse().unwrap());
+    config.team = team_id;
+    config.key = key;
+    config.hello_interval = Duration::from_millis(100);
+    let transport = UdpTransport::with_socket(NodeId(id), config, bus.bind(addr(id)).unwrap()).unwrap();
+    let i = team.add_node(Node::new(team.clock().clone(), transport));
+    let n = team.node(i);
+    let mut relay = BehaviorClass::new("Relay");
+    relay.port(PortSpec::new("In", 0i64)).unwrap();
+    relay.port(PortSpec::new("Out", 0i64)).unwrap();
+    relay.port(PortSpec::new("Txt", "")).unwrap();
+    n.define(relay).unwrap();
+    n.create("Relay", "R").unwrap();
+    n.join("team");
+    i
+}
+
+fn count(node: &Node, cause: &str) -> u64 {
+    node.transport_counters().iter().find(|(c, _)| c == cause).map_or(0, |(_, n)| *n)
+}
+
+fn input(node: &Node) -> Value {
+    node.read("R", "In").unwrap()
+}
+
+fn port_message(conn: u64, seq: u64, port: &str, value: Value) -> WireMessage {
+    WireMessage::Port(PortMessage {
+        conn: ConnectionId(conn),
+        seq,
+        behavior: "R".into(),
+        port: port.into(),
+        kind: ConnectionKind::Normal,
+        priority: 0,
+        value,
+    })
+}
+
+/// Send `bytes` from the attacker and let the team process them.
+fn inject(team: &mut Lockstep, attacker: &mut BusSocket, to: u32, bytes: &[u8]) {
+    attacker.send_to(bytes, addr(to)).unwrap();
+    team.advance(TICK, TICK);
+}
+
+#[test]
+fn n5_a_keyed_team_refuses_keyless_forged_and_replayed_datagrams() {
+    let bus = DatagramBus::new();
+    let mut team = Lockstep::new("udp-auth");
+    let a = node(&mut team, &bus, 1, Some(KEY), TEAM);
+    let b = node(&mut team, &bus, 2, Some(KEY), TEAM);
+    let stranger = node(&mut team, &bus, 3, None, TEAM);
+    // A sniffer on the broadcast port records what the team says.
+    let mut sniffer = bus.bind(addr(99)).unwrap();
+    team.advance(Duration::from_millis(300), TICK);
+    team.node(a)
+        .connect(&Endpoint::local("R", "Out"), &Endpoint::group("team", "R", "In"), ConnectionKind::Normal)
+        .unwrap();
+    team.node(a).write("R", "Out", 1i64).unwrap();
+    team.advance(TICK * 2, TICK);
+    assert_eq!(input(&team.nodes()[b]), Value::Int(1), "keyed peers talk");
+    assert_eq!(input(&team.nodes()[stranger]), Value::Int(0), "a keyless node cannot read the keyed team");
+    assert!(count(&team.nodes()[stranger], "unexpected_auth") > 0);
+
+    // Capture the datagram that carried the value 1, then move the port on to 2.
+    let mut captured = Vec::new();
+    let mut buf = [0u8; 9000];
+    while let Some((n, from)) = sniffer.recv_from(&mut buf).unwrap() {
+        if from == addr(1) {
+            let d = decode(&buf[..n], &ReceiverConfig { team: TEAM, key: Some(KEY) }).unwrap();
+            if d.messages.iter().any(|m| matches!(m, WireMessage::Port(p) if p.value == Value::Int(1))) {
+                captured = buf[..n].to_vec();
+            }
+        }
+    }
+    assert!(!captured.is_empty(), "sniffer saw the broadcast");
+    team.node(a).write("R", "Out", 2i64).unwrap();
+    team.advance(TICK * 2, TICK);
+    assert_eq!(input(&team.nodes()[b]), Value::Int(2));
+    inject(&mut team, &mut sniffer, 2, &captured);
+    assert_eq!(input(&team.nodes()[b]), Value::Int(2), "N5: a replayed datagram is not applied");
+    assert_eq!(count(&team.nodes()[b], "replayed"), 1);
+
+    // Keyless traffic from the stranger, and a forgery with the wrong key.
+    let keyless = encode_datagram(TEAM, NodeId(3), 1, None, &[port_message(1, 1, "In", Value::Int(66))]).unwrap();
+    inject(&mut team, &mut sniffer, 2, &keyless);
+    let forged =
+        encode_datagram(TEAM, NodeId(1), u64::MAX / 2, Some([8; 32]), &[port_message(1, 99, "In", Value::Int(77))])
+            .unwrap();
+    inject(&mut team, &mut sniffer, 2, &forged);
+    assert_eq!(input(&team.nodes()[b]), Value::Int(2));
+    assert!(count(&team.nodes()[b], "unauthenticated") >= 1);
+    assert_eq!(count(&team.nodes()[b], "bad_mac"), 1);
+    // The forgery did not move node 1's replay window: node 1 still gets through.
+    team.node(a).write("R", "Out", 3i64).unwrap();
+    team.advance(TICK * 2, TICK);
+    assert_eq!(input(&team.nodes()[b]), Value::Int(3));
+}
+
+#[test]
+fn n4_bad_input_is_dropped_and_counted_by_cause() {
+    let bus = DatagramBus::new();
+    let mut team = Lockstep::new("udp-bad");
+    let b = node(&mut team, &bus, 2, None, TEAM);
+    let mut evil = bus.bind(addr(66)).unwrap();
+    let good = |m: &[WireMessage]| encode_datagram(TEAM, NodeId(66), 1, None, m).unwrap();
+    let valid = good(&[port_message(1, 1, "In", Value::Int(5))]);
+    let cases: Vec<(&str, Vec<u8>)> = vec![
+        ("truncated", valid[..10].to_vec()),
+        ("bad_magic", [&[0x42u8, 0x59][..], &valid[2..]].concat()),
+        ("bad_version", [&valid[..2], &[2u8][..], &valid[3..]].concat()),
+        ("bad_flags", [&valid[..3], &[0x80u8][..], &valid[4..]].concat()),
+        ("wrong_team", encode_datagram(8, NodeId(66), 1, None, &[port_message(1, 1, "In", Value::Int(5))]).unwrap()),
+        ("oversized", vec![0u8; 8193]),
+        (
+            "unexpected_auth",
+            encode_datagram(TEAM, NodeId(66), 1, Some(KEY), &[port_message(1, 1, "In", Value::Int(5))]).unwrap(),
+        ),
+        ("malformed", {
+            let mut w = DatagramWriter::new(TEAM, NodeId(66), 1, None, 1472);
+            w.push_raw(0x01, &[1, 2, 3]).unwrap();
+            w.finish()
+        }),
+        ("truncated", [&valid[..], &[0x01u8, 0xff][..]].concat()),
+    ];
+    for (cause, bytes) in &cases {
+        let before = count(&team.nodes()[b], cause);
+        inject(&mut team, &mut evil, 2, bytes);
+        assert_eq!(count(&team.nodes()[b], cause), before + 1, "cause {cause}");
+    }
+    assert_eq!(input(&team.nodes()[b]), Value::Int(0), "nothing from a dropped datagram was applied");
+
+    // An unknown message kind is skipped; the known messages around it are applied.
+    let mut w = DatagramWriter::new(TEAM, NodeId(66), 2, None, 1472);
+    w.push(&port_message(1, 1, "In", Value::Int(5))).unwrap();
+    w.push_raw(0x7e, b"from the future").unwrap();
+    w.push(&port_message(2, 1, "Txt", Value::text("hi"))).unwrap();
+    inject(&mut team, &mut evil, 2, &w.finish());
+    assert_eq!(count(&team.nodes()[b], "unknown_kind"), 1);
+    assert_eq!(input(&team.nodes()[b]), Value::Int(5));
+    assert_eq!(team.nodes()[b].read("R", "Txt").unwrap(), Value::text("hi"));
+
+    // Well-formed but not applicable: counted by the core.
+    inject(&mut team, &mut evil, 2, &good(&[port_message(3, 1, "In", Value::text("five"))]));
+    inject(
+        &mut team,
+        &mut evil,
+        2,
+        &good(&[WireMessage::Port(PortMessage {
+            behavior: "GONE".into(),
+            ..match port_message(4, 1, "In", Value::Int(1)) {
+                WireMessage::Port(p) => p,
+                _ => unreachable!(),
+            }
+        })]),
+    );
+    let core = team.nodes()[b].core().counters().clone();
+    assert_eq!(core.get(DropCause::TypeMismatch), 1);
+    assert_eq!(core.get(DropCause::UnknownBehavior), 1);
+    // And the counters are in the node's report (what `ayllu list` shows remotely).
+    let report = team.nodes()[b].core().report();
+    assert!(report.transport.iter().any(|(c, n)| c == "bad_magic" && *n == 1), "{:?}", report.transport);
+}
+
+#[test]
+fn n1_older_port_messages_from_a_connection_are_ignored() {
+    let bus = DatagramBus::new();
+    let mut team = Lockstep::new("udp-stale");
+    let b = node(&mut team, &bus, 2, None, TEAM);
+    let mut peer = bus.bind(addr(5)).unwrap();
+    let dg = |seq: u64, conn: u64, v: i64| {
+        encode_datagram(TEAM, NodeId(5), seq, None, &[port_message(conn, seq, "In", Value::Int(v))]).unwrap()
+    };
+    inject(&mut team, &mut peer, 2, &dg(5, 1, 50));
+    inject(&mut team, &mut peer, 2, &dg(4, 1, 40));
+    inject(&mut team, &mut peer, 2, &dg(5, 1, 50));
+    assert_eq!(input(&team.nodes()[b]), Value::Int(50), "the late, older message did not win");
+    assert_eq!(team.nodes()[b].core().counters().get(DropCause::Stale), 2, "older and duplicate");
+    inject(&mut team, &mut peer, 2, &dg(1, 2, 10));
+    assert_eq!(input(&team.nodes()[b]), Value::Int(10), "sequence numbers are per connection");
+}
+
+#[test]
+fn n4_a_flood_of_invented_senders_cannot_grow_the_peer_table() {
+    let bus = DatagramBus::new();
+    let mut team = Lockstep::new("udp-flood");
+    let a = node(&mut team, &bus, 1, None, TEAM);
+    let b = node(&mut team, &bus, 2, None, TEAM);
+    let mut evil = bus.bind(addr(66)).unwrap();
+    for sender in 1000..6000u32 {
+        let hello = WireMessage::Hello { interval_ms: 60_000, name: "x".into(), groups: vec!["team".into()] };
+        evil.send_to(&encode_datagram(TEAM, NodeId(sender), 1, None, &[hello]).unwrap(), addr(2)).unwrap();
+        if sender % 500 == 0 {
+            team.advance(TICK, TICK);
+        }
+    }
+    team.advance(Duration::from_millis(250), TICK);
+    let peers = team.nodes()[b].peers().len();
+    assert!(peers <= 1024, "peer table grew to {peers}");
+    assert!(count(&team.nodes()[b], "peer_evicted") >= 3900);
+    // The real peer still gets through.
+    team.node(a)
+        .connect(&Endpoint::local("R", "Out"), &Endpoint::node(NodeId(2), "R", "In"), ConnectionKind::Normal)
+        .unwrap();
+    team.node(a).write("R", "Out", 9i64).unwrap();
+    team.advance(Duration::from_millis(250), TICK);
+    assert_eq!(input(&team.nodes()[b]), Value::Int(9));
+}
+
+#[test]
+fn n3_messages_for_one_destination_in_one_turn_share_datagrams() {
+    let bus = DatagramBus::new();
+    let mut team = Lockstep::new("udp-batch");
+    let a = node(&mut team, &bus, 1, None, TEAM);
+    let b = node(&mut team, &bus, 2, None, TEAM);
+    team.advance(Duration::from_millis(300), TICK);
+    for _ in 0..60 {
+        team.node(a)
+            .connect(&Endpoint::local("R", "Out"), &Endpoint::node(NodeId(2), "R", "In"), ConnectionKind::Normal)
+            .unwrap();
+    }
+    let before = count(&team.nodes()[a], "datagrams_sent");
+    let received_before = team.nodes()[b].core().why("R", "In").unwrap().accepted;
+    team.node(a).write("R", "Out", 4i64).unwrap();
+    team.step();
+    let datagrams = count(&team.nodes()[a], "datagrams_sent") - before;
+    let accepted = team.nodes()[b].core().why("R", "In").unwrap().accepted - received_before;
+    assert_eq!(accepted, 60, "every message applied");
+    assert!(datagrams <= 3, "60 messages took {datagrams} datagrams");
+}
+
+#[test]
+fn n6_silent_peers_are_forgotten_and_s10_groups_route_by_announcement() {
+    let bus = DatagramBus::new();
+    let mut team = Lockstep::new("udp-liveness");
+    // No broadcast address: group messages go by unicast to peers that announced the group.
+    let config = |id: u32| {
+        let mut c = UdpConfig::new(addr(id));
+        c.peers = vec![addr(1), addr(2), addr(3)];
+        c.hello_interval = Duration::from_millis(100);
+        c
+    };
+    let mut ids = Vec::new();
+    for id in 1..=3 {
+        let t = UdpTransport::with_socket(NodeId(id), config(id), bus.bind(addr(id)).unwrap()).unwrap();
+        let i = team.add_node(Node::new(team.clock().clone(), t));
+        let n = team.node(i);
+        let mut relay = BehaviorClass::new("Relay");
+        relay.port(PortSpec::new("In", 0i64)).unwrap();
+        relay.port(PortSpec::new("Out", 0i64)).unwrap();
+        n.define(relay).unwrap();
+        n.create("Relay", "R").unwrap();
+        ids.push(i);
+    }
+    team.node(1).join("team"); // only node 2 is in the group
+    team.advance(Duration::from_millis(300), TICK);
+    team.node(0)
+        .connect(&Endpoint::local("R", "Out"), &Endpoint::group("team", "R", "In"), ConnectionKind::Normal)
+        .unwrap();
+    team.node(0).write("R", "Out", 8i64).unwrap();
+    team.advance(TICK * 2, TICK);
+    assert_eq!(team.nodes()[1].read("R", "In").unwrap(), Value::Int(8));
+    assert_eq!(team.nodes()[2].read("R", "In").unwrap(), Value::Int(0), "node 3 did not join the group");
+    assert_eq!(team.nodes()[0].peers().len(), 2);
+    drop(team.kill(2));
+    team.advance(Duration::from_millis(400), TICK);
+    let peers: Vec<u32> = team.nodes()[0].peers().iter().map(|p| p.node.0).collect();
+    assert_eq!(peers, vec![2], "N6: the silent node is forgotten after three hello periods");
+    assert!(count(&team.nodes()[0], "peer_expired") >= 1);
+}
+
+#[test]
+fn teams_sharing_a_subnet_ignore_each_other() {
+    let bus = DatagramBus::new();
+    let mut team = Lockstep::new("udp-teams");
+    let a = node(&mut team, &bus, 1, None, 7);
+    let b = node(&mut team, &bus, 2, None, 8);
+    team.advance(Duration::from_millis(300), TICK);
+    team.node(a)
+        .connect(&Endpoint::local("R", "Out"), &Endpoint::group("team", "R", "In"), ConnectionKind::Normal)
+        .unwrap();
+    team.node(a).write("R", "Out", 1i64).unwrap();
+    team.advance(TICK * 2, TICK);
+    assert_eq!(input(&team.nodes()[b]), Value::Int(0));
+    assert!(count(&team.nodes()[b], "wrong_team") >= 1);
+    assert!(team.nodes()[b].peers().is_empty());
+}
+
+#[test]
+fn n2_an_unknown_request_operation_is_answered_with_an_error() {
+    let bus = DatagramBus::new();
+    let mut team = Lockstep::new("udp-unknown-op");
+    node(&mut team, &bus, 2, None, TEAM);
+    let mut tool = bus.bind(addr(50)).unwrap();
+    let mut w = DatagramWriter::new(TEAM, NodeId(50), 1, None, 1472);
+    let mut body = 42u64.to_le_bytes().to_vec();
+    body.push(99);
+    w.push_raw(0x10, &body).unwrap();
+    inject(&mut team, &mut tool, 2, &w.finish());
+    team.advance(TICK, TICK);
+    let mut buf = [0u8; 9000];
+    let mut answered = false;
+    while let Some((n, _)) = tool.recv_from(&mut buf).unwrap() {
+        let d = decode(&buf[..n], &ReceiverConfig { team: TEAM, key: None }).unwrap();
+        for m in d.messages {
+            if let WireMessage::Reply { id: 42, payload: ReplyPart::Error(e), .. } = m {
+                assert!(e.contains("unknown operation"), "{e}");
+                answered = true;
+            }
+        }
+    }
+    assert!(answered, "no error reply to an unknown operation");
+}
