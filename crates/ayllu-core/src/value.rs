@@ -28,10 +28,74 @@ pub enum ValueType {
 pub enum Value {
     Bool(bool),
     Int(i64),
-    Float(f64),
+    Float(#[cfg_attr(feature = "serde", serde(with = "json_float"))] f64),
     Text(Arc<str>),
     Bytes(Arc<[u8]>),
-    Vector(Arc<[f64]>),
+    Vector(#[cfg_attr(feature = "serde", serde(with = "json_floats"))] Arc<[f64]>),
+}
+
+/// JSON has no NaN or infinities; reports (LIST, WHY) must still carry every float a port
+/// can hold, so non-finite floats are written as the strings "NaN", "inf" and "-inf".
+#[cfg(feature = "serde")]
+mod json_float {
+    use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+    #[derive(Serialize, Deserialize)]
+    #[serde(untagged)]
+    pub(super) enum Repr<'a> {
+        Number(f64),
+        Word(std::borrow::Cow<'a, str>),
+    }
+
+    pub(super) fn to_repr(x: f64) -> Repr<'static> {
+        if x.is_finite() {
+            Repr::Number(x)
+        } else if x.is_nan() {
+            Repr::Word("NaN".into())
+        } else if x > 0.0 {
+            Repr::Word("inf".into())
+        } else {
+            Repr::Word("-inf".into())
+        }
+    }
+
+    pub(super) fn from_repr<E: serde::de::Error>(r: Repr<'_>) -> Result<f64, E> {
+        match r {
+            Repr::Number(x) => Ok(x),
+            Repr::Word(w) => match &*w {
+                "NaN" => Ok(f64::NAN),
+                "inf" => Ok(f64::INFINITY),
+                "-inf" => Ok(f64::NEG_INFINITY),
+                other => Err(E::custom(format!("`{other}` is not a float"))),
+            },
+        }
+    }
+
+    pub fn serialize<S: Serializer>(x: &f64, s: S) -> Result<S::Ok, S::Error> {
+        to_repr(*x).serialize(s)
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+        from_repr(Repr::deserialize(d)?)
+    }
+}
+
+/// [`json_float`] for every element of a vector.
+#[cfg(feature = "serde")]
+mod json_floats {
+    use std::sync::Arc;
+
+    use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+    use super::json_float::{from_repr, to_repr, Repr};
+
+    pub fn serialize<S: Serializer>(v: &Arc<[f64]>, s: S) -> Result<S::Ok, S::Error> {
+        v.iter().map(|x| to_repr(*x)).collect::<Vec<_>>().serialize(s)
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Arc<[f64]>, D::Error> {
+        Vec::<Repr<'de>>::deserialize(d)?.into_iter().map(from_repr).collect()
+    }
 }
 
 impl Value {

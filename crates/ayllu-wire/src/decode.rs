@@ -30,6 +30,17 @@ pub struct ReceiverConfig {
     pub key: Option<Key>,
 }
 
+impl ReceiverConfig {
+    /// An open team: anyone who can reach the node can write its ports (as in the paper).
+    pub const fn open(team: u32) -> Self {
+        ReceiverConfig { team, key: None }
+    }
+    /// An authenticated team.
+    pub const fn keyed(team: u32, key: Key) -> Self {
+        ReceiverConfig { team, key: Some(key) }
+    }
+}
+
 /// A datagram that passed every check.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Datagram {

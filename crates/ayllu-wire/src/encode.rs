@@ -137,8 +137,8 @@ impl DatagramWriter {
         self.messages == 0
     }
 
-    /// Bytes of the datagram so far, without the MAC.
-    pub fn len(&self) -> usize {
+    /// Bytes of the datagram so far (header and messages), without the MAC.
+    pub fn encoded_len(&self) -> usize {
         self.buf.len()
     }
 

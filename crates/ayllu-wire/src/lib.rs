@@ -98,6 +98,13 @@ pub mod op {
     pub const READ: u8 = 5;
 }
 
+/// The first datagram sequence number of a sender started at `boot_unix_seconds`: the
+/// seconds in the upper 32 bits, so a restarted node numbers above its previous life (spec,
+/// "sequence") without storing anything.
+pub const fn first_sequence(boot_unix_seconds: u64) -> u64 {
+    boot_unix_seconds << 32
+}
+
 /// The name under which a receiver counts skipped messages of an unknown kind (not a
 /// [`DropReason`]: the rest of the datagram is still applied).
 pub const UNKNOWN_KIND: &str = "unknown_kind";
