@@ -204,6 +204,28 @@ ayl_str ayl_s(const char *s) {
     return r;
 }
 
+int ayl_hello_group(const ayl_hello_msg *h, size_t i, ayl_str *out) {
+    const uint8_t *p = h->groups_wire;
+    size_t k;
+    if (i >= h->ngroups) {
+        return 0;
+    }
+    if (h->groups != NULL) {
+        *out = h->groups[i];
+        return 1;
+    }
+    if (p == NULL) {
+        return 0;
+    }
+    /* Validated by ayl_decode: each name is a length byte then that many bytes. */
+    for (k = 0; k < i; k++) {
+        p += 1 + p[0];
+    }
+    out->ptr = (const char *)(p + 1);
+    out->len = p[0];
+    return 1;
+}
+
 int ayl_kind_known(uint8_t kind) {
     return kind == AYL_KIND_PORT || kind == AYL_KIND_HELLO || kind == AYL_KIND_REQUEST || kind == AYL_KIND_REPLY;
 }
@@ -344,13 +366,20 @@ static ayl_cause decode_body(uint8_t kind, reader *r, ayl_msg *m) {
         rd_value(r, &p->value);
         break;
     }
-    case AYL_KIND_HELLO:
+    case AYL_KIND_HELLO: {
+        size_t i;
         m->u.hello.interval_ms = (uint32_t)rd_int(r, 4);
         m->u.hello.name = rd_str8(r, 0);
+        m->u.hello.ngroups = (size_t)rd_int(r, 1);
+        m->u.hello.groups_wire = r->b + r->pos;
+        for (i = 0; i < m->u.hello.ngroups; i++) {
+            (void)rd_str8(r, 1);
+        }
         if (m->u.hello.interval_ms == 0) {
             r->bad = 1;
         }
         break;
+    }
     case AYL_KIND_REQUEST: {
         ayl_request_msg *q = &m->u.request;
         q->id = rd_int(r, 8);
@@ -383,8 +412,9 @@ static ayl_cause decode_body(uint8_t kind, reader *r, ayl_msg *m) {
         status = (uint8_t)rd_int(r, 1);
         y->part = (uint16_t)rd_int(r, 2);
         y->parts = (uint16_t)rd_int(r, 2);
-        if (status > 1 || y->parts < 1 || y->parts > AYL_MAX_PARTS || y->part >= y->parts) {
-            r->bad = 1;
+        if (status > 1 || y->parts < 1 || y->parts > AYL_MAX_PARTS || y->part >= y->parts ||
+            (status == 1 && y->parts != 1)) {
+            r->bad = 1; /* only reports come in parts; errors too have parts = 1 */
         } else if (status == 1) {
             y->result = AYL_RESULT_ERROR;
             y->text = rd_str16(r);
@@ -664,13 +694,24 @@ static void wr_body(wbuf *w, const ayl_msg *m) {
         wr_value(w, &p->value);
         break;
     }
-    case AYL_KIND_HELLO:
-        if (m->u.hello.interval_ms == 0) {
+    case AYL_KIND_HELLO: {
+        size_t i;
+        if (m->u.hello.interval_ms == 0 || m->u.hello.ngroups > 0xFFu) {
             invalid(w);
         }
         wr_int(w, m->u.hello.interval_ms, 4);
         wr_str8(w, m->u.hello.name, 0);
+        wr_int(w, m->u.hello.ngroups, 1);
+        for (i = 0; i < m->u.hello.ngroups; i++) {
+            ayl_str g;
+            if (!ayl_hello_group(&m->u.hello, i, &g)) {
+                invalid(w);
+                break;
+            }
+            wr_str8(w, g, 1);
+        }
         break;
+    }
     case AYL_KIND_REQUEST: {
         const ayl_request_msg *q = &m->u.request;
         wr_int(w, q->id, 8);
@@ -942,6 +983,19 @@ int ayl_node_init(ayl_node *node, const ayl_node_config *cfg) {
     node->seq = cfg->seq_start;
     node->next_id = cfg->seq_start + 1;
     node->next_conn = 1;
+    {
+        /* Refuse a bad name or group list now rather than failing every HELLO later. */
+        ayl_msg m;
+        memset(&m, 0, sizeof m);
+        m.kind = AYL_KIND_HELLO;
+        m.u.hello.interval_ms = node->cfg.hello_interval_ms;
+        m.u.hello.name = ayl_s(cfg->name);
+        m.u.hello.groups = cfg->groups;
+        m.u.hello.ngroups = cfg->groups != NULL ? cfg->ngroups : 0;
+        if (encode_message(node->cfg.tx, node->cfg.tx_cap, &m) < 0) {
+            return AYL_E_INVALID;
+        }
+    }
     return 0;
 }
 
@@ -1068,6 +1122,8 @@ int ayl_node_send_hello(ayl_node *node, uint64_t now_ns) {
     m.kind = AYL_KIND_HELLO;
     m.u.hello.interval_ms = node->cfg.hello_interval_ms;
     m.u.hello.name = ayl_s(node->cfg.name);
+    m.u.hello.groups = node->cfg.groups;
+    m.u.hello.ngroups = node->cfg.groups != NULL ? node->cfg.ngroups : 0;
     for (i = 0; i < node->cfg.max_peers; i++) {
         ayl_peer *p = &node->cfg.peers[i];
         if (p->used && p->addr.len > 0 && peer_alive(node, p)) {
@@ -1320,6 +1376,11 @@ static void json_string(wbuf *w, const char *s) {
             e[0] = '\\';
             e[1] = (char)c;
             wr_bytes(w, e, 2);
+        } else if (c == '\n' || c == '\r' || c == '\t' || c == '\b' || c == '\f') {
+            char e[2];
+            e[0] = '\\';
+            e[1] = c == '\n' ? 'n' : c == '\r' ? 'r' : c == '\t' ? 't' : c == '\b' ? 'b' : 'f';
+            wr_bytes(w, e, 2);
         } else if (c < 0x20) {
             char e[6];
             e[0] = '\\';
@@ -1446,7 +1507,13 @@ static void serve(ayl_node *n, const ayl_request_msg *q, const ayl_addr *from) {
     } else {
         m.u.reply.text = ayl_s("unknown operation");
     }
-    (void)send_msgs(n, from, &m, NULL, 0);
+    if (send_msgs(n, from, &m, NULL, 0) == AYL_E_NOSPACE) {
+        /* A value too large for one datagram: say so rather than stay silent and make the
+         * requester retry 25 times. */
+        m.u.reply.result = AYL_RESULT_ERROR;
+        m.u.reply.text = ayl_s("answer too large for one datagram");
+        (void)send_msgs(n, from, &m, NULL, 0);
+    }
 }
 
 /* ----- the node: receiving ------------------------------------------------------------------- */

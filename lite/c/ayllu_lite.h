@@ -189,10 +189,18 @@ typedef struct {
     ayl_value value;
 } ayl_port_msg;
 
+/* HELLO, with the broadcast groups the sender has joined (a node without broadcast delivers a
+ * group's messages by unicast to the members it learnt this way). */
 typedef struct {
     uint32_t interval_ms; /* > 0 */
     ayl_str name;
+    size_t ngroups;             /* at most 255 */
+    const ayl_str *groups;      /* for encoding: ngroups non-empty names */
+    const uint8_t *groups_wire; /* when decoded: the names as on the wire (groups is NULL) */
 } ayl_hello_msg;
+
+/* Group i of a HELLO, decoded or built: 1 and *out filled, or 0 if i >= ngroups. Reentrant. */
+int ayl_hello_group(const ayl_hello_msg *h, size_t i, ayl_str *out);
 
 typedef struct {
     int is_group; /* 0: node endpoint, 1: group endpoint */
@@ -403,7 +411,12 @@ typedef struct {
     uint32_t node_id;
     uint32_t team;
     const uint8_t *key;  /* 32 bytes (copied), or NULL for an open team */
-    uint64_t seq_start;  /* boot_seconds << 32 (or anything above the last run's numbers) */
+    /* boot_seconds << 32, or anything above the last run's numbers; the fraction of the
+     * second in the low 32 bits lets a restart within the same second start higher. Datagram
+     * sequence numbers, request ids and connection sequence numbers all start here, because
+     * receivers remember all three across a restart (replay window, answered requests, stale
+     * drops). */
+    uint64_t seq_start;
     ayl_send_fn send;
     ayl_recv_fn recv;    /* may be NULL if you feed datagrams with ayl_node_receive */
     void *io_user;
@@ -420,6 +433,8 @@ typedef struct {
     uint8_t *tx;         /* send buffer: AYL_MTU bytes is the default path MTU */
     size_t tx_cap;
     const char *name;    /* for HELLO; NULL: empty */
+    const ayl_str *groups; /* announced in HELLO so nodes send group traffic here; may be NULL */
+    size_t ngroups;
     uint32_t hello_interval_ms; /* 0: 1000 */
     const ayl_addr *broadcast;  /* also receives HELLO; NULL: none */
 } ayl_node_config;
@@ -454,7 +469,8 @@ typedef struct {
 } ayl_conn;
 
 /* Set up a node. Returns 0, or AYL_E_INVALID (missing send, rx/tx buffers smaller than a
- * header plus MAC, or no tables). Not thread-safe (writes *node). */
+ * header plus MAC, no peer table, or a name or group list HELLO cannot carry). Not
+ * thread-safe (writes *node). */
 int ayl_node_init(ayl_node *node, const ayl_node_config *cfg);
 
 /* Expose behavior.port with an initial value; the port's type is that value's type (S1).

@@ -54,6 +54,7 @@ __all__ = [
     "Endpoint",
     "Hello",
     "LiteNode",
+    "Message",
     "Op",
     "Port",
     "ReplayWindow",
@@ -63,6 +64,7 @@ __all__ = [
     "RequestTimeout",
     "Unknown",
     "Value",
+    "Vector",
     "decode",
     "encode",
     "encode_message",
@@ -207,10 +209,12 @@ class Port:
 
 @dataclass(frozen=True)
 class Hello:
-    """HELLO: liveness announcement."""
+    """HELLO: liveness announcement, with the broadcast groups the sender has joined (so a
+    node can deliver a group's messages by unicast where broadcast is unavailable)."""
 
     interval_ms: int
     name: str = ""
+    groups: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -379,7 +383,11 @@ def _encode_body(m: Message) -> tuple[int, bytes]:
     if isinstance(m, Hello):
         if m.interval_ms <= 0:
             raise EncodeError("HELLO interval must be above zero")
-        return KIND_HELLO, _u32(m.interval_ms, "interval") + _str8(m.name, "hello name")
+        if len(m.groups) > 0xFF:
+            raise EncodeError("HELLO lists more than 255 groups")
+        groups = b"".join(_str8(g, "group", nonempty=True) for g in m.groups)
+        head = _u32(m.interval_ms, "interval") + _str8(m.name, "hello name")
+        return KIND_HELLO, head + bytes([len(m.groups)]) + groups
     if isinstance(m, Request):
         body = _u64(m.id, "request id") + _u8(int(m.op), "op")
         if m.op == Op.CONNECT:
@@ -405,7 +413,7 @@ def _encode_body(m: Message) -> tuple[int, bytes]:
         if sum(results) != 1:
             raise EncodeError("REPLY needs exactly one of error, conn, value, report")
         if m.report is None and m.parts != 1:
-            raise EncodeError("only report replies have several parts")
+            raise EncodeError("only report replies have several parts (errors have one)")
         body = _u64(m.id, "reply id")
         if m.error is not None:
             return KIND_REPLY, body + bytes([1]) + _u16(m.part, "part") + _u16(m.parts, "parts") + _str16(
@@ -571,7 +579,9 @@ def _decode_message(kind: int, r: _Reader) -> Message:
         interval = r.u32()
         if interval == 0:
             raise Dropped("malformed", "HELLO interval 0")
-        return Hello(interval, r.str8())
+        name = r.str8()
+        groups = tuple(r.str8(nonempty=True) for _ in range(r.u8()))
+        return Hello(interval, name, groups)
     if kind == KIND_REQUEST:
         rid, op = r.u64(), r.u8()
         if op == Op.CONNECT:
@@ -593,6 +603,8 @@ def _decode_message(kind: int, r: _Reader) -> Message:
         if not 1 <= parts <= MAX_PARTS or part >= parts:
             raise Dropped("malformed", f"reply part {part} of {parts}")
         if status == 1:
+            if parts != 1:
+                raise Dropped("malformed", "only reports have several parts")
             return Reply(rid, part, parts, error=r.str16())
         result = r.u8()
         if result == _RESULT_REPORT:
@@ -760,7 +772,7 @@ def message_to_json(m: Message) -> dict[str, Any]:
             "value": value_to_json(m.value),
         }
     if isinstance(m, Hello):
-        return {"kind": "hello", "interval_ms": m.interval_ms, "name": m.name}
+        return {"kind": "hello", "interval_ms": m.interval_ms, "name": m.name, "groups": list(m.groups)}
     if isinstance(m, Request):
         d: dict[str, Any] = {"kind": "request", "id": m.id}
         if m.op in _OP_NAMES:
@@ -812,7 +824,7 @@ def message_from_json(j: dict[str, Any]) -> Message:
             value_from_json(j["value"]),
         )
     if k == "hello":
-        return Hello(j["interval_ms"], j["name"])
+        return Hello(j["interval_ms"], j["name"], tuple(j["groups"]))
     if k == "request":
         name = j["op"]
         op: int = j["code"] if name == "unknown" else Op[name.upper()]
@@ -862,8 +874,12 @@ WriteCallback = Callable[[str, str, Value, int, int], None]
 def _boot_base() -> int:
     # spec: start at boot_seconds << 32 so that a restarted client's numbers exceed its old
     # ones. Used for datagram sequence numbers, request ids and per-connection sequence
-    # numbers alike, since receivers remember all three across our restart.
-    return int(time.time()) << 32
+    # numbers alike, since receivers remember all three across our restart. The low 32 bits
+    # carry the fraction of the second, so a client restarted within the same second (a
+    # script run twice) still starts above its previous run unless that run sent more
+    # messages than the fraction advanced.
+    ns = time.time_ns()
+    return ((ns // 1_000_000_000) << 32) | (((ns % 1_000_000_000) << 32) // 1_000_000_000)
 
 
 def _type_name(v: Value) -> str:
@@ -923,7 +939,10 @@ class Connection:
         _str8(port, "port", nonempty=True)
 
     def send(self, value: Value) -> None:
-        """Send one value along the connection (best effort: a lost value is not resent)."""
+        """Send one value along the connection (best effort: a lost value is not resent).
+
+        Raises :class:`EncodeError` for a value a receiver would drop or that does not fit in
+        one datagram of the default path MTU (values are never fragmented)."""
         with self._node._lock:
             self.seq += 1
             msg = Port(self.conn, self.seq, self.kind, self.period_ns, self.priority, self.behavior, self.port, value)
@@ -959,6 +978,7 @@ class LiteNode:
         peers: Iterable[tuple[int, Address]] = (),
         broadcast: Address | None = None,
         name: str = "",
+        groups: Iterable[str] = (),
         hello_interval_ms: int = 1000,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
@@ -970,6 +990,9 @@ class LiteNode:
             raise ValueError("hello interval must be above zero")
         self.node_id, self.team, self.key, self.name = node_id, team, key, name
         self.hello_interval_ms = hello_interval_ms
+        #: Groups announced in HELLO: nodes without broadcast then send group traffic here.
+        self.groups = tuple(groups)
+        encode_message(Hello(hello_interval_ms, name, self.groups))  # refuse bad names now
         self._clock = clock
         self._lock = threading.RLock()
         self._answered = threading.Condition(self._lock)
@@ -993,7 +1016,7 @@ class LiteNode:
         self._next_hello = 0.0
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
-        #: Drop and event counters by cause name (N4), plus ``received``/``sent``.
+        #: Drop counters by cause name (N4), plus ``received``, ``sent`` and ``send_failed``.
         self.counters: dict[str, int] = {}
 
     # ----- lifecycle ---------------------------------------------------------------------
@@ -1113,7 +1136,7 @@ class LiteNode:
             targets = set(self.peers().values())
             if self.broadcast is not None:
                 targets.add(self.broadcast)
-            hello = Hello(self.hello_interval_ms, self.name)
+            hello = Hello(self.hello_interval_ms, self.name, self.groups)
             for t in targets:
                 self._send([hello], t)
             self._next_hello = self._clock() + self.hello_interval_ms / 1000
@@ -1322,7 +1345,7 @@ class LiteNode:
                 if isinstance(m, Hello):
                     interval = m.interval_ms / 1000
             self._heard[d.sender] = (addr, now, interval)
-            replies: list[Message] = []
+            replies: list[Reply] = []
             for m in d.messages:
                 if isinstance(m, Port):
                     self._apply_port(d.sender, m, calls)
@@ -1332,8 +1355,13 @@ class LiteNode:
                     replies.append(self._serve(m))
                 elif isinstance(m, Unknown):
                     self._count("unknown_kind")
-            if replies:
-                self._send(replies, addr)
+            for r in replies:
+                try:
+                    self._send([r], addr)
+                except EncodeError:
+                    # A value too large for one datagram: say so rather than stay silent and
+                    # make the requester retry 25 times.
+                    self._send([Reply(r.id, error="answer too large for one datagram")], addr)
         for cb, args in calls:
             cb(*args)
         return None
@@ -1357,7 +1385,7 @@ class LiteNode:
         if p is None:
             self._count("unknown_port")
             return
-        now = time.monotonic_ns()
+        now = round(self._clock() * 1e9)  # periods are measured on our own clock (S8)
         holder = (sender, m.conn)
         if m.conn_kind != ConnKind.NORMAL:
             p.refresh(m.conn_kind, holder, now + m.period_ns)
@@ -1401,12 +1429,14 @@ class LiteNode:
                 return Reply(m.id, error=f"no port {m.behavior}.{m.port}")
             return Reply(m.id, value=p.value)
         if m.op == Op.LIST:
+            # Behaviors in order of first exposure, ports in order of exposure: the same text
+            # the C implementation gives.
             report = {
                 "node": self.node_id,
                 "lite": True,
-                "behaviors": [{"name": b, "ports": sorted(ps)} for b, ps in sorted(self._ports.items())],
+                "behaviors": [{"name": b, "ports": list(ps)} for b, ps in self._ports.items()],
             }
-            text = json.dumps(report, separators=(",", ":"))
+            text = json.dumps(report, separators=(",", ":"), ensure_ascii=False)
             if len(text.encode()) > MTU - 100:
                 return Reply(m.id, error="report too large for an AylluLite node")
             return Reply(m.id, report=text)

@@ -40,7 +40,7 @@ def test_every_message_kind_roundtrips() -> None:
         for v in values
     ]
     msgs += [
-        al.Hello(1000, "robot-1"),
+        al.Hello(1000, "robot-1", ("Peers", "Scouts")),
         al.Hello(5),
         al.Request(1, al.Op.CONNECT, "S", "p", al.Endpoint("B", "P", node=9), al.ConnKind.OVERRIDE_IN, 5, -1),
         al.Request(2, al.Op.CONNECT, "S", "p", al.Endpoint("B", "P", group="Peers")),
@@ -103,7 +103,10 @@ def test_malformed_bodies() -> None:
     assert cause(body(1, port_body(beh=b"\x01\xff"))) == "malformed"  # invalid UTF-8
     assert cause(body(1, port_body(value=b"\x00\x02"))) == "malformed"  # bool 2
     assert cause(body(1, port_body(value=b"\x06"))) == "malformed"  # value type 6
-    assert cause(body(2, struct.pack("<IB", 0, 0))) == "malformed"  # HELLO interval 0
+    assert cause(body(2, struct.pack("<IBB", 0, 0, 0))) == "malformed"  # HELLO interval 0
+    assert cause(body(2, struct.pack("<IB", 5, 0))) == "malformed"  # HELLO without its group count
+    assert cause(body(2, struct.pack("<IBBB", 5, 0, 1, 0))) == "malformed"  # empty group name
+    assert cause(body(0x11, struct.pack("<QBHH", 1, 1, 0, 2) + b"\x00\x00")) == "malformed"  # error in parts
     assert cause(body(0x10, struct.pack("<QB", 1, 1) + b"\x00\x00\x00")) == "malformed"  # endpoint tag 0
     reply = struct.pack("<QBHH", 1, 0, 0, 1)
     assert cause(body(0x11, struct.pack("<QBHH", 1, 2, 0, 1) + b"\x00\x00")) == "malformed"  # status
@@ -124,7 +127,7 @@ def test_unknown_kinds_and_ops_are_skipped_not_dropped() -> None:
 
 
 def test_extra_body_bytes_are_ignored() -> None:
-    (m,) = al.decode(body(2, struct.pack("<I", 10) + b"\x01x" + b"future"), TEAM).messages
+    (m,) = al.decode(body(2, struct.pack("<I", 10) + b"\x01x\x00" + b"future"), TEAM).messages
     assert m == al.Hello(10, "x")
 
 
@@ -137,6 +140,8 @@ def test_encoder_refuses_what_decoders_drop() -> None:
         al.Port(1, 1, al.ConnKind.NORMAL, 0, 0, "B", "P", 1 << 63),
         al.Port(1, 1, al.ConnKind.NORMAL, 0, 1 << 31, "B", "P", 1),
         al.Hello(0),
+        al.Hello(5, "x", ("",)),
+        al.Reply(1, parts=2, error="x"),
         al.Reply(1, part=1, parts=1, report=""),
         al.Reply(1, parts=2, conn=1),
         al.Reply(1),

@@ -130,6 +130,35 @@ def test_hello_teaches_addresses(pair: tuple[al.LiteNode, al.LiteNode]) -> None:
         c.close()
 
 
+def test_hello_announces_name_and_groups() -> None:
+    raw = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    raw.bind(LOOP)
+    node = al.LiteNode(5, TEAM, bind=LOOP, name="cam", groups=["Peers"], peers=[(9, raw.getsockname())])
+    try:
+        node.poll(0)
+        data, _ = raw.recvfrom(9000)
+        assert al.decode(data, TEAM).messages == (al.Hello(1000, "cam", ("Peers",)),)
+        with pytest.raises(al.EncodeError):
+            al.LiteNode(6, TEAM, bind=LOOP, groups=[""])
+    finally:
+        node.close()
+        raw.close()
+
+
+def test_list_report_text_matches_the_c_implementation(pair: tuple[al.LiteNode, al.LiteNode]) -> None:
+    # The same exposures as lite/c/tests/test_node.c, which checks the same text.
+    a, b = pair
+    a.expose("Cam", "State", "ready")
+    a.expose("Cam", "On", True)
+    a.expose('Arm "2"', "Joint", 4)
+    a.start()
+    r = b.request(1, al.Request(0, al.Op.LIST))
+    assert r.report == (
+        '{"node":1,"lite":true,"behaviors":[{"name":"Cam","ports":["State","On"]},'
+        '{"name":"Arm \\"2\\"","ports":["Joint"]}]}'
+    )
+
+
 def test_lite_answers_read_and_list_and_refuses_the_rest(pair: tuple[al.LiteNode, al.LiteNode]) -> None:
     a, b = pair
     a.expose("Cam", "Target", al.Vector((1.0, 2.0)))
@@ -142,6 +171,11 @@ def test_lite_answers_read_and_list_and_refuses_the_rest(pair: tuple[al.LiteNode
         b.read(1, "Cam", "Nope")
     with pytest.raises(al.RequestFailed, match="unknown operation"):
         b._answer(1, al.Request(0, 77))
+    a.expose("Cam", "Log", "x" * 2000)  # a value never travels in parts
+    with pytest.raises(al.RequestFailed, match="too large"):
+        b.read(1, "Cam", "Log")
+    with pytest.raises(al.EncodeError):
+        b.write(1, "Cam", "Log", "y" * 2000)
 
 
 class FakeNode:

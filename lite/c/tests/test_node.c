@@ -1,0 +1,660 @@
+/*
+ * test_node.c -- the AylluLite C node logic through an in-memory network (no sockets, virtual
+ * time): exposing ports, applying PORT writes with connection-kind semantics for storing,
+ * stale and type drops, the PORT/REQUEST/HELLO datagrams the node builds (decoded and checked
+ * field by field), requests with retries and multi-part report reassembly, READ/LIST served
+ * by the lite node, and authentication with replay protection.
+ */
+#include <stdio.h>
+#include <string.h>
+
+#include "../ayllu_lite.h"
+#include "check.h"
+
+/* ----- an in-memory network: a FIFO of datagrams, each addressed by a one-byte address --------- */
+
+#define NET_SLOTS 256
+typedef struct {
+    uint8_t to, from;
+    size_t len;
+    uint8_t data[AYL_MAX_DATAGRAM + 64];
+} packet;
+
+static packet net[NET_SLOTS];
+static int net_head, net_count;
+static int net_drop_to = -1; /* datagrams to this address vanish (a lost peer) */
+
+typedef struct {
+    uint8_t me;
+    int sent;
+} endpoint;
+
+static ayl_addr addr_of(uint8_t a) {
+    ayl_addr r;
+    memset(&r, 0, sizeof r);
+    r.len = 1;
+    r.bytes[0] = a;
+    return r;
+}
+
+static void net_inject(uint8_t from, uint8_t to, const uint8_t *data, size_t len) {
+    packet *p;
+    if (net_count == NET_SLOTS || to == net_drop_to) {
+        return;
+    }
+    p = &net[(net_head + net_count++) % NET_SLOTS];
+    p->to = to;
+    p->from = from;
+    p->len = len;
+    memcpy(p->data, data, len);
+}
+
+static int mem_send(void *user, const ayl_addr *to, const uint8_t *data, size_t len) {
+    endpoint *e = user;
+    e->sent++;
+    net_inject(e->me, to->bytes[0], data, len);
+    return 0;
+}
+
+static int mem_recv(void *user, ayl_addr *from, uint8_t *buf, size_t cap) {
+    endpoint *e = user;
+    int i;
+    for (i = 0; i < net_count; i++) {
+        packet *p = &net[(net_head + i) % NET_SLOTS];
+        if (p->to == e->me) {
+            int len = (int)p->len;
+            *from = addr_of(p->from);
+            memcpy(buf, p->data, p->len < cap ? p->len : cap);
+            /* remove it, keeping the order of the rest */
+            for (; i < net_count - 1; i++) {
+                net[(net_head + i) % NET_SLOTS] = net[(net_head + i + 1) % NET_SLOTS];
+            }
+            net_count--;
+            return len;
+        }
+    }
+    return 0;
+}
+
+/* The last datagram queued for `to` (without removing it), or NULL. */
+static packet *net_peek(uint8_t to) {
+    int i;
+    for (i = net_count - 1; i >= 0; i--) {
+        packet *p = &net[(net_head + i) % NET_SLOTS];
+        if (p->to == to) {
+            return p;
+        }
+    }
+    return NULL;
+}
+
+static void net_clear(void) {
+    net_head = 0;
+    net_count = 0;
+    net_drop_to = -1;
+}
+
+/* ----- a test node with its own tables ----------------------------------------------------------- */
+
+typedef struct {
+    ayl_node node;
+    endpoint io;
+    ayl_port ports[8];
+    ayl_peer peers[4];
+    ayl_seq_entry seqs[8];
+    ayl_pending pending[4];
+    uint8_t rx[AYL_MAX_DATAGRAM];
+    uint8_t tx[AYL_MTU];
+} tnode;
+
+static const uint64_t SEQ0 = (uint64_t)1700000000 << 32;
+static const uint8_t KEY[AYL_KEY_LEN] = {1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16,
+                                         17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31, 32};
+static const ayl_str GROUPS[] = {{"Peers", 5}};
+
+static void tnode_init(tnode *t, uint32_t id, uint8_t addr, const uint8_t *key) {
+    ayl_node_config cfg;
+    memset(t, 0, sizeof *t);
+    memset(&cfg, 0, sizeof cfg);
+    t->io.me = addr;
+    cfg.node_id = id;
+    cfg.team = 7;
+    cfg.key = key;
+    cfg.seq_start = SEQ0;
+    cfg.send = mem_send;
+    cfg.recv = mem_recv;
+    cfg.io_user = &t->io;
+    cfg.ports = t->ports;
+    cfg.max_ports = 8;
+    cfg.peers = t->peers;
+    cfg.max_peers = 4;
+    cfg.seqs = t->seqs;
+    cfg.max_seqs = 8;
+    cfg.pending = t->pending;
+    cfg.max_pending = 4;
+    cfg.rx = t->rx;
+    cfg.rx_cap = sizeof t->rx;
+    cfg.tx = t->tx;
+    cfg.tx_cap = sizeof t->tx;
+    cfg.name = "lite";
+    cfg.groups = GROUPS;
+    cfg.ngroups = 1;
+    CHECK(ayl_node_init(&t->node, &cfg) == 0);
+}
+
+#define MS 1000000ull
+
+/* ----- write callbacks ------------------------------------------------------------------------ */
+
+static int writes_seen;
+static uint32_t last_sender;
+static uint64_t last_conn;
+
+static void on_write(void *user, const char *behavior, const char *port, const ayl_value *v, uint32_t sender,
+                     uint64_t conn) {
+    (void)user;
+    (void)behavior;
+    (void)port;
+    (void)v;
+    writes_seen++;
+    last_sender = sender;
+    last_conn = conn;
+}
+
+/* ----- tests ----------------------------------------------------------------------------------- */
+
+static void test_port_writes_and_datagram_contents(void) {
+    static tnode a, b;
+    static uint8_t text_store[16], vec_store[8 * 3];
+    ayl_conn c;
+    ayl_value v;
+    const ayl_value *got;
+    ayl_datagram d;
+    ayl_msg m;
+    ayl_addr to_a = addr_of(1);
+    double pose[3] = {1.0, -2.0, 0.5};
+    net_clear();
+    tnode_init(&a, 1, 1, NULL);
+    tnode_init(&b, 2, 2, NULL);
+    v = ayl_float(0.0);
+    CHECK(ayl_node_expose(&a.node, "Drive", "Speed", &v, NULL, 0, on_write, NULL) == 0);
+    CHECK(ayl_node_expose(&a.node, "Drive", "Speed", &v, NULL, 0, NULL, NULL) == AYL_E_EXISTS);
+    v = ayl_text("hi");
+    CHECK(ayl_node_expose(&a.node, "Say", "Text", &v, text_store, sizeof text_store, NULL, NULL) == 1);
+    v = ayl_vector(NULL, 0);
+    CHECK(ayl_node_expose(&a.node, "Nav", "Pose", &v, vec_store, sizeof vec_store, NULL, NULL) == 2);
+    CHECK(ayl_node_expose(&a.node, "", "P", &v, NULL, 0, NULL, NULL) == AYL_E_INVALID);
+
+    CHECK(ayl_conn_open(&b.node, &c, &to_a, "Drive", "Speed", AYL_NORMAL, 5, 0) == AYL_E_INVALID);
+    CHECK(ayl_conn_open(&b.node, &c, &to_a, "Drive", "Speed", AYL_OVERRIDE_IN, 0, 0) == AYL_E_INVALID);
+    CHECK(ayl_conn_open(&b.node, &c, &to_a, "Drive", "Speed", AYL_OVERRIDE_OUT, 200 * MS, -3) == 0);
+    v = ayl_float(1.5);
+    CHECK(ayl_conn_send(&b.node, &c, &v) == 0);
+
+    /* The datagram B built: header and PORT fields as the spec lays them out. */
+    {
+        packet *p = net_peek(1);
+        CHECK(p != NULL);
+        if (p != NULL) {
+            CHECK(ayl_decode(&d, p->data, p->len, 7, NULL) == AYL_OK);
+            CHECK(d.sender == 2 && d.seq == SEQ0 + 1 && !d.auth);
+            CHECK(ayl_next(&d, &m) && m.kind == AYL_KIND_PORT);
+            CHECK(m.u.port.conn == c.conn && m.u.port.seq == SEQ0 + 1);
+            CHECK(m.u.port.kind == AYL_OVERRIDE_OUT && m.u.port.period_ns == 200 * MS && m.u.port.priority == -3);
+            CHECK(m.u.port.behavior.len == 5 && memcmp(m.u.port.behavior.ptr, "Drive", 5) == 0);
+            CHECK(m.u.port.value.type == AYL_FLOAT && ayl_value_float(&m.u.port.value) == 1.5);
+            CHECK(!ayl_next(&d, &m));
+        }
+    }
+    CHECK(ayl_node_poll(&a.node, 10 * MS) == 1);
+    got = ayl_node_get(&a.node, "Drive", "Speed");
+    CHECK(got != NULL && ayl_value_float(got) == 1.5);
+    CHECK(writes_seen == 1 && last_sender == 2 && last_conn == c.conn);
+
+    /* Text and vectors are copied into the port's storage; too long is refused and counted. */
+    {
+        ayl_conn ct, cv;
+        CHECK(ayl_conn_open(&b.node, &ct, &to_a, "Say", "Text", AYL_NORMAL, 0, 0) == 0);
+        CHECK(ayl_conn_open(&b.node, &cv, &to_a, "Nav", "Pose", AYL_NORMAL, 0, 0) == 0);
+        CHECK(ct.conn != cv.conn);
+        v = ayl_text("hello");
+        ayl_conn_send(&b.node, &ct, &v);
+        v = ayl_vector(pose, 3);
+        ayl_conn_send(&b.node, &cv, &v);
+        ayl_node_poll(&a.node, 20 * MS);
+        got = ayl_node_get(&a.node, "Say", "Text");
+        CHECK(got->u.data.len == 5 && memcmp(got->u.data.ptr, "hello", 5) == 0 && got->u.data.ptr == text_store);
+        got = ayl_node_get(&a.node, "Nav", "Pose");
+        CHECK(got->u.vec.n == 3 && ayl_value_vector_at(got, 1) == -2.0);
+        v = ayl_text("a text longer than sixteen bytes");
+        ayl_conn_send(&b.node, &ct, &v);
+        ayl_node_poll(&a.node, 30 * MS);
+        CHECK(a.node.counters[AYL_TOO_LARGE] == 1);
+        got = ayl_node_get(&a.node, "Say", "Text");
+        CHECK(got->u.data.len == 5);
+    }
+
+    /* Drops: wrong type, unknown behavior, unknown port. */
+    {
+        ayl_conn c1, c2, c3;
+        ayl_conn_open(&b.node, &c1, &to_a, "Drive", "Speed", AYL_NORMAL, 0, 0);
+        ayl_conn_open(&b.node, &c2, &to_a, "Nope", "Speed", AYL_NORMAL, 0, 0);
+        ayl_conn_open(&b.node, &c3, &to_a, "Drive", "Nope", AYL_NORMAL, 0, 0);
+        v = ayl_int(3);
+        ayl_conn_send(&b.node, &c1, &v);
+        ayl_conn_send(&b.node, &c2, &v);
+        ayl_conn_send(&b.node, &c3, &v);
+        ayl_node_poll(&a.node, 40 * MS);
+        CHECK(a.node.counters[AYL_TYPE_MISMATCH] == 1);
+        CHECK(a.node.counters[AYL_UNKNOWN_BEHAVIOR] == 1);
+        CHECK(a.node.counters[AYL_UNKNOWN_PORT] == 1);
+    }
+}
+
+/* Send a PORT message from node 9 with a chosen (conn, seq, kind, period). */
+static void inject_port(uint8_t to, uint64_t dseq, uint64_t conn, uint64_t seq, ayl_conn_kind kind, uint64_t period,
+                        int64_t value) {
+    uint8_t buf[256];
+    ayl_writer w;
+    ayl_msg m;
+    int len;
+    memset(&m, 0, sizeof m);
+    m.kind = AYL_KIND_PORT;
+    m.u.port.conn = conn;
+    m.u.port.seq = seq;
+    m.u.port.kind = kind;
+    m.u.port.period_ns = period;
+    m.u.port.behavior = ayl_s("B");
+    m.u.port.port = ayl_s("P");
+    m.u.port.value = ayl_int(value);
+    ayl_writer_begin(&w, buf, sizeof buf, 7, 9, dseq, 0);
+    CHECK(ayl_writer_add(&w, &m) == 0);
+    len = ayl_writer_finish(&w, NULL);
+    net_inject(9, to, buf, (size_t)len);
+}
+
+static void test_stale_and_windows(void) {
+    static tnode a;
+    ayl_value v = ayl_int(0);
+    net_clear();
+    tnode_init(&a, 1, 1, NULL);
+    ayl_node_expose(&a.node, "B", "P", &v, NULL, 0, NULL, NULL);
+
+    /* N1: per (sender, connection), only newer sequence numbers apply. */
+    inject_port(1, 1, 7, 10, AYL_NORMAL, 0, 10);
+    inject_port(1, 2, 7, 9, AYL_NORMAL, 0, 9);
+    inject_port(1, 3, 7, 10, AYL_NORMAL, 0, 10);
+    inject_port(1, 4, 8, 1, AYL_NORMAL, 0, 1); /* another connection has its own numbers */
+    ayl_node_poll(&a.node, 0);
+    CHECK(a.node.counters[AYL_STALE] == 2);
+    CHECK(ayl_node_get(&a.node, "B", "P")->u.i == 1);
+
+    /* Suppress: never writes, blocks every connection write for its period, then lapses. */
+    inject_port(1, 5, 20, 1, AYL_SUPPRESS, 100 * MS, 55);
+    inject_port(1, 6, 7, 11, AYL_NORMAL, 0, 11);
+    ayl_node_poll(&a.node, 1000 * MS);
+    CHECK(a.node.counters[AYL_SUPPRESSED] == 1);
+    CHECK(ayl_node_get(&a.node, "B", "P")->u.i == 1);
+    v = ayl_int(2); /* the program's own writes are never suppressed (D6.5) */
+    CHECK(ayl_node_set(&a.node, "B", "P", &v) == 0 && ayl_node_get(&a.node, "B", "P")->u.i == 2);
+    inject_port(1, 7, 7, 12, AYL_NORMAL, 0, 12);
+    ayl_node_poll(&a.node, 1100 * MS); /* exactly at the end: the window is closed */
+    CHECK(ayl_node_get(&a.node, "B", "P")->u.i == 12);
+
+    /* Override-in: its holder writes, everybody else is blocked; a refresh never shortens. */
+    inject_port(1, 8, 30, 1, AYL_OVERRIDE_IN, 500 * MS, 30);
+    inject_port(1, 9, 30, 2, AYL_OVERRIDE_IN, 10 * MS, 31);
+    inject_port(1, 10, 7, 13, AYL_NORMAL, 0, 13);
+    ayl_node_poll(&a.node, 2000 * MS);
+    CHECK(ayl_node_get(&a.node, "B", "P")->u.i == 31);
+    CHECK(a.node.counters[AYL_OVERRIDDEN_IN] == 1);
+    inject_port(1, 11, 7, 14, AYL_NORMAL, 0, 14);
+    ayl_node_poll(&a.node, 2400 * MS); /* still inside the first 500 ms */
+    CHECK(a.node.counters[AYL_OVERRIDDEN_IN] == 2);
+    inject_port(1, 12, 7, 15, AYL_NORMAL, 0, 15);
+    ayl_node_poll(&a.node, 2600 * MS);
+    CHECK(ayl_node_get(&a.node, "B", "P")->u.i == 15);
+
+    /* Inhibit and write-inhibit never write; override-out writes (its window stops only
+     * propagation, which a lite port never does). */
+    inject_port(1, 13, 40, 1, AYL_INHIBIT, 100 * MS, 40);
+    inject_port(1, 14, 41, 1, AYL_WRITE_INHIBIT, 100 * MS, 41);
+    ayl_node_poll(&a.node, 2700 * MS);
+    CHECK(ayl_node_get(&a.node, "B", "P")->u.i == 15);
+    inject_port(1, 15, 42, 1, AYL_OVERRIDE_OUT, 100 * MS, 42);
+    ayl_node_poll(&a.node, 2700 * MS);
+    CHECK(ayl_node_get(&a.node, "B", "P")->u.i == 42);
+}
+
+static void test_hello_and_peers(void) {
+    static tnode a, b;
+    ayl_datagram d;
+    ayl_msg m;
+    ayl_addr to_b = addr_of(2);
+    ayl_str g;
+    packet *p;
+    net_clear();
+    tnode_init(&a, 1, 1, NULL);
+    tnode_init(&b, 2, 2, NULL);
+    CHECK(ayl_node_add_peer(&a.node, 2, &to_b) == 0);
+    ayl_node_poll(&a.node, 0); /* the first poll announces */
+    p = net_peek(2);
+    CHECK(p != NULL);
+    if (p == NULL) {
+        return;
+    }
+    CHECK(ayl_decode(&d, p->data, p->len, 7, NULL) == AYL_OK && ayl_next(&d, &m));
+    CHECK(m.kind == AYL_KIND_HELLO && m.u.hello.interval_ms == 1000 && m.u.hello.ngroups == 1);
+    CHECK(ayl_hello_group(&m.u.hello, 0, &g) && g.len == 5 && memcmp(g.ptr, "Peers", 5) == 0);
+    CHECK(ayl_node_next_deadline(&a.node) == 1000 * MS);
+    ayl_node_poll(&b.node, 0);
+    CHECK(ayl_node_peer_addr(&b.node, 1) != NULL && ayl_node_peer_addr(&b.node, 1)->bytes[0] == 1);
+    /* N6: forgotten after 3 intervals without a word; a configured peer never is. */
+    b.node.next_hello_ns = UINT64_MAX; /* keep b quiet */
+    ayl_node_poll(&b.node, 3000 * MS);
+    CHECK(ayl_node_peer_addr(&b.node, 1) != NULL);
+    ayl_node_poll(&b.node, 3001 * MS);
+    CHECK(ayl_node_peer_addr(&b.node, 1) == NULL);
+    CHECK(ayl_node_peer_addr(&a.node, 2) != NULL);
+}
+
+static void test_requests(void) {
+    static tnode a, b;
+    static uint8_t out[512];
+    ayl_addr to_a = addr_of(1);
+    ayl_request_msg q;
+    ayl_reply_msg ans;
+    uint64_t id;
+    ayl_value v = ayl_text("ready");
+    static uint8_t store[16];
+    int overflow = 0;
+    net_clear();
+    tnode_init(&a, 1, 1, NULL);
+    tnode_init(&b, 2, 2, NULL);
+    ayl_node_expose(&a.node, "Cam", "State", &v, store, sizeof store, NULL, NULL);
+    v = ayl_bool(1);
+    ayl_node_expose(&a.node, "Cam", "On", &v, NULL, 0, NULL, NULL);
+    v = ayl_int(4);
+    ayl_node_expose(&a.node, "Arm \"2\"", "Joint", &v, NULL, 0, NULL, NULL);
+
+    /* READ served by the lite node, answer copied into the caller's buffer. */
+    memset(&q, 0, sizeof q);
+    q.op = AYL_OP_READ;
+    q.behavior = ayl_s("Cam");
+    q.port = ayl_s("State");
+    CHECK(ayl_node_request(&b.node, &to_a, &q, out, sizeof out, &id) == 0);
+    CHECK(id == SEQ0 + 1);
+    CHECK(ayl_node_request_take(&b.node, id, &ans, NULL) == AYL_REQ_PENDING);
+    ayl_node_poll(&a.node, 0);
+    ayl_node_poll(&b.node, 0);
+    CHECK(ayl_node_request_take(&b.node, id, &ans, &overflow) == AYL_REQ_DONE);
+    CHECK(ans.result == AYL_RESULT_VALUE && ans.value.type == AYL_TEXT && ans.value.u.data.len == 5 &&
+          memcmp(ans.value.u.data.ptr, "ready", 5) == 0 && !overflow);
+    CHECK(ayl_node_request_take(&b.node, id, &ans, NULL) == AYL_REQ_FREE);
+
+    /* LIST: a small report, names escaped. */
+    memset(&q, 0, sizeof q);
+    q.op = AYL_OP_LIST;
+    CHECK(ayl_node_request(&b.node, &to_a, &q, out, sizeof out, &id) == 0);
+    ayl_node_poll(&a.node, 0);
+    ayl_node_poll(&b.node, 0);
+    CHECK(ayl_node_request_take(&b.node, id, &ans, NULL) == AYL_REQ_DONE);
+    {
+        const char *want = "{\"node\":1,\"lite\":true,\"behaviors\":[{\"name\":\"Cam\",\"ports\":[\"State\",\"On\"]},"
+                           "{\"name\":\"Arm \\\"2\\\"\",\"ports\":[\"Joint\"]}]}";
+        CHECK_MSG(ans.result == AYL_RESULT_REPORT && ans.text.len == strlen(want) &&
+                      memcmp(ans.text.ptr, want, ans.text.len) == 0,
+                  "%.*s", (int)ans.text.len, ans.text.ptr);
+    }
+
+    /* Other operations are refused with a reason; unknown ones say so. */
+    memset(&q, 0, sizeof q);
+    q.op = 99;
+    ayl_node_request(&b.node, &to_a, &q, out, sizeof out, &id);
+    ayl_node_poll(&a.node, 0);
+    ayl_node_poll(&b.node, 0);
+    CHECK(ayl_node_request_take(&b.node, id, &ans, NULL) == AYL_REQ_DONE);
+    CHECK(ans.result == AYL_RESULT_ERROR && ans.text.len == 17 && memcmp(ans.text.ptr, "unknown operation", 17) == 0);
+
+    /* A value that does not fit in one datagram is refused with a reason (never fragmented). */
+    {
+        static uint8_t log_store[2000];
+        memset(log_store, 'x', sizeof log_store);
+        v = ayl_text_n((const char *)log_store, sizeof log_store);
+        CHECK(ayl_node_expose(&a.node, "Cam", "Log", &v, log_store, sizeof log_store, NULL, NULL) >= 0);
+        memset(&q, 0, sizeof q);
+        q.op = AYL_OP_READ;
+        q.behavior = ayl_s("Cam");
+        q.port = ayl_s("Log");
+        ayl_node_request(&b.node, &to_a, &q, out, sizeof out, &id);
+        ayl_node_poll(&a.node, 0);
+        ayl_node_poll(&b.node, 0);
+        CHECK(ayl_node_request_take(&b.node, id, &ans, NULL) == AYL_REQ_DONE);
+        CHECK(ans.result == AYL_RESULT_ERROR && ans.text.len == 33 &&
+              memcmp(ans.text.ptr, "answer too large for one datagram", 33) == 0);
+        {
+            ayl_conn c;
+            ayl_addr to_b = addr_of(2);
+            CHECK(ayl_conn_open(&a.node, &c, &to_b, "X", "Y", AYL_NORMAL, 0, 0) == 0);
+            CHECK(ayl_conn_send(&a.node, &c, &v) == AYL_E_NOSPACE);
+        }
+    }
+
+    /* The CONNECT a lite node sends so that a node's port feeds one of its ports. */
+    {
+        packet *p;
+        ayl_datagram d;
+        ayl_msg m;
+        memset(&q, 0, sizeof q);
+        q.op = AYL_OP_CONNECT;
+        q.src_behavior = ayl_s("OBS1");
+        q.src_port = ayl_s("Rotate");
+        q.dest.node = 2;
+        q.dest.behavior = ayl_s("Motor");
+        q.dest.port = ayl_s("Turn");
+        q.kind = AYL_OVERRIDE_IN;
+        q.period_ns = 200 * MS;
+        q.priority = 1;
+        CHECK(ayl_node_request(&b.node, &to_a, &q, NULL, 0, &id) == 0);
+        p = net_peek(1);
+        CHECK(p != NULL && ayl_decode(&d, p->data, p->len, 7, NULL) == AYL_OK && ayl_next(&d, &m));
+        CHECK(m.kind == AYL_KIND_REQUEST && m.u.request.id == id && m.u.request.op == AYL_OP_CONNECT);
+        CHECK(!m.u.request.dest.is_group && m.u.request.dest.node == 2 && m.u.request.kind == AYL_OVERRIDE_IN &&
+              m.u.request.period_ns == 200 * MS && m.u.request.priority == 1);
+        ayl_node_poll(&a.node, 0);
+        ayl_node_poll(&b.node, 0);
+        CHECK(ayl_node_request_take(&b.node, id, &ans, NULL) == AYL_REQ_DONE && ans.result == AYL_RESULT_ERROR);
+    }
+
+    /* Invalid requests are refused before anything is sent. */
+    memset(&q, 0, sizeof q);
+    q.op = AYL_OP_CONNECT;
+    q.dest.is_group = 1; /* with an empty group name */
+    CHECK(ayl_node_request(&b.node, &to_a, &q, NULL, 0, &id) == AYL_E_INVALID);
+}
+
+static void test_retries(void) {
+    static tnode b;
+    ayl_addr nowhere = addr_of(5);
+    ayl_request_msg q;
+    uint64_t id, t;
+    int before;
+    net_clear();
+    tnode_init(&b, 2, 2, NULL);
+    b.node.next_hello_ns = UINT64_MAX;
+    memset(&q, 0, sizeof q);
+    q.op = AYL_OP_DISCONNECT;
+    q.conn = 3;
+    before = b.io.sent;
+    ayl_node_request(&b.node, &nowhere, &q, NULL, 0, &id);
+    for (t = 0; t <= 6000 * MS; t += 50 * MS) {
+        ayl_node_poll(&b.node, t);
+        if (t == 5000 * MS - 50 * MS) {
+            CHECK(ayl_node_request_take(&b.node, id, NULL, NULL) == AYL_REQ_PENDING);
+        }
+    }
+    CHECK_MSG(b.io.sent - before == AYL_RETRY_LIMIT, "%d sends", b.io.sent - before);
+    CHECK(ayl_node_request_take(&b.node, id, NULL, NULL) == AYL_REQ_FAILED);
+    {
+        /* every send was a new datagram (new sequence number) carrying the same request id */
+        int i, same = 1;
+        uint64_t last = 0;
+        for (i = 0; i < net_count; i++) {
+            ayl_datagram d;
+            ayl_msg m;
+            packet *p = &net[(net_head + i) % NET_SLOTS];
+            same &= ayl_decode(&d, p->data, p->len, 7, NULL) == AYL_OK && ayl_next(&d, &m) && m.u.request.id == id &&
+                    d.seq > last;
+            last = d.seq;
+        }
+        CHECK(same && net_count == AYL_RETRY_LIMIT);
+    }
+}
+
+/* A REPLY part from node 50, fed straight into the node. */
+static void feed_part(tnode *t, uint64_t dseq, uint64_t id, uint16_t part, uint16_t parts, const char *text) {
+    uint8_t buf[512];
+    ayl_writer w;
+    ayl_msg m;
+    ayl_addr from = addr_of(50);
+    int len;
+    memset(&m, 0, sizeof m);
+    m.kind = AYL_KIND_REPLY;
+    m.u.reply.id = id;
+    m.u.reply.part = part;
+    m.u.reply.parts = parts;
+    m.u.reply.result = AYL_RESULT_REPORT;
+    m.u.reply.text = ayl_s(text);
+    ayl_writer_begin(&w, buf, sizeof buf, 7, 50, dseq, 1);
+    CHECK(ayl_writer_add(&w, &m) == 0);
+    len = ayl_writer_finish(&w, KEY);
+    CHECK(ayl_node_receive(&t->node, buf, (size_t)len, &from, 0) == AYL_OK);
+}
+
+static void test_report_reassembly_and_auth(void) {
+    static tnode b;
+    static uint8_t out[64], small[8];
+    ayl_addr node50 = addr_of(50);
+    ayl_request_msg q;
+    ayl_reply_msg ans;
+    uint64_t id, id2;
+    int overflow;
+    net_clear();
+    tnode_init(&b, 2, 2, KEY);
+    memset(&q, 0, sizeof q);
+    q.op = AYL_OP_WHY;
+    q.behavior = ayl_s("OBS1");
+    q.port = ayl_s("Rotate");
+    CHECK(ayl_node_request(&b.node, &node50, &q, out, sizeof out, &id) == 0);
+    {
+        /* The request went out authenticated. */
+        packet *p = net_peek(50);
+        ayl_datagram d;
+        CHECK(p != NULL && ayl_decode(&d, p->data, p->len, 7, KEY) == AYL_OK && d.auth);
+        CHECK(p != NULL && ayl_decode(&d, p->data, p->len, 7, NULL) == AYL_UNEXPECTED_AUTH);
+    }
+    /* Parts arrive out of order, one twice; the report is put together in part order. */
+    feed_part(&b, 100, id, 2, 3, "ñ\"]}");
+    feed_part(&b, 101, id, 0, 3, "{\"port\":");
+    feed_part(&b, 102, id, 2, 3, "XXXX");
+    CHECK(ayl_node_request_take(&b.node, id, &ans, NULL) == AYL_REQ_PENDING);
+    feed_part(&b, 103, id, 1, 3, "[\"a\",\"");
+    CHECK(ayl_node_request_take(&b.node, id, &ans, &overflow) == AYL_REQ_DONE);
+    {
+        const char *want = "{\"port\":[\"a\",\"ñ\"]}";
+        CHECK_MSG(ans.result == AYL_RESULT_REPORT && ans.text.len == strlen(want) &&
+                      memcmp(ans.text.ptr, want, ans.text.len) == 0 && !overflow,
+                  "%.*s", (int)ans.text.len, ans.text.ptr);
+    }
+    /* A report larger than the caller's buffer completes, flagged as cut. */
+    CHECK(ayl_node_request(&b.node, &node50, &q, small, sizeof small, &id2) == 0);
+    feed_part(&b, 104, id2, 0, 2, "{\"port\":");
+    feed_part(&b, 105, id2, 1, 2, "1}");
+    CHECK(ayl_node_request_take(&b.node, id2, &ans, &overflow) == AYL_REQ_DONE && overflow);
+
+    /* Replays, forgeries and unauthenticated datagrams are dropped and counted. */
+    {
+        uint8_t buf[128];
+        ayl_writer w;
+        ayl_addr from = addr_of(50);
+        int len;
+        static const uint8_t other[AYL_KEY_LEN] = {9};
+        ayl_writer_begin(&w, buf, sizeof buf, 7, 50, 104, 1); /* seq 104 was accepted above */
+        len = ayl_writer_finish(&w, KEY);
+        CHECK(ayl_node_receive(&b.node, buf, (size_t)len, &from, 0) == AYL_REPLAYED);
+        ayl_writer_begin(&w, buf, sizeof buf, 7, 50, 99, 1); /* within the window, never seen */
+        len = ayl_writer_finish(&w, KEY);
+        CHECK(ayl_node_receive(&b.node, buf, (size_t)len, &from, 0) == AYL_OK);
+        CHECK(ayl_node_receive(&b.node, buf, (size_t)len, &from, 0) == AYL_REPLAYED);
+        ayl_writer_begin(&w, buf, sizeof buf, 7, 50, 1000, 1);
+        len = ayl_writer_finish(&w, other);
+        CHECK(ayl_node_receive(&b.node, buf, (size_t)len, &from, 0) == AYL_BAD_MAC);
+        ayl_writer_begin(&w, buf, sizeof buf, 7, 50, 1001, 0);
+        len = ayl_writer_finish(&w, NULL);
+        CHECK(ayl_node_receive(&b.node, buf, (size_t)len, &from, 0) == AYL_UNAUTHENTICATED);
+        CHECK(b.node.counters[AYL_REPLAYED] == 2 && b.node.counters[AYL_BAD_MAC] == 1 &&
+              b.node.counters[AYL_UNAUTHENTICATED] == 1);
+    }
+}
+
+static void test_replay_window_and_codec_edges(void) {
+    ayl_replay_window w;
+    uint8_t buf[64];
+    ayl_writer wr;
+    ayl_msg m;
+    memset(&w, 0, sizeof w);
+    CHECK(ayl_replay_accept(&w, 100) && !ayl_replay_accept(&w, 100));
+    CHECK(ayl_replay_accept(&w, 98) && !ayl_replay_accept(&w, 98));
+    CHECK(ayl_replay_accept(&w, 101));
+    CHECK(ayl_replay_accept(&w, 101 - 64));  /* N-64 is still in the window */
+    CHECK(!ayl_replay_accept(&w, 101 - 65)); /* older than the window */
+    CHECK(ayl_replay_accept(&w, 1000) && ayl_replay_accept(&w, 999) && !ayl_replay_accept(&w, 101));
+    CHECK(ayl_replay_accept(&w, 1064) && ayl_replay_accept(&w, 1063) && !ayl_replay_accept(&w, 1000));
+
+    /* The writer refuses what a decoder would drop, and keeps room for the MAC. */
+    memset(&m, 0, sizeof m);
+    m.kind = AYL_KIND_HELLO;
+    CHECK(ayl_writer_begin(&wr, buf, sizeof buf, 1, 1, 1, 0) == 0 && ayl_writer_add(&wr, &m) == AYL_E_INVALID);
+    m.u.hello.interval_ms = 1;
+    m.u.hello.name.ptr = "\xff";
+    m.u.hello.name.len = 1;
+    CHECK(ayl_writer_add(&wr, &m) == AYL_E_INVALID);
+    m.kind = 0x7e;
+    CHECK(ayl_writer_add(&wr, &m) == AYL_E_INVALID);
+    memset(&m, 0, sizeof m);
+    m.kind = AYL_KIND_PORT;
+    m.u.port.behavior = ayl_s("B");
+    m.u.port.port = ayl_s("P");
+    m.u.port.value = ayl_text("0123456789012345678901234567890123456789");
+    CHECK(ayl_writer_begin(&wr, buf, sizeof buf, 1, 1, 1, 1) == 0 && ayl_writer_add(&wr, &m) == AYL_E_NOSPACE);
+    CHECK(wr.len == AYL_HEADER_LEN); /* nothing was appended */
+    CHECK(ayl_writer_finish(&wr, KEY) == AYL_HEADER_LEN + AYL_MAC_LEN);
+    CHECK(ayl_utf8_valid((const uint8_t *)"\xc3\xb1", 2) && !ayl_utf8_valid((const uint8_t *)"\xc3", 1));
+    CHECK(!ayl_utf8_valid((const uint8_t *)"\xed\xa0\x80", 3)); /* a surrogate */
+    CHECK(!ayl_utf8_valid((const uint8_t *)"\xc0\x80", 2));     /* overlong */
+    CHECK(!ayl_utf8_valid((const uint8_t *)"\xf4\x90\x80\x80", 4)); /* above U+10FFFF */
+    CHECK(ayl_utf8_valid((const uint8_t *)"\xf0\x9f\x98\x80", 4));
+}
+
+static void test_oversized_receive(void) {
+    static tnode a;
+    static uint8_t big[AYL_MAX_DATAGRAM + 1];
+    net_clear();
+    tnode_init(&a, 1, 1, NULL);
+    memset(big, 0, sizeof big);
+    net_inject(3, 1, big, sizeof big);
+    ayl_node_poll(&a.node, 0);
+    CHECK(a.node.counters[AYL_OVERSIZED] == 1);
+}
+
+int main(void) {
+    test_port_writes_and_datagram_contents();
+    test_stale_and_windows();
+    test_hello_and_peers();
+    test_requests();
+    test_retries();
+    test_report_reassembly_and_auth();
+    test_replay_window_and_codec_edges();
+    test_oversized_receive();
+    return check_exit("test_node");
+}
