@@ -2,24 +2,41 @@
 # CI (.ci/run) runs `make lint` and `make test`.
 CARGO ?= cargo
 
-.PHONY: demo test lint bench fmt
+.PHONY: demo test lint bench bench-net fuzz fmt
 
 ## Run the main demo: the paper's cross-subsumption, 3 robots x 4 targets, with a robot failure.
 demo:
 	$(CARGO) run --release --quiet --example cross_subsumption
 
-## Run every test (unit, rule, property, examples).
+PYTHON ?= python3
+
+## Run every test: Rust (unit, rule, property, golden vectors, examples, processes over real
+## sockets), AylluLite C and Python (golden vectors, node logic over loopback).
 test:
 	$(CARGO) test --workspace
+	$(MAKE) -C lite/c test
+	$(PYTHON) -m pytest --version >/dev/null 2>&1 || $(PYTHON) -m pip install --quiet pytest
+	$(PYTHON) -m pytest lite/python/tests -q
 
 ## Formatting and lints, warnings as errors.
 lint:
 	$(CARGO) fmt --all -- --check
 	$(CARGO) clippy --workspace --all-targets -- -D warnings
+	$(PYTHON) -m ruff --version >/dev/null 2>&1 || $(PYTHON) -m pip install --quiet ruff
+	cd lite/python && $(PYTHON) -m ruff check . && $(PYTHON) -m ruff format --check .
 
 ## Benchmarks (not part of the tests): figures printed beside a baseline measured in the same run.
 bench:
 	$(CARGO) bench -p ayllu --bench propagation
+
+## Network benchmarks (loopback UDP), each beside a raw-UDP baseline from the same run.
+bench-net:
+	$(CARGO) bench -p ayllu --bench network
+
+## Fuzz every decoder target for SECONDS each (needs a nightly toolchain; installs cargo-fuzz).
+SECONDS ?= 60
+fuzz:
+	fuzz/run $(SECONDS)
 
 fmt:
 	$(CARGO) fmt --all
