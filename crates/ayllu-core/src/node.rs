@@ -123,6 +123,8 @@ pub(crate) struct Conn {
     pub(crate) kind: ConnectionKind,
     pub(crate) priority: i32,
     pub(crate) seq: u64,
+    /// The sequence number the connection started from (`sent` counts from it).
+    pub(crate) seq_start: u64,
     pub(crate) source: Endpoint,
     pub(crate) destination: Endpoint,
 }
@@ -138,6 +140,16 @@ pub(crate) struct Edge {
     pub(crate) local: Option<(u32, u16)>,
     pub(crate) kind: ConnectionKind,
     pub(crate) priority: i32,
+}
+
+/// What the node knows of one incoming connection (sender, connection id): the newest sequence
+/// number applied (N1), and the port its last message was applied to as (behavior slot,
+/// behavior id, port), so that the next message needs no name lookups. The names each message
+/// carries are still compared with that port's, since a sender may reuse a connection id.
+#[derive(Copy, Clone)]
+struct Incoming {
+    newest: u64,
+    target: Option<(u32, u64, u16)>,
 }
 
 #[derive(Copy, Clone)]
@@ -178,10 +190,12 @@ pub struct NodeCore {
     poll_epoch: u64,
     outbox: VecDeque<Outgoing>,
     pub(crate) counters: Counters,
-    newest_seq: HashMap<(NodeId, u64), u64>,
+    newest_seq: HashMap<(NodeId, u64), Incoming>,
     seq_table_resets: u64,
     requests: Vec<Request>,
     next_request: u64,
+    /// Where new connections start numbering their messages (see `set_sequence_base`).
+    seq_base: u64,
     answered: HashMap<(NodeId, u64), Result<ReplyBody, String>>,
     answered_order: VecDeque<(NodeId, u64)>,
     pub(crate) warnings: Vec<String>,
@@ -215,6 +229,7 @@ impl NodeCore {
             seq_table_resets: 0,
             requests: Vec::new(),
             next_request: 1,
+            seq_base: 0,
             answered: HashMap::new(),
             answered_order: VecDeque::new(),
             warnings: Vec::new(),
@@ -224,6 +239,15 @@ impl NodeCore {
 
     pub fn id(&self) -> NodeId {
         self.id
+    }
+
+    /// Number this node's control requests and the messages of connections made from now on
+    /// above `base`. A node that restarts under the same id passes its boot time (as the
+    /// wire's datagram numbers do), so that peers do not drop its fresh messages as older than
+    /// its previous life's (N1: `stale`) nor answer its new requests from memory (N2).
+    pub fn set_sequence_base(&mut self, base: u64) {
+        self.seq_base = self.seq_base.max(base);
+        self.next_request = self.next_request.max(base.saturating_add(1));
     }
 
     /// The latest time this node has been told. Time never goes backwards: an earlier `now`
@@ -461,7 +485,8 @@ impl NodeCore {
             dst,
             kind,
             priority: options.priority,
-            seq: 0,
+            seq: self.seq_base,
+            seq_start: self.seq_base,
             source,
             destination: destination.clone(),
         };
@@ -822,30 +847,56 @@ impl NodeCore {
 
     fn receive_port(&mut self, from: NodeId, m: PortMessage) {
         let key = (from, m.conn.0);
-        match self.newest_seq.get(&key) {
-            Some(&newest) if m.seq <= newest => {
-                self.counters.add(DropCause::Stale);
-                return;
+        // One hash lookup per message from a known connection: this runs for every message.
+        let cached = match self.newest_seq.get_mut(&key) {
+            Some(incoming) => {
+                if m.seq <= incoming.newest {
+                    self.counters.add(DropCause::Stale);
+                    return;
+                }
+                incoming.newest = m.seq;
+                incoming.target
             }
-            _ => {}
-        }
-        if !self.newest_seq.contains_key(&key) && self.newest_seq.len() >= SEQ_TABLE_MAX {
-            self.newest_seq.clear();
-            self.seq_table_resets += 1;
-        }
-        self.newest_seq.insert(key, m.seq);
-        let Some(&b) = self.names.get(&*m.behavior) else {
-            self.counters.add(DropCause::UnknownBehavior);
-            return;
+            None => {
+                if self.newest_seq.len() >= SEQ_TABLE_MAX {
+                    self.newest_seq.clear();
+                    self.seq_table_resets += 1;
+                }
+                self.newest_seq.insert(key, Incoming { newest: m.seq, target: None });
+                None
+            }
         };
-        let Some(port) = self.behavior(b).and_then(|beh| beh.class.port_handle(&m.port)) else {
-            self.counters.add(DropCause::UnknownPort);
-            return;
+        let still_there = |&(b, id, p): &(u32, u64, u16)| {
+            self.behavior(b).is_some_and(|beh| {
+                beh.id == id && *beh.name == *m.behavior && beh.class.ports[usize::from(p)].name == *m.port
+            })
+        };
+        let (b, p) = match cached.filter(still_there) {
+            Some((b, _, p)) => (b, p),
+            None => {
+                let Some(&b) = self.names.get(&*m.behavior) else {
+                    self.counters.add(DropCause::UnknownBehavior);
+                    return;
+                };
+                let Some(beh) = self.behavior(b) else {
+                    self.counters.add(DropCause::UnknownBehavior);
+                    return;
+                };
+                let id = beh.id;
+                let Some(port) = beh.class.port_handle(&m.port) else {
+                    self.counters.add(DropCause::UnknownPort);
+                    return;
+                };
+                if let Some(incoming) = self.newest_seq.get_mut(&key) {
+                    incoming.target = Some((b, id, port.0));
+                }
+                (b, port.0)
+            }
         };
         self.wave += 1;
         let source = Source::connection(from, m.conn);
-        if self.deliver(b, port.0, m.kind, source, m.priority, &m.value) {
-            self.stack.push(Frame { b, p: port.0, next: 0 });
+        if self.deliver(b, p, m.kind, source, m.priority, &m.value) {
+            self.stack.push(Frame { b, p, next: 0 });
             self.run_wave();
         }
     }
@@ -1132,6 +1183,12 @@ impl NodeCore {
         self.transport_counters = counters;
     }
 
+    /// The transport counters reports show, for a runtime that refreshes them in place after
+    /// every loop turn (no allocation when only the numbers changed).
+    pub fn transport_counters_mut(&mut self) -> &mut Vec<(String, u64)> {
+        &mut self.transport_counters
+    }
+
     /// Warnings the node has raised (e.g. a BLE inhibition too short for its claim rate).
     pub fn warnings(&self) -> &[String] {
         &self.warnings
@@ -1148,7 +1205,7 @@ impl NodeCore {
                 destination: c.destination.clone(),
                 kind: c.kind,
                 priority: c.priority,
-                sent: c.seq,
+                sent: c.seq - c.seq_start,
             })
             .collect();
         v.sort_by_key(|c| c.id);

@@ -499,3 +499,61 @@ fn request_connect_rejects_bad_sources_locally() {
     assert!(matches!(e, Err(Error::ZeroPeriod { .. })));
     assert_eq!(n.outgoing_len(), 0);
 }
+
+/// N1/N2 across a restart: a node that comes back under the same id numbers its messages and
+/// requests from a higher base (`set_sequence_base`, the runtime passes its boot time), so the
+/// peer neither drops its new values as stale nor answers its new requests from memory.
+#[test]
+fn n1_n2_a_node_restarted_under_the_same_id_is_not_taken_for_its_old_self() {
+    fn sender(base: u64) -> NodeCore {
+        let mut a = NodeCore::new(NodeId(1));
+        a.set_sequence_base(base);
+        let mut c = BehaviorClass::new("Tx");
+        c.port(PortSpec::new("Out", 0i64)).unwrap();
+        a.define(c).unwrap();
+        a.create("Tx", "Tx").unwrap();
+        a.connect(
+            &Endpoint::local("Tx", "Out"),
+            &Endpoint::node(NodeId(2), "Rx", "In"),
+            ConnectionKind::Normal,
+            ConnectOptions::default(),
+        )
+        .unwrap();
+        a
+    }
+    let mut b = NodeCore::new(NodeId(2));
+    let mut c = BehaviorClass::new("Rx");
+    c.port(PortSpec::new("In", 0i64)).unwrap();
+    b.define(c).unwrap();
+    b.create("Rx", "Rx").unwrap();
+    let deliver = |a: &mut NodeCore, b: &mut NodeCore, now: Instant| {
+        while let Some(out) = a.pop_outgoing() {
+            b.receive(now, NodeId(1), out.message);
+        }
+        while let Some(out) = b.pop_outgoing() {
+            a.receive(now, NodeId(2), out.message);
+        }
+    };
+    // The first life writes five values and reads once.
+    let mut a = sender(1 << 32);
+    for v in 1..=5u64 {
+        a.write_named(ms(v), "Tx", "Out", v as i64).unwrap();
+        deliver(&mut a, &mut b, ms(v));
+    }
+    let first = a.request(NodeId(2), ControlBody::Read { behavior: "Rx".into(), port: "In".into() }).unwrap();
+    deliver(&mut a, &mut b, ms(6));
+    assert_eq!(a.request_status(first), Some(RequestStatus::Done(ReplyBody::Value(Value::Int(5)))));
+    // The second life, started later: its first value is applied, not dropped as stale.
+    let mut a = sender(2 << 32);
+    a.write_named(ms(10), "Tx", "Out", 42i64).unwrap();
+    deliver(&mut a, &mut b, ms(10));
+    assert_eq!(b.read(b.port("Rx", "In").unwrap()).unwrap(), Value::Int(42));
+    assert_eq!(b.counters().get(DropCause::Stale), 0);
+    // Its first request is a new request, answered afresh.
+    let second = a.request(NodeId(2), ControlBody::Read { behavior: "Rx".into(), port: "In".into() }).unwrap();
+    assert_ne!(second, first);
+    deliver(&mut a, &mut b, ms(11));
+    assert_eq!(a.request_status(second), Some(RequestStatus::Done(ReplyBody::Value(Value::Int(42)))));
+    // `sent` still counts messages, not the base.
+    assert_eq!(a.report().connections[0].sent, 1);
+}

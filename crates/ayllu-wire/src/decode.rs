@@ -123,6 +123,18 @@ impl std::error::Error for DropReason {}
 
 /// Decode one datagram as a receiver configured by `config` would.
 pub fn decode(bytes: &[u8], config: &ReceiverConfig) -> Result<Datagram, DropReason> {
+    decode_with(bytes, config, &mut NameCache::none(), Vec::new())
+}
+
+/// [`decode`] for a receiver that decodes datagram after datagram: names are taken from (and
+/// added to) `names`, and the messages are appended to `messages` (emptied first), whose
+/// allocation the caller can take back from the result. The outcome is the same as `decode`'s.
+pub fn decode_with(
+    bytes: &[u8],
+    config: &ReceiverConfig,
+    names: &mut NameCache,
+    mut messages: Vec<WireMessage>,
+) -> Result<Datagram, DropReason> {
     if bytes.len() > MAX_DATAGRAM_LEN {
         return Err(DropReason::Oversized);
     }
@@ -161,13 +173,63 @@ pub fn decode(bytes: &[u8], config: &ReceiverConfig) -> Result<Datagram, DropRea
             end
         }
     };
-    let messages = decode_messages(&bytes[HEADER_LEN..end])?;
+    messages.clear();
+    decode_messages(&bytes[HEADER_LEN..end], names, &mut messages)?;
     Ok(Datagram { sender: NodeId(sender), seq, authenticated: has_mac, messages })
 }
 
-/// Every message of the messages area, or the reason the datagram is dropped.
-fn decode_messages(mut area: &[u8]) -> Result<Vec<WireMessage>, DropReason> {
-    let mut out = Vec::new();
+/// The names a receiver decoded recently, so that names a peer sends again and again (its
+/// destination behaviors and ports) become shared `Arc<str>`s rather than one allocation and
+/// one UTF-8 check per message. Bounded whatever arrives: [`NameCache::SETS`] sets of two
+/// names of at most 255 bytes; a name that is not in its set replaces the older of the two.
+#[derive(Clone, Debug)]
+pub struct NameCache {
+    /// `2 * SETS` entries, or none for a cache that keeps nothing.
+    slots: Vec<Option<Arc<str>>>,
+}
+
+impl Default for NameCache {
+    fn default() -> Self {
+        NameCache::new()
+    }
+}
+
+impl NameCache {
+    /// Number of sets (of two names each).
+    pub const SETS: usize = 256;
+
+    pub fn new() -> Self {
+        NameCache { slots: vec![None; 2 * NameCache::SETS] }
+    }
+
+    /// A cache that keeps nothing (one-off decoding).
+    fn none() -> Self {
+        NameCache { slots: Vec::new() }
+    }
+
+    /// The name `bytes` spell, if they are UTF-8.
+    fn intern(&mut self, bytes: &[u8]) -> Option<Arc<str>> {
+        if self.slots.is_empty() {
+            return core::str::from_utf8(bytes).ok().map(Arc::from);
+        }
+        // FNV-1a: names are short, and a collision costs only a miss.
+        let hash =
+            bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| (h ^ u64::from(b)).wrapping_mul(0x100_0000_01b3));
+        let set = 2 * (hash as usize % NameCache::SETS);
+        for slot in &self.slots[set..set + 2] {
+            if let Some(name) = slot.as_ref().filter(|n| n.as_bytes() == bytes) {
+                return Some(name.clone());
+            }
+        }
+        let name: Arc<str> = Arc::from(core::str::from_utf8(bytes).ok()?);
+        self.slots[set + 1] = self.slots[set].take();
+        self.slots[set] = Some(name.clone());
+        Some(name)
+    }
+}
+
+/// Every message of the messages area into `out`, or the reason the datagram is dropped.
+fn decode_messages(mut area: &[u8], names: &mut NameCache, out: &mut Vec<WireMessage>) -> Result<(), DropReason> {
     while !area.is_empty() {
         if area.len() < MESSAGE_HEADER_LEN {
             return Err(DropReason::Truncated);
@@ -180,22 +242,22 @@ fn decode_messages(mut area: &[u8]) -> Result<Vec<WireMessage>, DropReason> {
         };
         area = &rest[usize::from(length)..];
         let message = match code {
-            kind::PORT => decode_port(body),
-            kind::HELLO => decode_hello(body),
-            kind::REQUEST => decode_request(body),
-            kind::REPLY => decode_reply(body),
+            kind::PORT => decode_port(body, names),
+            kind::HELLO => decode_hello(body, names),
+            kind::REQUEST => decode_request(body, names),
+            kind::REPLY => decode_reply(body, names),
             _ => Some(WireMessage::Unknown { code, length }),
         };
         out.push(message.ok_or(DropReason::Malformed)?);
     }
-    Ok(out)
+    Ok(())
 }
 
 // Body decoders return `None` for malformed bodies. Bytes after the known fields are ignored:
 // fields are only ever appended to a kind, so an older receiver reads a newer sender's prefix.
 
-fn decode_port(body: &[u8]) -> Option<WireMessage> {
-    let mut r = Reader::new(body);
+fn decode_port(body: &[u8], names: &mut NameCache) -> Option<WireMessage> {
+    let mut r = Reader::new(body, names);
     let conn = ConnectionId(r.u64()?);
     let seq = r.u64()?;
     let kind = r.kind()?;
@@ -206,8 +268,8 @@ fn decode_port(body: &[u8]) -> Option<WireMessage> {
     Some(WireMessage::Port(PortMessage { conn, seq, behavior, port, kind, priority, value }))
 }
 
-fn decode_hello(body: &[u8]) -> Option<WireMessage> {
-    let mut r = Reader::new(body);
+fn decode_hello(body: &[u8], names: &mut NameCache) -> Option<WireMessage> {
+    let mut r = Reader::new(body, names);
     let interval_ms = r.u32()?;
     if interval_ms == 0 {
         return None;
@@ -221,8 +283,8 @@ fn decode_hello(body: &[u8]) -> Option<WireMessage> {
     Some(WireMessage::Hello { interval_ms, name, groups })
 }
 
-fn decode_request(body: &[u8]) -> Option<WireMessage> {
-    let mut r = Reader::new(body);
+fn decode_request(body: &[u8], names: &mut NameCache) -> Option<WireMessage> {
+    let mut r = Reader::new(body, names);
     let id = r.u64()?;
     let body = match r.u8()? {
         op::CONNECT => {
@@ -243,8 +305,8 @@ fn decode_request(body: &[u8]) -> Option<WireMessage> {
     Some(WireMessage::Request { id, body })
 }
 
-fn decode_reply(body: &[u8]) -> Option<WireMessage> {
-    let mut r = Reader::new(body);
+fn decode_reply(body: &[u8], names: &mut NameCache) -> Option<WireMessage> {
+    let mut r = Reader::new(body, names);
     let id = r.u64()?;
     let status = r.u8()?;
     let part = r.u16()?;
@@ -271,13 +333,14 @@ fn decode_reply(body: &[u8]) -> Option<WireMessage> {
 
 /// A cursor over a body. Every read checks the bytes are there first and returns `None` when
 /// they are not, so nothing is allocated for a length the input cannot back.
-struct Reader<'a> {
+struct Reader<'a, 'n> {
     buf: &'a [u8],
+    names: &'n mut NameCache,
 }
 
-impl<'a> Reader<'a> {
-    fn new(buf: &'a [u8]) -> Self {
-        Reader { buf }
+impl<'a> Reader<'a, '_> {
+    fn new<'n>(buf: &'a [u8], names: &'n mut NameCache) -> Reader<'a, 'n> {
+        Reader { buf, names }
     }
 
     fn take(&mut self, n: usize) -> Option<&'a [u8]> {
@@ -321,7 +384,8 @@ impl<'a> Reader<'a> {
     }
     fn str8(&mut self) -> Option<Arc<str>> {
         let n = self.u8()?;
-        self.utf8(usize::from(n)).map(Arc::from)
+        let bytes = self.take(usize::from(n))?;
+        self.names.intern(bytes)
     }
     /// A behavior, port or group name: a non-empty str8.
     fn name(&mut self) -> Option<Arc<str>> {

@@ -71,9 +71,16 @@ impl DatagramWriter {
     /// `mtu` is clamped to `HEADER_LEN (+ MAC_LEN)..=MAX_DATAGRAM_LEN`: a datagram always has
     /// its header, and one larger than receivers accept would be dropped as `oversized`.
     pub fn new(team: u32, sender: NodeId, seq: u64, key: Option<Key>, mtu: usize) -> Self {
+        DatagramWriter::with_buffer(Vec::new(), team, sender, seq, key, mtu)
+    }
+
+    /// [`DatagramWriter::new`] writing into `buf` (emptied first): a sender that keeps the
+    /// buffers [`DatagramWriter::finish`] returned, once sent, allocates nothing per datagram.
+    pub fn with_buffer(mut buf: Vec<u8>, team: u32, sender: NodeId, seq: u64, key: Option<Key>, mtu: usize) -> Self {
         let mac_len = if key.is_some() { MAC_LEN } else { 0 };
         let limit = mtu.clamp(HEADER_LEN + mac_len, MAX_DATAGRAM_LEN) - mac_len;
-        let mut buf = Vec::with_capacity(limit + mac_len);
+        buf.clear();
+        buf.reserve(limit + mac_len);
         buf.extend_from_slice(&MAGIC);
         buf.push(VERSION);
         buf.push(if key.is_some() { FLAG_AUTH } else { 0 });

@@ -52,7 +52,7 @@ pub mod message;
 pub mod reply;
 
 pub use auth::{mac, parse_key_hex, verify_mac, Key, ReplayWindow};
-pub use decode::{decode, Datagram, DropReason, ReceiverConfig};
+pub use decode::{decode, decode_with, Datagram, DropReason, NameCache, ReceiverConfig};
 pub use encode::{encode_datagram, DatagramWriter, EncodeError};
 pub use message::{ReplyPart, WireMessage};
 pub use reply::{reply_messages, report_slice_capacity, AssembleError, ReplyAssembler};

@@ -24,25 +24,215 @@ pub trait DatagramSocket: Send {
 
 /// A real UDP socket: non-blocking, broadcast allowed, address reusable (so several nodes on
 /// one host can share a broadcast or multicast port).
+///
+/// A socket bound to a unicast address (`10.0.0.1:7400`) does not receive datagrams sent to a
+/// broadcast or multicast address (the kernel matches the destination against the bound
+/// address). [`OsSocket::listen_also`] adds receive-only sockets bound to those addresses, so
+/// a node bound to its own address still hears its team's broadcasts; sends always leave from
+/// the main socket, so peers learn the node's unicast address.
 pub struct OsSocket {
     socket: UdpSocket,
+    /// Receive-only sockets for broadcast and multicast addresses the main one cannot hear.
+    extra: Vec<UdpSocket>,
+    /// Datagrams read from the main socket ahead of `recv_from`.
+    ahead: ReadAhead,
+}
+
+/// Datagrams the main socket delivered in one system call (`recvmmsg(2)` on Linux), handed
+/// out one per `recv_from`. Under load that is one call for up to [`READ_AHEAD`] datagrams
+/// instead of one each. At any load it saves the call that only answers "nothing more": a
+/// read that filled fewer slots than it offered shows the socket was empty at that moment, so
+/// once those datagrams are handed out, `recv_from` says "nothing waiting" without asking the
+/// kernel again (the next `recv_from` asks, and so does `wait`, which returns at once if
+/// something arrived since).
+struct ReadAhead {
+    /// `READ_AHEAD` slots of `SLOT` bytes.
+    data: Vec<u8>,
+    /// Length and sender of the datagram in each filled slot.
+    got: Vec<(usize, SocketAddr)>,
+    next: usize,
+    drained: bool,
+    /// The `recvmmsg` arguments, made once: setting them up each call cost more than the rest
+    /// of a loop turn's receive path.
+    #[cfg(target_os = "linux")]
+    call: Box<MmsgCall>,
+}
+
+/// One `recvmmsg` call's headers, each pointing at its slot of `ReadAhead::data`, its iovec and
+/// its address buffer. Boxed (and `data` is a Vec that never grows), so the pointers stay valid
+/// when the socket moves.
+#[cfg(target_os = "linux")]
+struct MmsgCall {
+    headers: [libc::mmsghdr; READ_AHEAD],
+    iov: [libc::iovec; READ_AHEAD],
+    names: [libc::sockaddr_storage; READ_AHEAD],
+}
+
+// SAFETY: the raw pointers in `MmsgCall` point only into allocations owned by the same
+// `ReadAhead` (its `data` and its own box), which moves between threads as a whole and is used
+// by one thread at a time (`&mut self`).
+#[cfg(target_os = "linux")]
+unsafe impl Send for ReadAhead {}
+
+/// Datagrams read by one system call, at most.
+const READ_AHEAD: usize = 16;
+/// A slot holds the largest datagram accepted plus one byte, so a longer one is seen as such
+/// (and dropped as `oversized` by the transport), as with a `recvfrom` buffer of that size.
+const SLOT: usize = crate::udp_config::MAX_DATAGRAM + 1;
+
+impl ReadAhead {
+    fn new() -> ReadAhead {
+        let mut data = vec![0; READ_AHEAD * SLOT];
+        #[cfg(target_os = "linux")]
+        let call = {
+            // SAFETY: all-zero is a valid value of these plain C structs (null pointers, zero
+            // lengths); the pointers set below point into `data` (slot i of READ_AHEAD * SLOT
+            // bytes) and into the box itself, whose heap address does not change.
+            let mut call: Box<MmsgCall> = Box::new(unsafe { std::mem::zeroed() });
+            let base = data.as_mut_ptr();
+            for i in 0..READ_AHEAD {
+                call.iov[i] = libc::iovec { iov_base: unsafe { base.add(i * SLOT) }.cast(), iov_len: SLOT };
+                let name: *mut libc::sockaddr_storage = &mut call.names[i];
+                let iov: *mut libc::iovec = &mut call.iov[i];
+                let h = &mut call.headers[i].msg_hdr;
+                h.msg_name = name.cast();
+                h.msg_iov = iov;
+                h.msg_iovlen = 1;
+            }
+            call
+        };
+        ReadAhead {
+            data,
+            got: Vec::with_capacity(READ_AHEAD),
+            next: 0,
+            drained: false,
+            #[cfg(target_os = "linux")]
+            call,
+        }
+    }
+
+    fn pending(&self) -> bool {
+        self.next < self.got.len()
+    }
+
+    /// The next datagram read ahead, copied into `buf` (cut to its length, like UDP).
+    fn pop(&mut self, buf: &mut [u8]) -> Option<(usize, SocketAddr)> {
+        let &(len, from) = self.got.get(self.next)?;
+        self.next += 1;
+        let n = len.min(buf.len());
+        let start = (self.next - 1) * SLOT;
+        buf[..n].copy_from_slice(&self.data[start..start + n]);
+        Some((n, from))
+    }
+
+    /// Read what the socket has, up to `READ_AHEAD` datagrams, without blocking.
+    #[cfg(target_os = "linux")]
+    fn fill(&mut self, socket: &UdpSocket) -> io::Result<()> {
+        use std::os::fd::AsRawFd;
+        self.got.clear();
+        self.next = 0;
+        let call = &mut *self.call;
+        for h in &mut call.headers {
+            // In: the room for the sender's address (the kernel writes back what it used).
+            h.msg_hdr.msg_namelen = std::mem::size_of::<libc::sockaddr_storage>() as libc::socklen_t;
+        }
+        // SAFETY: `headers` holds READ_AHEAD message headers set up in `new`, each pointing at
+        // its own slot of `self.data`, iovec and address buffer, all alive and not otherwise
+        // borrowed; the kernel writes only into those, and into `msg_len` and `msg_flags`.
+        let n = unsafe {
+            libc::recvmmsg(
+                socket.as_raw_fd(),
+                call.headers.as_mut_ptr(),
+                READ_AHEAD as libc::c_uint,
+                libc::MSG_DONTWAIT,
+                std::ptr::null_mut(),
+            )
+        };
+        if n < 0 {
+            return Err(io::Error::last_os_error());
+        }
+        let n = n as usize;
+        for (h, name) in call.headers.iter().zip(&call.names).take(n) {
+            if let Some(from) = socket_addr(name) {
+                self.got.push((h.msg_len as usize, from));
+            }
+        }
+        self.drained = n < READ_AHEAD;
+        Ok(())
+    }
+
+    /// Elsewhere: one `recvfrom` per call, and no claim that the socket is empty.
+    #[cfg(not(target_os = "linux"))]
+    fn fill(&mut self, socket: &UdpSocket) -> io::Result<()> {
+        self.got.clear();
+        self.next = 0;
+        let (n, from) = socket.recv_from(&mut self.data[..SLOT])?;
+        self.got.push((n, from));
+        Ok(())
+    }
+}
+
+/// The address the kernel wrote into a `sockaddr_storage`, if it is IPv4 or IPv6.
+#[cfg(target_os = "linux")]
+fn socket_addr(s: &libc::sockaddr_storage) -> Option<SocketAddr> {
+    use std::net::{Ipv6Addr, SocketAddrV4, SocketAddrV6};
+    match libc::c_int::from(s.ss_family) {
+        libc::AF_INET => {
+            // SAFETY: the family says the storage holds a sockaddr_in, which it is large and
+            // aligned enough for.
+            let a = unsafe { &*(s as *const libc::sockaddr_storage).cast::<libc::sockaddr_in>() };
+            let ip = Ipv4Addr::from(u32::from_be(a.sin_addr.s_addr));
+            Some(SocketAddr::V4(SocketAddrV4::new(ip, u16::from_be(a.sin_port))))
+        }
+        libc::AF_INET6 => {
+            // SAFETY: as above, for sockaddr_in6.
+            let a = unsafe { &*(s as *const libc::sockaddr_storage).cast::<libc::sockaddr_in6>() };
+            let ip = Ipv6Addr::from(a.sin6_addr.s6_addr);
+            Some(SocketAddr::V6(SocketAddrV6::new(ip, u16::from_be(a.sin6_port), a.sin6_flowinfo, a.sin6_scope_id)))
+        }
+        _ => None,
+    }
+}
+
+/// A receive error that only means "nothing to read now".
+fn nothing_waiting(e: &io::Error) -> bool {
+    // ICMP port-unreachable from an earlier send surfaces as ConnectionRefused on Linux.
+    matches!(e.kind(), io::ErrorKind::WouldBlock | io::ErrorKind::ConnectionRefused)
+}
+
+fn os_socket(addr: SocketAddr) -> io::Result<UdpSocket> {
+    use socket2::{Domain, Protocol, Socket, Type};
+    let socket = Socket::new(Domain::for_address(addr), Type::DGRAM, Some(Protocol::UDP))?;
+    socket.set_reuse_address(true)?;
+    socket.set_broadcast(true)?;
+    socket.set_nonblocking(true)?;
+    // Bigger buffers absorb bursts of batched datagrams without loss.
+    let _ = socket.set_recv_buffer_size(1 << 21);
+    let _ = socket.set_send_buffer_size(1 << 21);
+    socket.bind(&addr.into())?;
+    if addr.ip().is_ipv4() {
+        let _ = socket.set_multicast_loop_v4(true);
+    }
+    Ok(socket.into())
 }
 
 impl OsSocket {
     pub fn bind(addr: SocketAddr) -> io::Result<OsSocket> {
-        use socket2::{Domain, Protocol, Socket, Type};
-        let socket = Socket::new(Domain::for_address(addr), Type::DGRAM, Some(Protocol::UDP))?;
-        socket.set_reuse_address(true)?;
-        socket.set_broadcast(true)?;
-        socket.set_nonblocking(true)?;
-        // Bigger buffers absorb bursts of batched datagrams without loss.
-        let _ = socket.set_recv_buffer_size(1 << 21);
-        let _ = socket.set_send_buffer_size(1 << 21);
-        socket.bind(&addr.into())?;
-        if addr.ip().is_ipv4() {
-            let _ = socket.set_multicast_loop_v4(true);
+        Ok(OsSocket { socket: os_socket(addr)?, extra: Vec::new(), ahead: ReadAhead::new() })
+    }
+
+    /// Also receive datagrams sent to `addr` (a broadcast or multicast address), unless the
+    /// main socket already does (bound to the unspecified address on the same port).
+    pub fn listen_also(&mut self, addr: SocketAddr) -> io::Result<()> {
+        let main = self.socket.local_addr()?;
+        if main.ip().is_unspecified() && main.port() == addr.port() {
+            return Ok(());
         }
-        Ok(OsSocket { socket: socket.into() })
+        if self.extra.iter().any(|s| s.local_addr().ok() == Some(addr)) {
+            return Ok(());
+        }
+        self.extra.push(os_socket(addr)?);
+        Ok(())
     }
 }
 
@@ -56,29 +246,74 @@ impl DatagramSocket for OsSocket {
         }
     }
     fn recv_from(&mut self, buf: &mut [u8]) -> io::Result<Option<(usize, SocketAddr)>> {
-        match self.socket.recv_from(buf) {
-            Ok((n, from)) => Ok(Some((n, from))),
-            Err(e) if e.kind() == io::ErrorKind::WouldBlock => Ok(None),
-            // ICMP port-unreachable from an earlier send surfaces here on Linux; not fatal.
-            Err(e) if e.kind() == io::ErrorKind::ConnectionRefused => Ok(None),
-            Err(e) => Err(e),
+        if let Some(got) = self.ahead.pop(buf) {
+            return Ok(Some(got));
         }
+        // After a read that emptied the socket, this call answers without asking again.
+        if !std::mem::take(&mut self.ahead.drained) {
+            match self.ahead.fill(&self.socket) {
+                Ok(()) => {
+                    if let Some(got) = self.ahead.pop(buf) {
+                        return Ok(Some(got));
+                    }
+                }
+                Err(e) if nothing_waiting(&e) => {}
+                Err(e) => return Err(e),
+            }
+        }
+        for socket in &self.extra {
+            match socket.recv_from(buf) {
+                Ok((n, from)) => return Ok(Some((n, from))),
+                Err(e) if nothing_waiting(&e) => {}
+                Err(e) => return Err(e),
+            }
+        }
+        Ok(None)
     }
     fn wait(&mut self, timeout: StdDuration) {
         use std::os::fd::AsRawFd;
-        let mut fds = libc::pollfd { fd: self.socket.as_raw_fd(), events: libc::POLLIN, revents: 0 };
-        let ms = timeout.as_millis().min(i32::MAX as u128) as libc::c_int;
-        // SAFETY: `fds` is a valid, initialised pollfd for a socket we own, and we pass a
-        // count of exactly one; poll only writes `revents`.
+        if self.ahead.pending() {
+            return;
+        }
+        let pollfd = |s: &UdpSocket| libc::pollfd { fd: s.as_raw_fd(), events: libc::POLLIN, revents: 0 };
+        // On the stack for the usual single socket: this runs every loop turn.
+        let mut one = [pollfd(&self.socket)];
+        let mut many: Vec<libc::pollfd>;
+        let fds: &mut [libc::pollfd] = if self.extra.is_empty() {
+            &mut one
+        } else {
+            many = std::iter::once(&self.socket).chain(&self.extra).map(pollfd).collect();
+            &mut many
+        };
+        // SAFETY: `fds` holds valid, initialised pollfds for sockets we own, and we pass its
+        // exact length; (p)poll only writes `revents`.
+        #[cfg(target_os = "linux")]
         unsafe {
-            libc::poll(&mut fds, 1, ms);
+            // To the nanosecond: poll's milliseconds would turn a wait of 0.9 ms into a busy loop.
+            let ts = libc::timespec {
+                tv_sec: timeout.as_secs().min(i32::MAX as u64) as libc::time_t,
+                tv_nsec: libc::c_long::from(timeout.subsec_nanos() as i32),
+            };
+            libc::ppoll(fds.as_mut_ptr(), fds.len() as libc::nfds_t, &ts, std::ptr::null());
+        }
+        #[cfg(not(target_os = "linux"))]
+        unsafe {
+            let ms = timeout.as_millis().min(i32::MAX as u128) as libc::c_int;
+            libc::poll(fds.as_mut_ptr(), fds.len() as libc::nfds_t, ms);
         }
     }
     fn local_addr(&self) -> io::Result<SocketAddr> {
         self.socket.local_addr()
     }
     fn join_multicast(&mut self, group: Ipv4Addr) -> io::Result<()> {
-        self.socket.join_multicast_v4(&group, &Ipv4Addr::UNSPECIFIED)
+        self.socket.join_multicast_v4(&group, &Ipv4Addr::UNSPECIFIED)?;
+        // The receive-only socket bound to the group's address needs the membership too.
+        for s in &self.extra {
+            if s.local_addr().is_ok_and(|a| a.ip() == IpAddr::V4(group)) {
+                s.join_multicast_v4(&group, &Ipv4Addr::UNSPECIFIED)?;
+            }
+        }
+        Ok(())
     }
 }
 

@@ -56,7 +56,16 @@ impl Node {
         Ok(Node::assemble(NodeCore::new(id), Box::new(clock), transport))
     }
 
-    fn assemble(core: NodeCore, clock: Box<dyn Clock>, transport: Box<dyn Transport>) -> Node {
+    fn assemble(mut core: NodeCore, clock: Box<dyn Clock>, transport: Box<dyn Transport>) -> Node {
+        if clock.is_real_time() {
+            // A restarted process may reuse its node id: number its messages and requests above
+            // anything its previous life sent (boot seconds in the high half, like datagrams).
+            let boot = std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map_or(0, |d| d.as_secs())
+                .min(u64::from(u32::MAX));
+            core.set_sequence_base(boot << 32);
+        }
         Node {
             core,
             clock,
@@ -159,10 +168,16 @@ impl Node {
         Ok(self.core.why(behavior, port)?)
     }
 
-    /// One turn: receive everything waiting, run what is due, send what is produced.
-    /// Returns when the core next has work.
+    /// One turn: send what the program wrote since the last turn, receive everything waiting,
+    /// run what is due, send what is produced. Returns when the core next has work.
     pub fn step(&mut self) -> Option<Instant> {
         self.sync_groups();
+        // Messages from writes made between turns leave before this turn receives and runs
+        // processes: sending them does not depend on either, and a request then reaches its
+        // peer a receive call and a scheduler pass sooner.
+        if self.core.outgoing_len() > 0 {
+            self.send_outgoing();
+        }
         let now = self.clock.now();
         self.transport_due = self.transport.tick(now);
         while let Some((from, message)) = self.transport.recv() {
@@ -170,20 +185,32 @@ impl Node {
             self.core.receive(now, from, message);
         }
         let next = self.core.poll(now);
-        while let Some(out) = self.core.pop_outgoing() {
-            self.stats.sent += 1;
-            self.transport.send(out);
-        }
-        self.transport.flush();
+        self.send_outgoing();
         if self.transport.counters_generation() != self.counters_generation {
             self.counters_generation = self.transport.counters_generation();
-            self.core.set_transport_counters(self.transport.counters());
+            self.transport.counters_into(self.core.transport_counters_mut());
         }
         self.stats.steps += 1;
         match (next, self.transport_due) {
             (Some(a), Some(b)) => Some(a.min(b)),
             (a, b) => a.or(b),
         }
+    }
+
+    /// Hand the transport everything the core wants sent, and end the batch (N3).
+    fn send_outgoing(&mut self) {
+        while let Some(out) = self.core.pop_outgoing() {
+            self.stats.sent += 1;
+            self.transport.send(out);
+        }
+        self.transport.flush();
+    }
+
+    /// Sleep on the transport until a message may have arrived or `timeout` passes. For
+    /// programs that drive [`Node::step`] from their own loop (and must not busy-wait between
+    /// steps) instead of handing it to [`Node::run_for`].
+    pub fn wait(&mut self, timeout: std::time::Duration) {
+        self.transport.wait(timeout);
     }
 
     /// Run in real time for `duration`, sleeping on the transport between deadlines.

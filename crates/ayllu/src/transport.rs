@@ -39,6 +39,12 @@ pub trait Transport: Send {
     fn counters(&self) -> Vec<(String, u64)> {
         Vec::new()
     }
+    /// Write what `counters` returns into `out`. A node calls this after every loop turn in
+    /// which the counters changed, so transports that count per datagram should override it to
+    /// reuse `out`'s strings instead of allocating them again.
+    fn counters_into(&self, out: &mut Vec<(String, u64)>) {
+        *out = self.counters();
+    }
     /// Changes whenever `counters` would return something new.
     fn counters_generation(&self) -> u64 {
         0

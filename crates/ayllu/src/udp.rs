@@ -18,7 +18,9 @@ use std::collections::{BTreeMap, VecDeque};
 use std::net::{IpAddr, SocketAddr};
 
 use ayllu_core::{ControlBody, ControlMessage, Destination, Duration, Instant, Message, NodeId};
-use ayllu_wire::{decode, DatagramWriter, EncodeError, ReceiverConfig, ReplayWindow, ReplyAssembler, WireMessage};
+use ayllu_wire::{
+    decode_with, DatagramWriter, EncodeError, NameCache, ReceiverConfig, ReplayWindow, ReplyAssembler, WireMessage,
+};
 
 use crate::datagram::{DatagramSocket, OsSocket};
 use crate::error::Error;
@@ -28,8 +30,34 @@ use crate::udp_config::{UdpConfig, MAX_DATAGRAM};
 /// Bounds that keep a flood from growing memory (N4).
 const MAX_PEERS: usize = 1024;
 const MAX_ASSEMBLIES: usize = 64;
+/// Sent datagrams' buffers kept for reuse (one per destination of a turn is plenty).
+const SPARE_BUFFERS: usize = 8;
 /// Datagrams read per `recv` refill, so one busy socket cannot starve the node's loop.
 const RECV_BATCH: usize = 256;
+
+/// Counters by cause, in name order. There are a dozen causes, and the traffic ones are
+/// counted for every datagram and message: a short vector searched by pointer first (callers
+/// pass the same `&'static str`) is cheaper than a map keyed by string comparison.
+#[derive(Default)]
+struct Tally(Vec<(&'static str, u64)>);
+
+impl Tally {
+    fn add(&mut self, cause: &'static str) {
+        if let Some(entry) = self.0.iter_mut().find(|(name, _)| std::ptr::eq(*name, cause)) {
+            entry.1 += 1;
+            return;
+        }
+        match self.0.binary_search_by(|(name, _)| (*name).cmp(cause)) {
+            Ok(i) => self.0[i].1 += 1,
+            Err(i) => self.0.insert(i, (cause, 1)),
+        }
+    }
+}
+
+/// When a peer silent since `last_heard` is forgotten: three of its HELLO periods (N6).
+fn expiry(p: &Peer) -> Instant {
+    p.last_heard + p.interval * 3
+}
 
 #[derive(Clone, Debug)]
 struct Peer {
@@ -50,22 +78,40 @@ pub struct UdpTransport<S: DatagramSocket = OsSocket> {
     seq: u64,
     now: Instant,
     next_hello: Instant,
+    /// No peer expires before this (a lower bound: hearing from a peer only delays its expiry).
+    next_expiry: Instant,
     peers: BTreeMap<NodeId, Peer>,
     joined: Vec<String>,
     batches: Vec<(SocketAddr, DatagramWriter)>,
     inbox: VecDeque<(NodeId, Message)>,
     assemblies: VecDeque<((NodeId, u64), ReplyAssembler)>,
     greet: Vec<SocketAddr>,
-    counters: BTreeMap<&'static str, u64>,
+    counters: Tally,
     generation: u64,
     buf: Vec<u8>,
+    /// Buffers of sent datagrams, for the next ones.
+    spare: Vec<Vec<u8>>,
+    /// Scratch list of a message's destination addresses.
+    route_buf: Vec<SocketAddr>,
+    /// Names received recently (decoding allocates nothing for a name seen before).
+    names: NameCache,
+    /// The decoded messages of the last datagram, emptied: its allocation is reused.
+    decoded: Vec<WireMessage>,
 }
 
 impl UdpTransport<OsSocket> {
     /// Bind a real UDP socket as `config` says.
     pub fn bind(id: NodeId, config: UdpConfig) -> Result<Self, Error> {
-        let socket = OsSocket::bind(config.bind)
+        let mut socket = OsSocket::bind(config.bind)
             .map_err(|e| Error::Io { what: format!("binding UDP socket {}", config.bind), error: e.to_string() })?;
+        // A socket bound to a unicast address does not hear broadcast or multicast datagrams:
+        // listen on the team's broadcast and group addresses too.
+        for addr in config.broadcast.iter().chain(config.groups.iter().map(|(_, a)| a)) {
+            socket.listen_also(*addr).map_err(|e| Error::Io {
+                what: format!("binding UDP socket {addr} to receive group messages (or bind to 0.0.0.0)"),
+                error: e.to_string(),
+            })?;
+        }
         UdpTransport::with_socket(id, config, socket)
     }
 }
@@ -98,15 +144,20 @@ impl<S: DatagramSocket> UdpTransport<S> {
             seq: boot << 32,
             now: Instant::ZERO,
             next_hello: Instant::ZERO,
+            next_expiry: Instant::MAX,
             peers: BTreeMap::new(),
             joined: Vec::new(),
             batches: Vec::new(),
             inbox: VecDeque::new(),
             assemblies: VecDeque::new(),
             greet: Vec::new(),
-            counters: BTreeMap::new(),
+            counters: Tally::default(),
             generation: 0,
             buf: vec![0u8; MAX_DATAGRAM + 1],
+            spare: Vec::new(),
+            route_buf: Vec::new(),
+            names: NameCache::new(),
+            decoded: Vec::new(),
         })
     }
 
@@ -120,31 +171,32 @@ impl<S: DatagramSocket> UdpTransport<S> {
     }
 
     fn count(&mut self, cause: &'static str) {
-        *self.counters.entry(cause).or_insert(0) += 1;
+        self.counters.add(cause);
         self.generation += 1;
     }
 
-    /// Where a destination's datagrams go now.
-    fn route(&self, to: &Destination) -> Vec<SocketAddr> {
+    /// Where a destination's datagrams go now, into `out` (emptied first; a buffer kept
+    /// between messages, since this runs for every message sent).
+    fn route(&self, to: &Destination, out: &mut Vec<SocketAddr>) {
+        out.clear();
         match to {
-            Destination::Node(n) => self.peers.get(n).map(|p| p.addr).into_iter().collect(),
+            Destination::Node(n) => out.extend(self.peers.get(n).map(|p| p.addr)),
             Destination::Group(g) => {
                 if let Some((_, a)) = self.config.groups.iter().find(|(name, _)| **name == **g) {
-                    vec![*a]
+                    out.push(*a);
                 } else if let Some(b) = self.config.broadcast {
-                    vec![b]
+                    out.push(b);
                 } else {
-                    let mut v: Vec<SocketAddr> =
-                        self.peers.values().filter(|p| p.groups.iter().any(|x| **x == **g)).map(|p| p.addr).collect();
-                    v.dedup();
-                    v
+                    out.extend(self.peers.values().filter(|p| p.groups.iter().any(|x| **x == **g)).map(|p| p.addr));
+                    out.dedup();
                 }
             }
         }
     }
 
     fn writer(&mut self) -> DatagramWriter {
-        let w = DatagramWriter::new(self.config.team, self.id, self.seq, self.config.key, self.config.mtu);
+        let buf = self.spare.pop().unwrap_or_default();
+        let w = DatagramWriter::with_buffer(buf, self.config.team, self.id, self.seq, self.config.key, self.config.mtu);
         self.seq += 1;
         w
     }
@@ -183,6 +235,10 @@ impl<S: DatagramSocket> UdpTransport<S> {
             Ok(()) => self.count("datagrams_sent"),
             Err(_) => self.count("send_error"),
         }
+        // Kept for the next datagram: a loop turn then allocates nothing to send.
+        if self.spare.len() < SPARE_BUFFERS {
+            self.spare.push(bytes);
+        }
     }
 
     fn hello(&self) -> WireMessage {
@@ -207,7 +263,8 @@ impl<S: DatagramSocket> UdpTransport<S> {
     }
 
     fn receive_datagram(&mut self, len: usize, from: SocketAddr) {
-        let datagram = match decode(&self.buf[..len], &self.receiver) {
+        let scratch = std::mem::take(&mut self.decoded);
+        let datagram = match decode_with(&self.buf[..len], &self.receiver, &mut self.names, scratch) {
             Ok(d) => d,
             Err(reason) => return self.count(reason.name()),
         };
@@ -243,7 +300,9 @@ impl<S: DatagramSocket> UdpTransport<S> {
         peer.last_heard = now;
         self.count("datagrams_received");
         let sender = datagram.sender;
-        for m in datagram.messages {
+        let mut hello = false;
+        let mut messages = datagram.messages;
+        for m in messages.drain(..) {
             match m {
                 WireMessage::Port(p) => self.inbox.push_back((sender, Message::Port(p))),
                 WireMessage::Request { id, body } => {
@@ -251,10 +310,7 @@ impl<S: DatagramSocket> UdpTransport<S> {
                 }
                 WireMessage::UnknownRequest { id, .. } => {
                     let reply = ControlBody::Reply { result: Err("unknown operation".into()) };
-                    self.send_message(
-                        &Destination::Node(sender),
-                        &Message::Control(ControlMessage { id, body: reply }),
-                    );
+                    self.send_message(&Destination::Node(sender), Message::Control(ControlMessage { id, body: reply }));
                 }
                 WireMessage::Reply { id, part, parts, payload } => self.reply_part(sender, id, part, parts, payload),
                 WireMessage::Hello { interval_ms, name, groups } => {
@@ -267,8 +323,16 @@ impl<S: DatagramSocket> UdpTransport<S> {
                         self.greet.push(from);
                     }
                     self.count("hellos_received");
+                    hello = true;
                 }
                 WireMessage::Unknown { .. } => self.count("unknown_kind"),
+            }
+        }
+        self.decoded = messages;
+        if is_new || hello {
+            // A new peer, or a new HELLO period, may expire before every other peer.
+            if let Some(p) = self.peers.get(&sender) {
+                self.next_expiry = self.next_expiry.min(expiry(p));
             }
         }
     }
@@ -300,21 +364,32 @@ impl<S: DatagramSocket> UdpTransport<S> {
         }
     }
 
-    fn send_message(&mut self, to: &Destination, message: &Message) {
-        let addrs = self.route(to);
+    fn send_message(&mut self, to: &Destination, message: Message) {
+        let mut addrs = std::mem::take(&mut self.route_buf);
+        self.route(to, &mut addrs);
         if addrs.is_empty() {
-            return self.count("no_route");
-        }
-        let parts = match WireMessage::from_core(message, self.config.mtu, self.config.key.is_some()) {
-            Ok(p) => p,
-            Err(_) => return self.count("unencodable"),
-        };
-        for addr in addrs {
-            for m in &parts {
-                self.push(addr, m);
+            self.count("no_route");
+        } else if let Message::Port(p) = message {
+            // A port message is one wire message, moved rather than copied (the hot path).
+            let m = WireMessage::Port(p);
+            for &addr in &addrs {
+                self.push(addr, &m);
+            }
+            self.count("messages_sent");
+        } else {
+            match WireMessage::from_core(&message, self.config.mtu, self.config.key.is_some()) {
+                Ok(parts) => {
+                    for &addr in &addrs {
+                        for m in &parts {
+                            self.push(addr, m);
+                        }
+                    }
+                    self.count("messages_sent");
+                }
+                Err(_) => self.count("unencodable"),
             }
         }
-        self.count("messages_sent");
+        self.route_buf = addrs;
     }
 
     /// The peers heard from recently.
@@ -337,7 +412,7 @@ impl<S: DatagramSocket> Transport for UdpTransport<S> {
         self.id
     }
     fn send(&mut self, out: ayllu_core::Outgoing) {
-        self.send_message(&out.to, &out.message);
+        self.send_message(&out.to, out.message);
     }
     fn flush(&mut self) {
         let greet = std::mem::take(&mut self.greet);
@@ -347,9 +422,12 @@ impl<S: DatagramSocket> Transport for UdpTransport<S> {
                 self.push(addr, &hello);
             }
         }
-        for (addr, w) in std::mem::take(&mut self.batches) {
+        // Drained and put back, so the list keeps its allocation from turn to turn.
+        let mut batches = std::mem::take(&mut self.batches);
+        for (addr, w) in batches.drain(..) {
             self.transmit(addr, w);
         }
+        self.batches = batches;
     }
     fn recv(&mut self) -> Option<(NodeId, Message)> {
         if self.inbox.is_empty() {
@@ -393,20 +471,34 @@ impl<S: DatagramSocket> Transport for UdpTransport<S> {
     }
     fn tick(&mut self, now: Instant) -> Option<Instant> {
         self.now = self.now.max(now);
-        let before = self.peers.len();
-        self.peers.retain(|_, p| now < p.last_heard + p.interval * 3);
-        for _ in self.peers.len()..before {
-            self.count("peer_expired");
+        // The peer table is walked only when a peer may have expired, not every loop turn.
+        if now >= self.next_expiry {
+            let before = self.peers.len();
+            self.peers.retain(|_, p| now < expiry(p));
+            for _ in self.peers.len()..before {
+                self.count("peer_expired");
+            }
+            self.next_expiry = self.peers.values().map(expiry).min().unwrap_or(Instant::MAX);
         }
         if now >= self.next_hello {
             self.announce();
             self.next_hello = now + self.config.hello_interval;
         }
-        let expiry = self.peers.values().map(|p| p.last_heard + p.interval * 3).min();
-        Some(expiry.map_or(self.next_hello, |e| e.min(self.next_hello)))
+        Some(self.next_expiry.min(self.next_hello))
     }
     fn counters(&self) -> Vec<(String, u64)> {
-        self.counters.iter().map(|(k, v)| ((*k).to_owned(), *v)).collect()
+        self.counters.0.iter().map(|(k, v)| ((*k).to_owned(), *v)).collect()
+    }
+    fn counters_into(&self, out: &mut Vec<(String, u64)>) {
+        let same_names = out.len() == self.counters.0.len()
+            && out.iter().zip(&self.counters.0).all(|((have, _), (name, _))| have == name);
+        if same_names {
+            for ((_, have), (_, n)) in out.iter_mut().zip(&self.counters.0) {
+                *have = *n;
+            }
+        } else {
+            *out = self.counters();
+        }
     }
     fn counters_generation(&self) -> u64 {
         self.generation

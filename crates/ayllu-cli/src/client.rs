@@ -1,0 +1,159 @@
+//! The tool's own node on the team's network, and the waiting it does: for a node's HELLO,
+//! for the answer to a request.
+//!
+//! The tool is an ordinary Ayllu node (real monotonic clock, `udp://` transport, an ephemeral
+//! port unless told otherwise), so the nodes it talks to need nothing special: they learn its
+//! address from its first datagram and greet it at once. Every wait here ends by the
+//! deadline (from `--timeout`) or Ctrl-C, whichever comes first, with a message that says
+//! which step did not happen.
+
+use std::time::{Duration as StdDuration, Instant as StdInstant};
+
+use ayllu::{
+    ControlBody, MonotonicClock, Node, NodeId, PeerInfo, ReplyBody, RequestId, RequestStatus, UdpConfig, UdpTransport,
+};
+
+use crate::fail::Fail;
+use crate::signals;
+use crate::Net;
+
+/// How long the node runs between checks of what the tool waits for. Arrivals wake it
+/// earlier; this only bounds how late a check can be.
+pub const SLICE: StdDuration = StdDuration::from_millis(10);
+
+/// The tool's node and the deadline of the command.
+pub struct Client {
+    pub node: Node,
+    /// When waits give up; `None`: never (a command the user ends).
+    deadline: Option<StdInstant>,
+    /// The `--timeout` in force, for messages.
+    timeout: f64,
+    /// Whether Ctrl-C ends waits (not while cleaning up after it).
+    pub honour_stop: bool,
+}
+
+/// The tool's node id unless `--id` is given: high (clear of robots' ids) and different for
+/// each process, so that two tools running at once are two peers.
+pub fn default_id() -> NodeId {
+    NodeId(0x7fff_0000 + (std::process::id() & 0xffff))
+}
+
+impl Client {
+    /// Join the network `net.udp` names. Waits give up after `--timeout`, else `default_timeout`.
+    pub fn open(net: &Net, default_timeout: f64) -> Result<Client, Fail> {
+        if !net.udp.starts_with("udp://") {
+            return Err(Fail::usage(format!("--udp must be a udp:// URL, got `{}`", net.udp)));
+        }
+        let mut config = UdpConfig::parse(&net.udp)?;
+        if config.name.is_empty() {
+            config.name = "ayllu-cli".to_owned();
+        }
+        let id = net.id.unwrap_or_else(default_id);
+        let transport = UdpTransport::bind(id, config)?;
+        let timeout = net.timeout.unwrap_or(default_timeout);
+        Ok(Client {
+            node: Node::new(MonotonicClock::new(), transport),
+            deadline: Some(StdInstant::now() + StdDuration::from_secs_f64(timeout)),
+            timeout,
+            honour_stop: true,
+        })
+    }
+
+    pub fn id(&self) -> NodeId {
+        self.node.id()
+    }
+
+    pub fn timeout(&self) -> f64 {
+        self.timeout
+    }
+
+    /// Wait without end (until Ctrl-C), or until `deadline`.
+    pub fn set_deadline(&mut self, deadline: Option<StdInstant>) {
+        self.deadline = deadline;
+    }
+
+    pub fn expired(&self) -> bool {
+        self.deadline.is_some_and(|d| StdInstant::now() >= d)
+    }
+
+    /// Run the node for at most `slice` (less if the deadline is nearer).
+    pub fn pump(&mut self, slice: StdDuration) {
+        let slice = match self.deadline {
+            Some(d) => slice.min(d.saturating_duration_since(StdInstant::now())),
+            None => slice,
+        };
+        self.node.run_for(slice);
+    }
+
+    /// Run the node until the deadline (or Ctrl-C).
+    pub fn listen(&mut self) {
+        while !self.expired() && !signals::stopped() {
+            self.pump(SLICE * 5);
+        }
+    }
+
+    /// The peers heard so far, by id.
+    pub fn peers(&self) -> Vec<PeerInfo> {
+        let mut peers = self.node.peers();
+        peers.sort_by_key(|p| p.node);
+        peers
+    }
+
+    /// Wait for `node`'s HELLO (or any datagram from it), so that requests have an address.
+    pub fn find(&mut self, node: NodeId) -> Result<PeerInfo, Fail> {
+        loop {
+            if let Some(p) = self.node.peers().into_iter().find(|p| p.node == node) {
+                return Ok(p);
+            }
+            if self.expired() || signals::stopped() {
+                return Err(self.unheard(node));
+            }
+            self.pump(SLICE);
+        }
+    }
+
+    fn unheard(&self, node: NodeId) -> Fail {
+        let peers = self.peers();
+        let heard = if peers.is_empty() {
+            "heard no node at all".to_owned()
+        } else {
+            let list: Vec<String> = peers.iter().map(|p| format!("{} at {}", p.node, p.addr)).collect();
+            format!("heard {}", list.join(", "))
+        };
+        Fail::error(format!(
+            "unknown node {node}: no HELLO from it within {}s ({heard}); check the node id and --udp \
+             (peer=ADDR:PORT or broadcast=ADDR:PORT, and team/key)",
+            self.timeout
+        ))
+    }
+
+    /// Send a control request to `node` and wait for its answer. `what` names the request in
+    /// messages ("WHY n1:BASE.Rotate").
+    pub fn ask(&mut self, node: NodeId, body: ControlBody, what: &str) -> Result<ReplyBody, Fail> {
+        let id = self.node.core_mut().request(node, body)?;
+        self.answer(node, id, what)
+    }
+
+    /// Wait for the answer to request `id` sent to `node`.
+    pub fn answer(&mut self, node: NodeId, id: RequestId, what: &str) -> Result<ReplyBody, Fail> {
+        loop {
+            match self.node.core().request_status(id) {
+                Some(RequestStatus::Done(body)) => return Ok(body),
+                Some(RequestStatus::Failed(text)) => return Err(Fail::error(format!("{what}: {node} says: {text}"))),
+                Some(RequestStatus::Pending { .. }) | None => {}
+            }
+            if self.honour_stop && signals::stopped() {
+                return Err(Fail::error(format!("{what}: interrupted before {node} answered")));
+            }
+            if self.expired() {
+                let heard = if self.node.peers().iter().any(|p| p.node == node) {
+                    "it is alive (HELLO heard) but did not answer"
+                } else {
+                    "it has gone silent"
+                };
+                return Err(Fail::error(format!("{what}: no answer from {node} within {}s ({heard})", self.timeout)));
+            }
+            self.pump(SLICE);
+        }
+    }
+}

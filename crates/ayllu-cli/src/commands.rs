@@ -1,0 +1,449 @@
+//! The commands that talk to a running team: `list`, `why`, `echo`, `write`.
+//!
+//! Each one opens the tool's node ([`Client`]), finds the node it is about by HELLO, asks
+//! what it needs with control requests, and prints text or JSON on stdout (diagnostics go to
+//! stderr, so stdout stays parseable). `write` does not trust a best-effort datagram blindly:
+//! after sending it asks the node (WHY) whether the value or window arrived, resends a lost
+//! one, and reports a refusal with the node's own reason.
+
+use std::io::Write as _;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration as StdDuration, Instant as StdInstant};
+
+use ayllu::{
+    BehaviorClass, ConnectOptions, ConnectionId, ConnectionKind, ControlBody, DropCause, Duration, Endpoint, Instant,
+    NodeId, PortReport, PortSpec, ReplyBody, Source, Value, ValueType, WindowKind,
+};
+use serde_json::json;
+
+use crate::client::{Client, SLICE};
+use crate::fail::Fail;
+use crate::text::{
+    node_report_json, node_report_text, parse_value, peer_json, peers_table, port_report_json, value_json,
+};
+use crate::{signals, Kind, Net, PortPath, WriteArgs};
+
+/// Waits for a node's answer give up after this long unless `--timeout` says otherwise.
+const DEFAULT_TIMEOUT: f64 = 5.0;
+/// `list` without a node listens this long for HELLOs unless `--timeout` says otherwise.
+const LISTEN: f64 = 1.5;
+/// A write that leaves no trace on the port is sent this many times before giving up on a
+/// confirmation (port messages are best effort, N1).
+const WRITE_ATTEMPTS: u32 = 3;
+/// How long `echo` waits for its DISCONNECT to be answered when it stops.
+const DISCONNECT_WAIT: StdDuration = StdDuration::from_secs(1);
+
+/// Print to stdout now (a reader may be waiting line by line). A closed stdout is an error.
+fn emit(text: &str) -> Result<(), Fail> {
+    let mut out = std::io::stdout().lock();
+    out.write_all(text.as_bytes())?;
+    if !text.ends_with('\n') {
+        out.write_all(b"\n")?;
+    }
+    out.flush()?;
+    Ok(())
+}
+
+fn pretty(j: &serde_json::Value) -> String {
+    serde_json::to_string_pretty(j).unwrap_or_else(|_| "null".to_owned())
+}
+
+fn unexpected(what: &str, body: &ReplyBody) -> Fail {
+    Fail::error(format!("{what}: unexpected answer {body:?}"))
+}
+
+/// `ayllu list`: the nodes heard within the listening time.
+pub fn list_nodes(net: &Net) -> Result<(), Fail> {
+    signals::install();
+    let mut client = Client::open(net, LISTEN)?;
+    client.listen();
+    let peers = client.peers();
+    if net.json {
+        let now = client.node.now();
+        return emit(&pretty(&json!(peers.iter().map(|p| peer_json(p, now)).collect::<Vec<_>>())));
+    }
+    if peers.is_empty() {
+        eprintln!(
+            "ayllu: no node heard within {}s; check --udp (peer=ADDR:PORT or broadcast=ADDR:PORT, team, key)",
+            client.timeout()
+        );
+    }
+    emit(&peers_table(&peers))
+}
+
+/// `ayllu list NODE`: everything the node reports about itself (LIST).
+pub fn list_node(node: NodeId, net: &Net) -> Result<(), Fail> {
+    signals::install();
+    let mut client = Client::open(net, DEFAULT_TIMEOUT)?;
+    let peer = client.find(node)?;
+    let what = format!("LIST {node}");
+    match client.ask(node, ControlBody::List, &what)? {
+        ReplyBody::Node(report) if net.json => emit(&pretty(&node_report_json(&report))),
+        ReplyBody::Node(report) => emit(&node_report_text(&report, Some(&peer))),
+        other => Err(unexpected(&what, &other)),
+    }
+}
+
+fn ask_why(client: &mut Client, node: NodeId, path: &PortPath) -> Result<PortReport, Fail> {
+    let what = format!("WHY {node}:{path}");
+    let body = ControlBody::Why { behavior: path.behavior.as_str().into(), port: path.port.as_str().into() };
+    match client.ask(node, body, &what)? {
+        ReplyBody::Port(report) => Ok(*report),
+        other => Err(unexpected(&what, &other)),
+    }
+}
+
+/// The port's current value (READ), which tells its type.
+fn read(client: &mut Client, node: NodeId, path: &PortPath) -> Result<Value, Fail> {
+    let what = format!("READ {node}:{path}");
+    let body = ControlBody::Read { behavior: path.behavior.as_str().into(), port: path.port.as_str().into() };
+    match client.ask(node, body, &what)? {
+        ReplyBody::Value(v) => Ok(v),
+        other => Err(unexpected(&what, &other)),
+    }
+}
+
+/// `ayllu why NODE BEHAVIOR.PORT`.
+pub fn why(node: NodeId, path: &PortPath, net: &Net) -> Result<(), Fail> {
+    signals::install();
+    let mut client = Client::open(net, DEFAULT_TIMEOUT)?;
+    client.find(node)?;
+    let report = ask_why(&mut client, node, path)?;
+    if net.json {
+        emit(&pretty(&port_report_json(&report)))
+    } else {
+        emit(&report.to_string())
+    }
+}
+
+/// `ayllu echo NODE BEHAVIOR.PORT`: connect the port to one of ours and print what arrives.
+pub fn echo(node: NodeId, path: &PortPath, count: Option<u64>, net: &Net) -> Result<(), Fail> {
+    signals::install();
+    let mut client = Client::open(net, DEFAULT_TIMEOUT)?;
+    client.find(node)?;
+    let ty = read(&mut client, node, path)?.ty();
+
+    // A local port of the same type, and a process that records every value it accepts.
+    let arrived: Arc<Mutex<Vec<(Instant, Value)>>> = Arc::default();
+    let sink = arrived.clone();
+    let mut class = BehaviorClass::new("Echo");
+    let input = class.port(PortSpec::new("In", Value::zero(ty)))?;
+    class.on_write("Record", input, move |ctx| {
+        let value = ctx.read(input);
+        sink.lock().unwrap_or_else(|e| e.into_inner()).push((ctx.now(), value));
+    })?;
+    client.node.define(class)?;
+    client.node.create("Echo", "ECHO")?;
+
+    let what = format!("CONNECT {node}:{path} -> {}:ECHO.In", client.id());
+    let request = client.node.core_mut().request_connect(
+        &Endpoint::node(node, &path.behavior, &path.port),
+        &Endpoint::local("ECHO", "In"),
+        ConnectionKind::Normal,
+        ConnectOptions::default(),
+    )?;
+    let conn = match client.answer(node, request, &what)? {
+        ReplyBody::Connection(c) => c,
+        other => return Err(unexpected(&what, &other)),
+    };
+    eprintln!("echo: {node}:{path} ({ty}) -> {}:ECHO.In as {node}'s connection {conn}", client.id());
+    if net.timeout.is_none() {
+        // Without --timeout, echo runs until --count values or Ctrl-C.
+        client.set_deadline(None);
+    }
+
+    let started = client.node.now();
+    let mut got = 0u64;
+    let mut printed: Result<(), Fail> = Ok(());
+    'run: while !client.expired() && !signals::stopped() {
+        client.pump(SLICE);
+        let batch: Vec<(Instant, Value)> = std::mem::take(&mut *arrived.lock().unwrap_or_else(|e| e.into_inner()));
+        for (t, v) in batch {
+            // Milliseconds are plenty for people and scripts; nanosecond digits are noise.
+            let secs = (t.saturating_since(started).as_secs_f64() * 1000.0).round() / 1000.0;
+            let line = if net.json {
+                json!({"t": secs, "node": node.0, "port": path.to_string(), "type": ty.name(), "value": value_json(&v)})
+                    .to_string()
+            } else {
+                format!("{secs:>9.3}  {v}")
+            };
+            printed = emit(&line);
+            got += 1;
+            if printed.is_err() || count.is_some_and(|n| got >= n) {
+                break 'run;
+            }
+        }
+    }
+
+    // Leave the node as we found it, also after Ctrl-C or a closed stdout.
+    disconnect(&mut client, node, conn);
+    printed?;
+    match count {
+        Some(n) if got < n => {
+            let why =
+                if signals::stopped() { "before Ctrl-C".to_owned() } else { format!("within {}s", client.timeout()) };
+            Err(Fail::error(format!("only {got} of {n} values arrived from {node}:{path} {why}")))
+        }
+        _ => Ok(()),
+    }
+}
+
+fn disconnect(client: &mut Client, node: NodeId, conn: ConnectionId) {
+    client.honour_stop = false;
+    client.set_deadline(Some(StdInstant::now() + DISCONNECT_WAIT));
+    let request = client.node.core_mut().request_disconnect(node, conn);
+    if let Err(e) = client.answer(node, request, &format!("DISCONNECT {node}'s connection {conn}")) {
+        eprintln!("ayllu: warning: {}; the connection may stay on {node}", e.message);
+    }
+}
+
+/// What a WHY report says about one of our writes.
+#[derive(Debug, PartialEq)]
+enum Verdict {
+    /// The value (and the kind's window) is there, from us.
+    Confirmed,
+    /// The port would not take the value: why.
+    Refused(DropCause),
+    /// No trace: lost, or already replaced by another writer.
+    Unseen,
+}
+
+fn window_kind(kind: ConnectionKind) -> Option<WindowKind> {
+    match kind {
+        ConnectionKind::Normal => None,
+        ConnectionKind::Suppress(_) => Some(WindowKind::Suppress),
+        ConnectionKind::Inhibit(_) => Some(WindowKind::Inhibit),
+        ConnectionKind::OverrideIn(_) => Some(WindowKind::OverrideIn),
+        ConnectionKind::OverrideOut(_) => Some(WindowKind::OverrideOut),
+        ConnectionKind::WriteInhibit(_) => Some(WindowKind::WriteInhibit),
+    }
+}
+
+fn judge(report: &PortReport, kind: ConnectionKind, me: Source) -> Verdict {
+    let window = window_kind(kind).is_none_or(|k| report.windows.iter().any(|w| w.kind == k && w.holder == me));
+    let supplied = !kind.writes() || report.supplier == Some(me);
+    if window && supplied {
+        return Verdict::Confirmed;
+    }
+    if kind.writes() && window {
+        // `input_blocked` is for a connection without a pass; our own override-in holds one,
+        // so only a suppression refuses it.
+        let cause = match kind {
+            ConnectionKind::OverrideIn(_) => report.input_blocked.filter(|c| *c == DropCause::Suppressed),
+            _ => report.input_blocked,
+        };
+        if let Some(cause) = cause {
+            return Verdict::Refused(cause);
+        }
+    }
+    Verdict::Unseen
+}
+
+/// The windows behind a refusal, for the message: "suppress by n7/c1 for 2.1s more".
+fn blockers(report: &PortReport, cause: DropCause) -> String {
+    let kind = match cause {
+        DropCause::Suppressed => WindowKind::Suppress,
+        DropCause::OverriddenIn => WindowKind::OverrideIn,
+        _ => return String::new(),
+    };
+    let held: Vec<String> = report
+        .windows
+        .iter()
+        .filter(|w| w.kind == kind)
+        .map(|w| format!("{} by {} for {} more", w.kind.name(), w.holder, w.remaining))
+        .collect();
+    if held.is_empty() {
+        String::new()
+    } else {
+        format!(": {}", held.join("; "))
+    }
+}
+
+/// `ayllu write NODE BEHAVIOR.PORT VALUE`.
+pub fn write(args: &WriteArgs) -> Result<(), Fail> {
+    let (node, path, net) = (args.node, &args.target, &args.net);
+    let kind = match (args.kind, args.period) {
+        (Kind::Normal, Some(_)) => {
+            return Err(Fail::usage(
+                "--period applies to suppress, inhibit, override-in, override-out and write-inhibit, not normal",
+            ))
+        }
+        (Kind::Normal, None) => ConnectionKind::Normal,
+        (k, p) => k.with_period(Duration::try_from_secs_f64(p.unwrap_or(1.0))?),
+    };
+    if let (Some(hz), Some(period)) = (args.repeat_hz, kind.period()) {
+        if period.as_secs_f64() < 1.0 / hz {
+            eprintln!(
+                "ayllu: warning: the {} window ({period}) is shorter than the gap between writes ({:.3}s): \
+                 it will lapse between them",
+                kind.name(),
+                1.0 / hz
+            );
+        }
+    }
+    signals::install();
+    let mut client = Client::open(net, DEFAULT_TIMEOUT)?;
+    client.find(node)?;
+    let ty: ValueType = read(&mut client, node, path)?.ty();
+    let value = parse_value(ty, &args.value).map_err(|e| {
+        Fail::error(format!("cannot use `{}` as a value of {node}:{path}, which holds {ty}: {e}", args.value))
+    })?;
+
+    // Our side of the connection: a port of the same type, connected to theirs.
+    let mut class = BehaviorClass::new("Writer");
+    class.port(PortSpec::new("Out", Value::zero(ty)))?;
+    client.node.define(class)?;
+    client.node.create("Writer", "WRITE")?;
+    let conn = client.node.core_mut().connect(
+        &Endpoint::local("WRITE", "Out"),
+        &Endpoint::node(node, &path.behavior, &path.port),
+        kind,
+        ConnectOptions { priority: args.priority },
+    )?;
+    let me = Source::connection(client.id(), conn);
+
+    // Send, then ask whether it arrived; resend what was lost.
+    let mut sent = 0u32;
+    let mut report;
+    loop {
+        client.node.write("WRITE", "Out", value.clone())?;
+        sent += 1;
+        report = ask_why(&mut client, node, path)?;
+        match judge(&report, kind, me) {
+            Verdict::Confirmed => break,
+            Verdict::Refused(cause) => {
+                return Err(Fail::error(format!(
+                    "{node}:{path} refused {value}: its input is blocked ({cause}{}); counted as `{cause}` \
+                     (see `ayllu why {node} {path}`)",
+                    blockers(&report, cause)
+                )));
+            }
+            Verdict::Unseen if sent >= WRITE_ATTEMPTS || client.expired() => break,
+            Verdict::Unseen => {}
+        }
+    }
+    let confirmed = judge(&report, kind, me) == Verdict::Confirmed;
+
+    // Hold: write again at the requested rate.
+    let mut repeated = 0u64;
+    let started = StdInstant::now();
+    if let Some(hz) = args.repeat_hz {
+        client.set_deadline(args.for_secs.map(|s| started + StdDuration::from_secs_f64(s)));
+        let interval = StdDuration::from_secs_f64(1.0 / hz);
+        let mut next = started + interval;
+        'hold: loop {
+            loop {
+                let now = StdInstant::now();
+                if client.expired() || signals::stopped() {
+                    break 'hold;
+                }
+                if now >= next {
+                    break;
+                }
+                client.pump((next - now).min(SLICE));
+            }
+            client.node.write("WRITE", "Out", value.clone())?;
+            repeated += 1;
+            // Late (a slow machine): keep the rate, do not burst to catch up.
+            next = (next + interval).max(StdInstant::now());
+        }
+        // Send the last one before leaving.
+        client.node.run_for(StdDuration::ZERO);
+    }
+
+    if net.json {
+        return emit(
+            &json!({
+                "node": node.0,
+                "port": path.to_string(),
+                "type": ty.name(),
+                "value": value_json(&value),
+                "kind": kind.name(),
+                "period": kind.period().map(|p| p.as_secs_f64()),
+                "priority": args.priority,
+                "source": me.to_string(),
+                "sent": u64::from(sent) + repeated,
+                "confirmed": confirmed,
+                "held_secs": args.repeat_hz.map(|_| started.elapsed().as_secs_f64()),
+            })
+            .to_string(),
+        );
+    }
+    let mut line = format!("wrote {value} to {node}:{path} along {kind} as {me}: ");
+    if confirmed {
+        line.push_str("confirmed");
+    } else {
+        let holder = report.supplier.map_or("nobody".to_owned(), |s| s.to_string());
+        line.push_str(&format!(
+            "sent {sent} times, not confirmed (the port holds {} from {holder}; \
+             a busy port may have replaced it, an aggregating one may have kept its own)",
+            report.value
+        ));
+    }
+    if args.repeat_hz.is_some() {
+        line.push_str(&format!("; then {repeated} more over {:.1}s", started.elapsed().as_secs_f64()));
+    }
+    emit(&line)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ayllu::{Counters, PortKind, WindowReport};
+
+    fn report(windows: Vec<WindowReport>, supplier: Option<Source>, input_blocked: Option<DropCause>) -> PortReport {
+        PortReport {
+            node: NodeId(1),
+            now: Instant::ZERO,
+            behavior: "B".into(),
+            port: "P".into(),
+            kind: PortKind::Normal,
+            ty: ValueType::Int,
+            value: Value::Int(0),
+            fresh: true,
+            empty: false,
+            last_accepted: None,
+            supplier,
+            accepted: 0,
+            windows,
+            input_blocked,
+            internal_output_blocked: None,
+            connection_output_blocked: None,
+            counters: Counters::default(),
+            incoming: vec![],
+            outgoing: vec![],
+        }
+    }
+
+    fn window(kind: WindowKind, holder: Source) -> WindowReport {
+        WindowReport { kind, holder, ends: Instant::from_secs(1), remaining: Duration::from_secs(1) }
+    }
+
+    const ME: Source = Source { node: NodeId(9), conn: 1 };
+    const OTHER: Source = Source { node: NodeId(8), conn: 1 };
+    const P: Duration = Duration::from_secs(1);
+
+    #[test]
+    fn a_normal_write_is_confirmed_by_its_supplier_and_refused_by_a_block() {
+        assert_eq!(judge(&report(vec![], Some(ME), None), ConnectionKind::Normal, ME), Verdict::Confirmed);
+        assert_eq!(judge(&report(vec![], Some(OTHER), None), ConnectionKind::Normal, ME), Verdict::Unseen);
+        let suppressed = report(vec![window(WindowKind::Suppress, OTHER)], None, Some(DropCause::Suppressed));
+        assert_eq!(judge(&suppressed, ConnectionKind::Normal, ME), Verdict::Refused(DropCause::Suppressed));
+    }
+
+    #[test]
+    fn windowed_kinds_are_confirmed_by_their_window() {
+        let r = report(vec![window(WindowKind::Inhibit, ME)], None, None);
+        assert_eq!(judge(&r, ConnectionKind::Inhibit(P), ME), Verdict::Confirmed);
+        assert_eq!(judge(&r, ConnectionKind::Suppress(P), ME), Verdict::Unseen);
+        let ours = report(vec![window(WindowKind::OverrideIn, ME)], Some(ME), Some(DropCause::OverriddenIn));
+        assert_eq!(judge(&ours, ConnectionKind::OverrideIn(P), ME), Verdict::Confirmed);
+        // Our override-in opened but a suppression refused the value itself.
+        let both = report(
+            vec![window(WindowKind::OverrideIn, ME), window(WindowKind::Suppress, OTHER)],
+            None,
+            Some(DropCause::Suppressed),
+        );
+        assert_eq!(judge(&both, ConnectionKind::OverrideIn(P), ME), Verdict::Refused(DropCause::Suppressed));
+    }
+}

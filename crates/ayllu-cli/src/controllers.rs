@@ -1,0 +1,212 @@
+//! `ayllu node`: one real node process hosting a standard controller, reporting its state as
+//! one JSON line per status period on stdout — what the multi-process tests start and read.
+//!
+//! * `cross-subsumption`: the stdlib controller of the paper's Fig. 2
+//!   ([`ayllu::stdlib::cross_subsumption`], BLE group `Peers`). Its VISION ports are fed at
+//!   10 Hz from `--sight` (target n at bearing 0.1·n rad, as in the in-process tests), so a
+//!   node "sees" what the table says. Status:
+//!   `{"t","node","drive","rotate","claims","peers","counters"}` where `drive` is the layer
+//!   whose observer turns BASE (0 = WANDER; null when BASE.Rotate is a value no layer writes,
+//!   e.g. an override by hand) and `claims` the layers this node currently claims (BLE).
+//! * `relay`: behaviors `RELAY` (int) and `FRELAY` (float), each `In -> (process) -> Out ->
+//!   (connection) -> Aux`, for trying every connection kind by hand. Status:
+//!   `{"t","node","relay":{..},"frelay":{..},"peers","counters"}`.
+//!
+//! Times are the node's own clock (seconds since it started).
+
+use std::io::Write as _;
+use std::time::{Duration as StdDuration, Instant as StdInstant};
+
+use ayllu::stdlib::{cross_subsumption, BASE, VISION, WANDER_TURN};
+use ayllu::{BehaviorClass, ConnectionKind, Endpoint, MonotonicClock, Node, PortSpec, UdpConfig, UdpTransport, Value};
+use serde_json::{json, Map, Value as Json};
+
+use crate::fail::Fail;
+use crate::text::{counted, value_json};
+use crate::{signals, Controller, NodeArgs};
+
+/// The BLE group of the cross-subsumption layers.
+const GROUP: &str = "Peers";
+/// VISION is fed this often (the tests' 10 Hz camera).
+const VISION_PERIOD: StdDuration = StdDuration::from_millis(100);
+
+/// The bearing at which target `n` is seen.
+fn bearing(target: u32) -> f64 {
+    0.1 * f64::from(target)
+}
+
+/// Which layer drives the robot, from BASE.Rotate: observer n turns by `-bearing(n)`, WANDER
+/// by [`WANDER_TURN`] (0 = WANDER). `None` for a value no layer writes (e.g. an engineer's
+/// override by hand).
+fn driving_layer(rotate: f64, layers: u32) -> Option<u32> {
+    if rotate == WANDER_TURN {
+        return Some(0);
+    }
+    (1..=layers).find(|&n| (rotate + bearing(n)).abs() < 1e-9)
+}
+
+/// Seconds, rounded to the millisecond for people reading the lines.
+fn secs(t: f64) -> f64 {
+    (t * 1000.0).round() / 1000.0
+}
+
+/// RELAY / FRELAY: `In` triggers a copy to `Out`; `Out` feeds `Aux` by a local connection, so
+/// `Aux` shows what `Out` let through.
+fn relay_class(name: &str, zero: Value) -> Result<BehaviorClass, ayllu::Error> {
+    let mut c = BehaviorClass::new(name);
+    let input = c.port(PortSpec::new("In", zero.clone()))?;
+    let out = c.port(PortSpec::new("Out", zero.clone()))?;
+    c.port(PortSpec::new("Aux", zero))?;
+    c.on_write("Copy", input, move |ctx| {
+        let v = ctx.read(input);
+        // A refusal here is counted on the port; nothing else to do.
+        let _ = ctx.write(out, v);
+    })?;
+    Ok(c)
+}
+
+fn setup_relay(node: &mut Node) -> Result<(), Fail> {
+    for (class, name, zero) in [("Relay", "RELAY", Value::Int(0)), ("FloatRelay", "FRELAY", Value::Float(0.0))] {
+        node.define(relay_class(class, zero)?)?;
+        node.create(class, name)?;
+        node.connect(&Endpoint::local(name, "Out"), &Endpoint::local(name, "Aux"), ConnectionKind::Normal)?;
+    }
+    Ok(())
+}
+
+fn counters_json(node: &Node) -> Json {
+    let transport: Map<String, Json> = node.transport_counters().into_iter().map(|(k, v)| (k, json!(v))).collect();
+    json!({"core": counted(node.core().counters()), "transport": transport})
+}
+
+fn relay_json(node: &Node, behavior: &str) -> Json {
+    let mut m = Map::new();
+    for port in ["In", "Out", "Aux"] {
+        m.insert(port.to_owned(), node.read(behavior, port).map_or(Json::Null, |v| value_json(&v)));
+    }
+    Json::Object(m)
+}
+
+fn status(node: &Node, args: &NodeArgs) -> Json {
+    let peers: Vec<u32> = node.peers().iter().map(|p| p.node.0).collect();
+    let t = secs(node.now().as_secs_f64());
+    match args.controller {
+        Controller::CrossSubsumption => {
+            let rotate = node.read(BASE, "Rotate").ok().and_then(|v| v.as_float()).unwrap_or(0.0);
+            let claims: Vec<u32> = (1..=args.layers)
+                .filter(|n| node.core().ble_status(&format!("OBS{n}")).ok().flatten().is_some_and(|s| s.claiming))
+                .collect();
+            json!({
+                "t": t,
+                "node": node.id().0,
+                "drive": driving_layer(rotate, args.layers),
+                "rotate": rotate,
+                "claims": claims,
+                "peers": peers,
+                "counters": counters_json(node),
+            })
+        }
+        Controller::Relay => json!({
+            "t": t,
+            "node": node.id().0,
+            "relay": relay_json(node, "RELAY"),
+            "frelay": relay_json(node, "FRELAY"),
+            "peers": peers,
+            "counters": counters_json(node),
+        }),
+    }
+}
+
+fn feed_vision(node: &mut Node, args: &NodeArgs) -> Result<(), Fail> {
+    for &(target, height) in &args.sight.0 {
+        node.write(VISION, &format!("Target{target}Angle"), bearing(target))?;
+        node.write(VISION, &format!("Target{target}Bottom"), height)?;
+    }
+    Ok(())
+}
+
+/// `ayllu node`.
+pub fn run(args: &NodeArgs) -> Result<(), Fail> {
+    if let Some(&(t, _)) = args.sight.0.iter().find(|(t, _)| *t > args.layers) {
+        return Err(Fail::usage(format!("--sight names target {t}, but there are only {} layers", args.layers)));
+    }
+    if !args.udp.starts_with("udp://") {
+        return Err(Fail::usage(format!("--udp must be a udp:// URL, got `{}`", args.udp)));
+    }
+    let mut config = UdpConfig::parse(&args.udp)?;
+    if config.name.is_empty() {
+        config.name = format!("node-{}", args.id.0);
+    }
+    let mut node = Node::new(MonotonicClock::new(), UdpTransport::bind(args.id, config)?);
+    match args.controller {
+        Controller::CrossSubsumption => {
+            let groups = cross_subsumption(node.core_mut(), args.layers, GROUP, args.claim_hz)?;
+            for w in groups.iter().flat_map(|g| &g.warnings) {
+                eprintln!("ayllu: warning: {w}");
+            }
+        }
+        Controller::Relay => setup_relay(&mut node)?,
+    }
+    signals::install();
+    run_loop(&mut node, args)
+}
+
+fn run_loop(node: &mut Node, args: &NodeArgs) -> Result<(), Fail> {
+    let start = StdInstant::now();
+    let end = args.for_secs.map(|s| start + StdDuration::from_secs_f64(s));
+    let status_period = StdDuration::from_millis(args.status_ms);
+    let feeds = args.controller == Controller::CrossSubsumption && !args.sight.0.is_empty();
+    let mut next_vision = start;
+    let mut next_status = start + status_period;
+    let mut out = std::io::stdout().lock();
+    loop {
+        let now = StdInstant::now();
+        if signals::stopped() || end.is_some_and(|e| now >= e) {
+            return Ok(());
+        }
+        if feeds && now >= next_vision {
+            feed_vision(node, args)?;
+            next_vision = (next_vision + VISION_PERIOD).max(now);
+        }
+        if now >= next_status {
+            // A reader that went away (closed pipe) ends the node: nobody is watching.
+            writeln!(out, "{}", status(node, args))?;
+            out.flush()?;
+            next_status = (next_status + status_period).max(now);
+        }
+        let mut until = next_status;
+        if feeds {
+            until = until.min(next_vision);
+        }
+        if let Some(e) = end {
+            until = until.min(e);
+        }
+        node.run_for(until.saturating_duration_since(StdInstant::now()));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ayllu::NodeId;
+
+    #[test]
+    fn the_driving_layer_is_decoded_from_rotate() {
+        assert_eq!(driving_layer(WANDER_TURN, 4), Some(0));
+        assert_eq!(driving_layer(-0.1, 4), Some(1));
+        assert_eq!(driving_layer(-bearing(3), 4), Some(3));
+        assert_eq!(driving_layer(-0.5, 4), None, "no fifth layer");
+        assert_eq!(driving_layer(0.5, 4), None);
+    }
+
+    #[test]
+    fn the_relay_copies_in_to_out_and_out_to_aux() {
+        let mut node = Node::open(NodeId(1), "mem://cli-relay-unit").unwrap();
+        setup_relay(&mut node).unwrap();
+        node.write("RELAY", "In", 7i64).unwrap();
+        node.write("FRELAY", "In", 2.5).unwrap();
+        node.step();
+        assert_eq!(node.read("RELAY", "Aux").unwrap(), Value::Int(7));
+        assert_eq!(node.read("FRELAY", "Aux").unwrap(), Value::Float(2.5));
+    }
+}

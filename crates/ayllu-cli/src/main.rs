@@ -1,0 +1,331 @@
+//! `ayllu` — the command-line tool for a running Ayllu team (docs/cli.md).
+//!
+//! It joins the team's network as a small node of its own (udp://, an ephemeral port, a high
+//! node id), finds the other nodes by their HELLO, and asks them with control requests: LIST
+//! (`list NODE`), WHY (`why`), READ (`echo`, `write`: to learn a port's type), CONNECT and
+//! DISCONNECT (`echo`). `write` connects a port of its own to the remote one, with any
+//! connection kind, so an engineer can suppress, inhibit or override a robot's port by hand.
+//! `ayllu node` runs a whole node hosting a standard controller; the multi-process tests start
+//! it.
+//!
+//! Promises:
+//! * exit code 0 when the command did what it says; 1 with one message on stderr when it could
+//!   not (no such node, the node refused, a value that does not parse); 2 for usage errors;
+//! * no panic ever shows a backtrace (a bug prints one line and exits 1);
+//! * every wait is bounded by `--timeout`, except those the user ends (Ctrl-C, `--for`);
+//!   Ctrl-C still disconnects what `echo` connected.
+
+mod client;
+mod commands;
+mod controllers;
+mod fail;
+mod signals;
+mod text;
+
+use std::process::ExitCode;
+
+use ayllu::{ConnectionKind, NodeId};
+use clap::{Args, Parser, Subcommand, ValueEnum};
+
+use crate::fail::Fail;
+
+#[derive(Parser, Debug)]
+#[command(name = "ayllu", version, about = "Inspect and drive a running Ayllu team over udp://")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+/// How the tool reaches the team, shared by the commands that talk to it.
+#[derive(Args, Debug, Clone)]
+pub struct Net {
+    /// This tool's own udp:// URL: where it binds, its team and key, and how it finds the
+    /// nodes (peer=ADDR:PORT, repeatable, and/or broadcast=ADDR:PORT).
+    #[arg(long, value_name = "URL", default_value = "udp://0.0.0.0:0")]
+    pub udp: String,
+    /// Give up after this many seconds (default 5; `list` without NODE listens 1.5).
+    #[arg(long, value_name = "SECS", value_parser = positive_secs)]
+    pub timeout: Option<f64>,
+    /// Print JSON instead of text.
+    #[arg(long)]
+    pub json: bool,
+    /// This tool's node id (default 0x7fff0000 + the process id's low 16 bits).
+    #[arg(long, value_name = "NODE", value_parser = parse_node)]
+    pub id: Option<NodeId>,
+}
+
+/// `BEHAVIOR.PORT`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PortPath {
+    pub behavior: String,
+    pub port: String,
+}
+
+impl std::fmt::Display for PortPath {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}.{}", self.behavior, self.port)
+    }
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// List the nodes heard on the network, or describe one node (behaviors, ports,
+    /// connections, groups, counters).
+    List {
+        /// A node id (`3`, `n3` or `0x3`). Without it, list every node heard.
+        #[arg(value_parser = parse_node)]
+        node: Option<NodeId>,
+        #[command(flatten)]
+        net: Net,
+    },
+    /// Explain one port: value, supplier, freshness, windows, what is blocked, counters.
+    Why {
+        /// The node: its id (3, n3 or 0x3).
+        #[arg(value_parser = parse_node)]
+        node: NodeId,
+        /// BEHAVIOR.PORT
+        #[arg(value_parser = parse_port_path)]
+        target: PortPath,
+        #[command(flatten)]
+        net: Net,
+    },
+    /// Print the values a port sends, as they arrive (connects to it; disconnects on exit).
+    Echo {
+        /// The node: its id (3, n3 or 0x3).
+        #[arg(value_parser = parse_node)]
+        node: NodeId,
+        /// BEHAVIOR.PORT
+        #[arg(value_parser = parse_port_path)]
+        target: PortPath,
+        /// Stop after this many values (it is an error if fewer arrive before --timeout).
+        #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
+        count: Option<u64>,
+        #[command(flatten)]
+        net: Net,
+    },
+    /// Write a port along a connection of any kind (once, or repeatedly to hold an
+    /// inhibition or override by hand).
+    Write(WriteArgs),
+    /// Run a node hosting a standard controller, printing a JSON status line periodically.
+    Node(NodeArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct WriteArgs {
+    /// The node: its id (3, n3 or 0x3).
+    #[arg(value_parser = parse_node)]
+    pub node: NodeId,
+    /// BEHAVIOR.PORT
+    #[arg(value_parser = parse_port_path)]
+    pub target: PortPath,
+    /// The value, read as the port's type: true/false, 42, 0.5, text, bytes as hex
+    /// (0a0b or 0x0a0b), a vector as a comma list (1,2.5,3).
+    #[arg(allow_hyphen_values = true)]
+    pub value: String,
+    /// The connection kind.
+    #[arg(long, value_enum, default_value_t = Kind::Normal)]
+    pub kind: Kind,
+    /// The kind's period in seconds (every kind but normal; default 1).
+    #[arg(long, value_name = "SECS", allow_negative_numbers = true, value_parser = positive_secs)]
+    pub period: Option<f64>,
+    /// The priority of the values at a Priority port.
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
+    pub priority: i32,
+    /// Write again this many times a second (until --for ends or Ctrl-C).
+    #[arg(long, value_name = "HZ", value_parser = positive_secs)]
+    pub repeat_hz: Option<f64>,
+    /// How long to keep writing with --repeat-hz.
+    #[arg(long = "for", value_name = "SECS", value_parser = positive_secs, requires = "repeat_hz")]
+    pub for_secs: Option<f64>,
+    #[command(flatten)]
+    pub net: Net,
+}
+
+/// Connection kinds as typed on the command line.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
+pub enum Kind {
+    Normal,
+    Suppress,
+    Inhibit,
+    OverrideIn,
+    OverrideOut,
+    WriteInhibit,
+}
+
+impl Kind {
+    pub fn with_period(self, period: ayllu::Duration) -> ConnectionKind {
+        match self {
+            Kind::Normal => ConnectionKind::Normal,
+            Kind::Suppress => ConnectionKind::Suppress(period),
+            Kind::Inhibit => ConnectionKind::Inhibit(period),
+            Kind::OverrideIn => ConnectionKind::OverrideIn(period),
+            Kind::OverrideOut => ConnectionKind::OverrideOut(period),
+            Kind::WriteInhibit => ConnectionKind::WriteInhibit(period),
+        }
+    }
+}
+
+#[derive(Args, Debug)]
+pub struct NodeArgs {
+    /// This node's id.
+    #[arg(long, value_parser = parse_node)]
+    pub id: NodeId,
+    /// The node's udp:// URL (bind address, team, key, peer=, broadcast=, hello_ms=, name=).
+    #[arg(long, value_name = "URL")]
+    pub udp: String,
+    /// What the node runs.
+    #[arg(long, value_enum, default_value_t = Controller::CrossSubsumption)]
+    pub controller: Controller,
+    /// cross-subsumption: how many observer layers (targets).
+    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..=64))]
+    pub layers: u32,
+    /// cross-subsumption: how often each layer's BLE select runs (claims are renewed).
+    #[arg(long, value_name = "HZ", default_value_t = 1.0, value_parser = positive_secs)]
+    pub claim_hz: f64,
+    /// cross-subsumption: what this robot sees, as TARGET:HEIGHT pairs ("1:0.9,2:0.5"); the
+    /// bearing of target n is 0.1*n rad. Fed to VISION at 10 Hz.
+    #[arg(long, value_name = "T:H,...", default_value = "", value_parser = parse_sight)]
+    pub sight: Sight,
+    /// Print a JSON status line this often.
+    #[arg(long, value_name = "MS", default_value_t = 200, value_parser = clap::value_parser!(u64).range(1..))]
+    pub status_ms: u64,
+    /// Stop after this many seconds (default: run until killed or Ctrl-C).
+    #[arg(long = "for", value_name = "SECS", value_parser = positive_secs)]
+    pub for_secs: Option<f64>,
+}
+
+/// The controllers `ayllu node` can host.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
+pub enum Controller {
+    /// The paper's Fig. 2: VISION, BASE, WANDER and observer layers cross-inhibited by BLE.
+    CrossSubsumption,
+    /// RELAY (int) and FRELAY (float): In -> (process) -> Out -> (connection) -> Aux.
+    Relay,
+}
+
+/// `--sight`: (target, apparent height) pairs.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Sight(pub Vec<(u32, f64)>);
+
+fn parse_node(s: &str) -> Result<NodeId, String> {
+    let digits = s.strip_prefix('n').unwrap_or(s);
+    let parsed = match digits.strip_prefix("0x").or_else(|| digits.strip_prefix("0X")) {
+        Some(hex) => u32::from_str_radix(hex, 16),
+        None => digits.parse::<u32>(),
+    };
+    parsed.map(NodeId).map_err(|_| format!("`{s}` is not a node id (a number: 3, n3 or 0x3)"))
+}
+
+fn parse_port_path(s: &str) -> Result<PortPath, String> {
+    match s.split_once('.') {
+        Some((b, p)) if !b.is_empty() && !p.is_empty() => Ok(PortPath { behavior: b.to_owned(), port: p.to_owned() }),
+        _ => Err(format!("`{s}` should be BEHAVIOR.PORT, e.g. BASE.Rotate")),
+    }
+}
+
+/// Seconds (or hertz): finite and above zero.
+fn positive_secs(s: &str) -> Result<f64, String> {
+    let x: f64 = s.parse().map_err(|_| format!("`{s}` is not a number"))?;
+    if !x.is_finite() || x <= 0.0 {
+        return Err(format!("must be greater than 0 (got {s})"));
+    }
+    Ok(x)
+}
+
+fn parse_sight(s: &str) -> Result<Sight, String> {
+    let mut pairs = Vec::new();
+    for item in s.split(',').map(str::trim).filter(|i| !i.is_empty()) {
+        let (t, h) = item.split_once(':').ok_or_else(|| format!("`{item}` should be TARGET:HEIGHT"))?;
+        let t: u32 = t.trim().parse().map_err(|_| format!("target `{t}` is not a number"))?;
+        let h: f64 = h.trim().parse().map_err(|_| format!("height `{h}` is not a number"))?;
+        if t == 0 || !h.is_finite() {
+            return Err(format!("`{item}`: targets count from 1 and heights must be finite"));
+        }
+        pairs.push((t, h));
+    }
+    Ok(Sight(pairs))
+}
+
+fn run(cli: Cli) -> Result<(), Fail> {
+    match cli.command {
+        Command::List { node: None, net } => commands::list_nodes(&net),
+        Command::List { node: Some(node), net } => commands::list_node(node, &net),
+        Command::Why { node, target, net } => commands::why(node, &target, &net),
+        Command::Echo { node, target, count, net } => commands::echo(node, &target, count, &net),
+        Command::Write(args) => commands::write(&args),
+        Command::Node(args) => controllers::run(&args),
+    }
+}
+
+fn main() -> ExitCode {
+    // A bug must not print a backtrace at an engineer: one line, exit 1.
+    std::panic::set_hook(Box::new(|info| {
+        eprintln!("ayllu: internal error: {info}");
+        std::process::exit(1);
+    }));
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            let _ = e.print();
+            // --help and --version are not errors.
+            return ExitCode::from(if e.use_stderr() { 2 } else { 0 });
+        }
+    };
+    match run(cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(fail) => {
+            if !fail.message.is_empty() {
+                eprintln!("ayllu: {}", fail.message);
+            }
+            ExitCode::from(fail.code)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn node_ids_parse_in_three_spellings() {
+        assert_eq!(parse_node("3"), Ok(NodeId(3)));
+        assert_eq!(parse_node("n3"), Ok(NodeId(3)));
+        assert_eq!(parse_node("0x7fff0001"), Ok(NodeId(0x7fff_0001)));
+        assert!(parse_node("robot").is_err());
+        assert!(parse_node("-1").is_err());
+    }
+
+    #[test]
+    fn port_paths_need_both_halves() {
+        assert_eq!(
+            parse_port_path("BASE.Rotate").unwrap(),
+            PortPath { behavior: "BASE".into(), port: "Rotate".into() }
+        );
+        for bad in ["BASE", ".Rotate", "BASE.", ""] {
+            assert!(parse_port_path(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn periods_must_be_positive() {
+        assert_eq!(positive_secs("0.5"), Ok(0.5));
+        for bad in ["0", "-1", "nan", "inf", "x"] {
+            assert!(positive_secs(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn sight_tables_parse() {
+        assert_eq!(parse_sight("1:0.9, 2:0.5").unwrap(), Sight(vec![(1, 0.9), (2, 0.5)]));
+        assert_eq!(parse_sight("").unwrap(), Sight(vec![]));
+        for bad in ["1", "x:0.5", "1:y", "0:0.5"] {
+            assert!(parse_sight(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn the_argument_definitions_are_consistent() {
+        use clap::CommandFactory;
+        Cli::command().debug_assert();
+    }
+}

@@ -1,0 +1,232 @@
+//! Values and reports as people and scripts read them: parsing a typed value from the command
+//! line, values as plain JSON, reports as text and as JSON.
+//!
+//! JSON reports are the serde form of `NodeReport` / `PortReport` (the same JSON a REPLY
+//! carries, spec/protocol.md), with one addition for scripts: a `counted` object
+//! `{cause: count}` beside each positional `counters` array.
+
+use std::fmt::Write as _;
+
+use ayllu::{Counters, NodeReport, PeerInfo, PortReport, Trigger, Value, ValueType};
+use serde_json::{json, Map, Value as Json};
+
+/// Parse `text` as a value of type `ty`. The error says what was expected.
+pub fn parse_value(ty: ValueType, text: &str) -> Result<Value, String> {
+    let t = text.trim();
+    match ty {
+        ValueType::Bool => match t.to_ascii_lowercase().as_str() {
+            "true" | "1" | "on" | "yes" => Ok(Value::Bool(true)),
+            "false" | "0" | "off" | "no" => Ok(Value::Bool(false)),
+            _ => Err("expected true or false".to_owned()),
+        },
+        ValueType::Int => t.parse::<i64>().map(Value::Int).map_err(|e| format!("expected an integer ({e})")),
+        ValueType::Float => match t.parse::<f64>() {
+            Ok(x) if x.is_finite() => Ok(Value::Float(x)),
+            Ok(_) => Err("expected a finite number".to_owned()),
+            Err(e) => Err(format!("expected a number ({e})")),
+        },
+        // Text is taken as typed, spaces and all.
+        ValueType::Text => Ok(Value::text(text)),
+        ValueType::Bytes => {
+            let hex = t.strip_prefix("0x").or_else(|| t.strip_prefix("0X")).unwrap_or(t);
+            if !hex.len().is_multiple_of(2) || !hex.bytes().all(|b| b.is_ascii_hexdigit()) {
+                return Err("expected bytes as an even number of hex digits (0a0b or 0x0a0b)".to_owned());
+            }
+            let bytes: Vec<u8> =
+                (0..hex.len()).step_by(2).map(|i| u8::from_str_radix(&hex[i..i + 2], 16).unwrap_or(0)).collect();
+            Ok(Value::bytes(&bytes))
+        }
+        ValueType::Vector => {
+            let inner = t.strip_prefix('[').and_then(|s| s.strip_suffix(']')).unwrap_or(t).trim();
+            if inner.is_empty() {
+                return Ok(Value::vector(&[]));
+            }
+            let mut v = Vec::new();
+            for item in inner.split(',') {
+                match item.trim().parse::<f64>() {
+                    Ok(x) if x.is_finite() => v.push(x),
+                    _ => {
+                        return Err(format!("expected a comma list of numbers (1,2.5,3); `{}` is not one", item.trim()))
+                    }
+                }
+            }
+            if v.len() > 255 {
+                return Err("a vector holds at most 255 numbers".to_owned());
+            }
+            Ok(Value::vector(&v))
+        }
+    }
+}
+
+/// A value as plain JSON: numbers, booleans, strings, bytes as a hex string, vectors as arrays.
+pub fn value_json(v: &Value) -> Json {
+    match v {
+        Value::Bool(b) => json!(b),
+        Value::Int(i) => json!(i),
+        // NaN and infinities have no JSON number; serde_json writes them as null.
+        Value::Float(x) => json!(x),
+        Value::Text(s) => json!(&**s),
+        Value::Bytes(b) => json!(b.iter().map(|x| format!("{x:02x}")).collect::<String>()),
+        Value::Vector(xs) => json!(&**xs),
+    }
+}
+
+/// `{cause: count}` for the non-zero counters.
+pub fn counted(counters: &Counters) -> Json {
+    Json::Object(counters.nonzero().map(|(d, n)| (d.name().to_owned(), json!(n))).collect())
+}
+
+/// The serde form of a port report plus `counted`.
+pub fn port_report_json(r: &PortReport) -> Json {
+    let mut j = serde_json::to_value(r).unwrap_or(Json::Null);
+    if let Json::Object(m) = &mut j {
+        m.insert("counted".to_owned(), counted(&r.counters));
+    }
+    j
+}
+
+/// The serde form of a node report plus `counted` (core) and `transport_counted`.
+pub fn node_report_json(r: &NodeReport) -> Json {
+    let mut j = serde_json::to_value(r).unwrap_or(Json::Null);
+    if let Json::Object(m) = &mut j {
+        m.insert("counted".to_owned(), counted(&r.counters));
+        let transport: Map<String, Json> = r.transport.iter().map(|(k, v)| (k.clone(), json!(v))).collect();
+        m.insert("transport_counted".to_owned(), Json::Object(transport));
+    }
+    j
+}
+
+/// A peer as `list` shows it in JSON.
+pub fn peer_json(p: &PeerInfo, now: ayllu::Instant) -> Json {
+    json!({
+        "node": p.node.0,
+        "name": p.name,
+        "addr": p.addr,
+        "groups": p.groups,
+        "last_heard_secs_ago": now.saturating_since(p.last_heard).as_secs_f64(),
+    })
+}
+
+/// The nodes heard, as a table.
+pub fn peers_table(peers: &[PeerInfo]) -> String {
+    let mut out = String::new();
+    let _ = writeln!(out, "{:<12} {:<16} {:<22} GROUPS", "NODE", "NAME", "ADDRESS");
+    for p in peers {
+        let groups = if p.groups.is_empty() { "-".to_owned() } else { p.groups.join(",") };
+        let name = if p.name.is_empty() { "-" } else { &p.name };
+        let _ = writeln!(out, "{:<12} {:<16} {:<22} {groups}", p.node.to_string(), name, p.addr);
+    }
+    out
+}
+
+/// A node report as text: one section each for behaviors, connections, counters.
+pub fn node_report_text(r: &NodeReport, peer: Option<&PeerInfo>) -> String {
+    let mut out = String::new();
+    let at = peer.map(|p| format!(" ({} at {})", if p.name.is_empty() { "-" } else { &p.name }, p.addr));
+    let _ = writeln!(out, "{}{} at {} on its clock", r.node, at.unwrap_or_default(), r.now);
+    let groups = if r.groups.is_empty() { "none".to_owned() } else { r.groups.join(", ") };
+    let _ = writeln!(out, "groups: {groups}");
+    let _ = writeln!(out, "behaviors:");
+    for b in &r.behaviors {
+        let _ = writeln!(out, "  {} ({})", b.name, b.class);
+        for p in &b.ports {
+            let state = if p.fresh { "fresh" } else { "stale" };
+            let _ = writeln!(
+                out,
+                "    {:<14} {:<8} {:<6} {:<12} {state}",
+                p.name,
+                p.kind.name(),
+                p.ty.name(),
+                p.value.to_string()
+            );
+        }
+        for (name, v) in &b.slots {
+            let _ = writeln!(out, "    {name:<14} slot     {:<6} {v}", v.ty().name());
+        }
+        for (name, high) in &b.monostables {
+            let _ = writeln!(out, "    {name:<14} monostable {}", if *high { "high" } else { "low" });
+        }
+        for p in &b.processes {
+            let trigger = match p.trigger {
+                Trigger::Periodic(d) => format!("every {d}"),
+                Trigger::OnWrite(port) => {
+                    format!("on write of {}", b.ports.get(usize::from(port.0)).map_or("?", |r| r.name.as_str()))
+                }
+                Trigger::OnMonostable(m) => {
+                    format!("on {}", b.monostables.get(usize::from(m.0)).map_or("?", |(n, _)| n.as_str()))
+                }
+            };
+            let _ = writeln!(out, "    process {} ({trigger}): {} runs, {} overruns", p.name, p.runs, p.overruns);
+        }
+    }
+    let _ = writeln!(out, "connections:");
+    if r.connections.is_empty() {
+        let _ = writeln!(out, "  none");
+    }
+    for c in &r.connections {
+        let prio = if c.priority != 0 { format!(" priority {}", c.priority) } else { String::new() };
+        let _ = writeln!(
+            out,
+            "  {:<5} {:<22} {} -> {}{prio} (sent {})",
+            c.id.to_string(),
+            c.kind.to_string(),
+            c.source,
+            c.destination,
+            c.sent
+        );
+    }
+    let core: Vec<String> = r.counters.nonzero().map(|(d, n)| format!("{d}: {n}")).collect();
+    let transport: Vec<String> = r.transport.iter().map(|(k, v)| format!("{k}: {v}")).collect();
+    let _ = writeln!(out, "counters:");
+    let _ = writeln!(out, "  core       {}", if core.is_empty() { "none".to_owned() } else { core.join(", ") });
+    let _ =
+        writeln!(out, "  transport  {}", if transport.is_empty() { "none".to_owned() } else { transport.join(", ") });
+    for w in &r.warnings {
+        let _ = writeln!(out, "warning: {w}");
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn values_parse_by_type() {
+        assert_eq!(parse_value(ValueType::Bool, "true"), Ok(Value::Bool(true)));
+        assert_eq!(parse_value(ValueType::Bool, "0"), Ok(Value::Bool(false)));
+        assert_eq!(parse_value(ValueType::Int, "-42"), Ok(Value::Int(-42)));
+        assert_eq!(parse_value(ValueType::Float, "0.25"), Ok(Value::Float(0.25)));
+        assert_eq!(parse_value(ValueType::Text, "hi there"), Ok(Value::text("hi there")));
+        assert_eq!(parse_value(ValueType::Bytes, "0x0aff"), Ok(Value::bytes(&[0x0a, 0xff])));
+        assert_eq!(parse_value(ValueType::Bytes, "0aff"), Ok(Value::bytes(&[0x0a, 0xff])));
+        assert_eq!(parse_value(ValueType::Vector, "1, 2.5,3"), Ok(Value::vector(&[1.0, 2.5, 3.0])));
+        assert_eq!(parse_value(ValueType::Vector, "[1,2]"), Ok(Value::vector(&[1.0, 2.0])));
+        assert_eq!(parse_value(ValueType::Vector, ""), Ok(Value::vector(&[])));
+    }
+
+    #[test]
+    fn bad_values_say_what_was_expected() {
+        for (ty, text, needle) in [
+            (ValueType::Bool, "maybe", "true or false"),
+            (ValueType::Int, "1.5", "integer"),
+            (ValueType::Int, "abc", "integer"),
+            (ValueType::Float, "abc", "number"),
+            (ValueType::Float, "inf", "finite"),
+            (ValueType::Bytes, "abc", "hex"),
+            (ValueType::Bytes, "zz", "hex"),
+            (ValueType::Vector, "1,x", "comma list"),
+        ] {
+            let e = parse_value(ty, text).unwrap_err();
+            assert!(e.contains(needle), "{ty} `{text}`: {e}");
+        }
+    }
+
+    #[test]
+    fn values_become_plain_json() {
+        assert_eq!(value_json(&Value::Int(3)), json!(3));
+        assert_eq!(value_json(&Value::bytes(&[1, 255])), json!("01ff"));
+        assert_eq!(value_json(&Value::vector(&[1.0, 2.0])), json!([1.0, 2.0]));
+        assert_eq!(value_json(&Value::Float(f64::NAN)), Json::Null);
+    }
+}

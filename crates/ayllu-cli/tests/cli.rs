@@ -1,0 +1,311 @@
+//! The `ayllu` tool against a real node process over real loopback sockets: every connection
+//! kind written by hand (`write --kind ...`) into a relay node, checked with `why --json`;
+//! `echo` receiving values and cleaning up; `list`; and the errors a user meets (unknown
+//! node, unknown port, bad value, bad period), each with exit code and message.
+//!
+//! The relay node (`ayllu node --controller relay`) has `RELAY` (int) and `FRELAY` (float):
+//! `In -> (process copies) -> Out -> (local connection) -> Aux`, so `Aux` shows what `Out`
+//! let through. Every test starts its own relay, so tests run in parallel.
+
+mod common;
+
+use std::process::Command;
+use std::time::Duration;
+
+use common::{ayllu, free_ports, wait_for, Proc, Run, BIN};
+use serde_json::{json, Value as Json};
+
+/// Every CLI run must finish within this (its own --timeout is far shorter).
+const LIMIT: Duration = Duration::from_secs(15);
+
+/// A relay node on its own port, and the CLI's URL to reach it.
+struct Relay {
+    _proc: Proc,
+    url: String,
+}
+
+impl Relay {
+    fn start() -> Relay {
+        let port = free_ports(1)[0];
+        let mut cmd = Command::new(BIN);
+        cmd.args(["node", "--id", "1", "--controller", "relay", "--status-ms", "100", "--for", "60"])
+            .args(["--udp", &format!("udp://127.0.0.1:{port}")]);
+        let mut proc = Proc::spawn("relay", cmd);
+        proc.wait_ready(Duration::from_secs(5));
+        Relay { _proc: proc, url: format!("udp://127.0.0.1:0?peer=127.0.0.1:{port}") }
+    }
+
+    /// `ayllu ARGS... --udp URL`.
+    fn cli(&self, args: &[&str]) -> Run {
+        let mut all: Vec<&str> = args.to_vec();
+        all.extend(["--udp", &self.url]);
+        ayllu(&all, LIMIT)
+    }
+
+    fn write(&self, target: &str, value: &str, extra: &[&str]) -> Run {
+        let mut args = vec!["write", "1", target, value];
+        args.extend(extra);
+        self.cli(&args)
+    }
+
+    fn why(&self, target: &str) -> Json {
+        self.cli(&["why", "1", target, "--json"]).ok().json()
+    }
+}
+
+fn windows_of(why: &Json, kind: &str) -> Vec<Json> {
+    why["windows"].as_array().into_iter().flatten().filter(|w| w["kind"] == kind).cloned().collect()
+}
+
+fn counted(why: &Json, cause: &str) -> u64 {
+    why["counted"][cause].as_u64().unwrap_or(0)
+}
+
+#[test]
+fn list_shows_the_nodes_heard_and_a_nodes_behaviors() {
+    let relay = Relay::start();
+    let heard = relay.cli(&["list", "--json", "--timeout", "0.5"]).ok().json();
+    let node = heard.as_array().unwrap().iter().find(|p| p["node"] == 1).cloned();
+    assert!(node.is_some_and(|n| n["name"] == "node-1"), "{heard}");
+
+    let report = relay.cli(&["list", "1", "--json"]).ok().json();
+    let behaviors: Vec<&str> =
+        report["behaviors"].as_array().unwrap().iter().filter_map(|b| b["name"].as_str()).collect();
+    assert_eq!(behaviors, ["FRELAY", "RELAY"], "{report}");
+    let relay_ports: Vec<&str> = report["behaviors"][1]["ports"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|p| p["name"].as_str())
+        .filter(|n| ["In", "Out", "Aux"].contains(n))
+        .collect();
+    assert_eq!(relay_ports, ["In", "Out", "Aux"]);
+    assert_eq!(report["connections"].as_array().unwrap().len(), 2, "Out -> Aux on each relay");
+    assert!(report["transport_counted"]["datagrams_received"].as_u64().unwrap() > 0, "{report}");
+
+    let text = relay.cli(&["list", "1"]).ok().stdout;
+    for needle in ["RELAY (Relay)", "FRELAY (FloatRelay)", "RELAY.Out -> RELAY.Aux", "counters:"] {
+        assert!(text.contains(needle), "`{needle}` missing from:\n{text}");
+    }
+}
+
+#[test]
+fn normal_writes_arrive_and_echo_prints_what_a_port_sends() {
+    let relay = Relay::start();
+    let ok = relay.write("RELAY.In", "5", &[]).ok();
+    assert!(ok.stdout.ends_with(": confirmed\n"), "{ok:?}");
+    assert_eq!(relay.why("RELAY.Aux")["value"], json!({"Int": 5}), "In -> Out -> Aux");
+    relay.write("FRELAY.In", "-2.5", &[]).ok();
+    assert_eq!(relay.why("FRELAY.Aux")["value"], json!({"Float": -2.5}));
+
+    // echo RELAY.Aux while a writer feeds RELAY.In at 20 Hz; echo has a fixed id so the test
+    // can check that it disconnected afterwards.
+    let mut echo_cmd = Command::new(BIN);
+    echo_cmd.args(["echo", "1", "RELAY.Aux", "--count", "3", "--json", "--timeout", "8", "--id", "0x7ffe0001"]);
+    echo_cmd.args(["--udp", &relay.url]);
+    let echo = std::thread::spawn(move || common::run(echo_cmd, LIMIT));
+    let writer = relay.write("RELAY.In", "7", &["--repeat-hz", "20", "--for", "2", "--json"]).ok().json();
+    assert_eq!(writer["confirmed"], true, "{writer}");
+    assert!(writer["sent"].as_u64().unwrap() >= 30, "{writer}");
+    let echo = echo.join().unwrap().ok();
+    let values: Vec<Json> = echo.stdout.lines().map(|l| serde_json::from_str::<Json>(l).unwrap()).collect();
+    assert_eq!(values.len(), 3, "{echo:?}");
+    assert!(values.iter().all(|v| v["value"] == 7 && v["type"] == "int" && v["t"].as_f64().is_some()), "{echo:?}");
+
+    // echo disconnected on exit: no connection towards its id is left on the relay.
+    let report = relay.cli(&["list", "1", "--json"]).ok().json();
+    let to_echo = report["connections"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|c| c["destination"]["Node"]["node"] == 0x7ffe_0001u32)
+        .count();
+    assert_eq!(to_echo, 0, "{report}");
+}
+
+#[test]
+fn suppress_refuses_later_normal_writes_and_counts_them() {
+    let relay = Relay::start();
+    relay.write("RELAY.In", "5", &[]).ok();
+    relay.write("RELAY.In", "7", &["--kind", "suppress", "--period", "5"]).ok();
+    let why = relay.why("RELAY.In");
+    assert_eq!(why["input_blocked"], "Suppressed", "{why}");
+    assert_eq!(windows_of(&why, "Suppress").len(), 1, "{why}");
+    assert_eq!(why["value"], json!({"Int": 5}), "a suppress connection writes nothing");
+
+    relay.write("RELAY.In", "9", &[]).fails(1, "suppressed");
+    let why = relay.why("RELAY.In");
+    assert!(counted(&why, "suppressed") >= 1, "{why}");
+    assert_eq!(why["value"], json!({"Int": 5}), "{why}");
+}
+
+#[test]
+fn inhibit_stops_what_leaves_the_port_and_why_shows_the_window() {
+    let relay = Relay::start();
+    relay.write("RELAY.In", "1", &[]).ok();
+    relay.write("RELAY.Out", "0", &["--kind", "inhibit", "--period", "5"]).ok();
+    let why = relay.why("RELAY.Out");
+    let windows = windows_of(&why, "Inhibit");
+    assert_eq!(windows.len(), 1, "{why}");
+    let remaining = windows[0]["remaining"]["nanos"].as_u64().unwrap();
+    assert!(remaining > 3_000_000_000 && remaining <= 5_000_000_000, "window of 5 s: {why}");
+    assert_eq!(why["internal_output_blocked"], "Inhibited");
+    assert_eq!(why["connection_output_blocked"], "Inhibited");
+
+    // RELAY.Out still takes the new value, but nothing leaves it: Aux keeps the old one.
+    relay.write("RELAY.In", "2", &[]).ok();
+    assert_eq!(relay.why("RELAY.Out")["value"], json!({"Int": 2}));
+    let aux = relay.why("RELAY.Aux");
+    assert_eq!(aux["value"], json!({"Int": 1}), "{aux}");
+    assert!(counted(&relay.why("RELAY.Out"), "inhibited") >= 1);
+}
+
+#[test]
+fn override_in_lets_only_its_holder_write() {
+    let relay = Relay::start();
+    relay.write("RELAY.In", "42", &["--kind", "override-in", "--period", "5"]).ok();
+    let why = relay.why("RELAY.In");
+    assert_eq!(why["value"], json!({"Int": 42}));
+    assert_eq!(windows_of(&why, "OverrideIn").len(), 1, "{why}");
+    assert_eq!(relay.why("RELAY.Aux")["value"], json!({"Int": 42}), "the override's value propagates");
+
+    relay.write("RELAY.In", "1", &[]).fails(1, "overridden_in");
+    let why = relay.why("RELAY.In");
+    assert_eq!(why["value"], json!({"Int": 42}));
+    assert!(counted(&why, "overridden_in") >= 1, "{why}");
+}
+
+#[test]
+fn override_out_lets_only_its_holders_values_leave() {
+    let relay = Relay::start();
+    relay.write("RELAY.Out", "10", &["--kind", "override-out", "--period", "5"]).ok();
+    assert_eq!(relay.why("RELAY.Aux")["value"], json!({"Int": 10}), "the holder's value passes");
+    // The relay's own write of Out (copied from In) is stored but held back.
+    relay.write("RELAY.In", "3", &[]).ok();
+    let out = relay.why("RELAY.Out");
+    assert_eq!(out["value"], json!({"Int": 3}), "{out}");
+    assert_eq!(out["internal_output_blocked"], "OverriddenOut", "{out}");
+    assert_eq!(windows_of(&out, "OverrideOut").len(), 1, "{out}");
+    assert!(counted(&out, "overridden_out") >= 1, "{out}");
+    assert_eq!(relay.why("RELAY.Aux")["value"], json!({"Int": 10}));
+}
+
+#[test]
+fn write_inhibit_holds_back_the_behaviors_own_writes_only() {
+    let relay = Relay::start();
+    relay.write("RELAY.In", "1", &[]).ok();
+    relay.write("RELAY.Out", "0", &["--kind", "write-inhibit", "--period", "5"]).ok();
+    // Own write (the relay's copy process): stored, not propagated.
+    relay.write("RELAY.In", "4", &[]).ok();
+    let out = relay.why("RELAY.Out");
+    assert_eq!(out["value"], json!({"Int": 4}));
+    assert_eq!(out["internal_output_blocked"], "WriteInhibited", "{out}");
+    assert_eq!(out["connection_output_blocked"], Json::Null, "{out}");
+    assert!(counted(&out, "write_inhibited") >= 1);
+    assert_eq!(relay.why("RELAY.Aux")["value"], json!({"Int": 1}));
+    // A value arriving along a connection still passes.
+    relay.write("RELAY.Out", "6", &[]).ok();
+    assert_eq!(relay.why("RELAY.Aux")["value"], json!({"Int": 6}));
+}
+
+#[test]
+fn a_window_held_by_hand_lasts_while_repeated_and_lapses_after() {
+    let relay = Relay::start();
+    let url = relay.url.clone();
+    // 0.3 s windows renewed at 10 Hz for 1.5 s.
+    let hold = std::thread::spawn(move || {
+        common::run(
+            {
+                let mut c = Command::new(BIN);
+                c.args(["write", "1", "RELAY.Out", "0", "--kind", "inhibit", "--period", "0.3"]).args([
+                    "--repeat-hz",
+                    "10",
+                    "--for",
+                    "1.5",
+                    "--udp",
+                    &url,
+                ]);
+                c
+            },
+            LIMIT,
+        )
+    });
+    // Still inhibited well after one window would have lapsed: the writes renewed it.
+    std::thread::sleep(Duration::from_millis(1000));
+    let why = relay.why("RELAY.Out");
+    assert_eq!(windows_of(&why, "Inhibit").len(), 1, "held by repetition: {why}");
+    let done = hold.join().unwrap().ok();
+    assert!(done.stdout.contains("confirmed; then") && done.stdout.contains("more over"), "{done:?}");
+    // Released: the last window ends 0.3 s after the last write.
+    let lapsed = wait_for(Duration::from_secs(3), Duration::from_millis(100), || {
+        let why = relay.why("RELAY.Out");
+        windows_of(&why, "Inhibit").is_empty().then_some(())
+    });
+    assert!(lapsed.is_some(), "the inhibition never lapsed");
+}
+
+#[test]
+fn a_tool_run_again_under_the_same_id_is_not_taken_for_its_old_self() {
+    // The first run sends ~20 messages on its connection c1 and asks a few requests; the
+    // second run's c1 and request ids start above them (boot-time base), so the relay neither
+    // drops its value as stale nor answers its requests from memory.
+    let relay = Relay::start();
+    relay.write("RELAY.In", "5", &["--id", "0x7ffe0002", "--repeat-hz", "50", "--for", "0.4"]).ok();
+    // Datagram and sequence bases are whole seconds: make the second run start in a later one.
+    std::thread::sleep(Duration::from_millis(1100));
+    let again = relay.write("RELAY.In", "6", &["--id", "0x7ffe0002", "--json"]).ok().json();
+    assert_eq!(again["confirmed"], true, "{again}");
+    let why = relay.why("RELAY.In");
+    assert_eq!(why["value"], json!({"Int": 6}), "{why}");
+    let report = relay.cli(&["list", "1", "--json"]).ok().json();
+    assert_eq!(report["counted"]["stale"], Json::Null, "nothing dropped as stale: {}", report["counted"]);
+}
+
+#[test]
+fn an_unknown_node_times_out_with_a_clear_message() {
+    let relay = Relay::start();
+    let run = relay.cli(&["why", "99", "RELAY.In", "--timeout", "1"]).fails(1, "unknown node n99");
+    assert!(run.stderr.contains("no HELLO") && run.stderr.contains("n1 at 127.0.0.1"), "{run:?}");
+    assert!(run.took < Duration::from_secs(4), "bounded by --timeout: {run:?}");
+    // Nobody to ask at all (no peer=, no broadcast=).
+    let run = ayllu(&["list", "3", "--timeout", "0.5"], LIMIT).fails(1, "heard no node at all");
+    assert!(run.stderr.contains("peer=ADDR:PORT"), "{run:?}");
+    ayllu(&["write", "3", "B.P", "1", "--timeout", "0.5"], LIMIT).fails(1, "unknown node n3");
+    ayllu(&["echo", "3", "B.P", "--timeout", "0.5"], LIMIT).fails(1, "unknown node n3");
+}
+
+#[test]
+fn an_unknown_port_or_behavior_reports_the_nodes_own_error() {
+    let relay = Relay::start();
+    relay.cli(&["why", "1", "RELAY.Nope"]).fails(1, "behavior `RELAY` has no port named `Nope`");
+    relay.cli(&["echo", "1", "GHOST.Out", "--count", "1"]).fails(1, "no behavior named `GHOST`");
+    relay.write("RELAY.Nope", "1", &[]).fails(1, "has no port named `Nope`");
+}
+
+#[test]
+fn bad_values_and_periods_are_refused_before_anything_is_written() {
+    let relay = Relay::start();
+    relay.write("RELAY.In", "abc", &[]).fails(1, "holds int: expected an integer");
+    relay.write("FRELAY.In", "fast", &[]).fails(1, "holds float");
+    relay.write("RELAY.In", "1", &["--kind", "suppress", "--period", "0"]).fails(2, "must be greater than 0");
+    relay.write("RELAY.In", "1", &["--kind", "inhibit", "--period", "-1"]).fails(2, "must be greater than 0");
+    relay.write("RELAY.In", "1", &["--period", "1"]).fails(2, "--period applies to");
+    relay.write("RELAY.In", "1", &["--kind", "sideways"]).fails(2, "invalid value 'sideways'");
+    // Nothing reached the port.
+    let why = relay.why("RELAY.In");
+    assert_eq!(why["accepted"], 0, "{why}");
+}
+
+#[test]
+fn usage_errors_exit_with_code_2() {
+    ayllu(&["why", "robot", "B.P"], LIMIT).fails(2, "not a node id");
+    ayllu(&["why", "1", "nodot"], LIMIT).fails(2, "BEHAVIOR.PORT");
+    ayllu(&["frobnicate"], LIMIT).fails(2, "unrecognized subcommand");
+    ayllu(&["list", "--udp", "mem://x"], LIMIT).fails(2, "udp://");
+    ayllu(&["list", "--udp", "udp://127.0.0.1:1?colour=blue"], LIMIT).fails(1, "unknown option `colour`");
+    ayllu(&["node", "--id", "1", "--udp", "udp://127.0.0.1:0", "--sight", "9:0.5"], LIMIT).fails(2, "only 4 layers");
+    let help = ayllu(&["--help"], LIMIT).ok();
+    for sub in ["list", "why", "echo", "write", "node"] {
+        assert!(help.stdout.contains(sub), "{help:?}");
+    }
+}

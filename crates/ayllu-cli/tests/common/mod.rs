@@ -1,0 +1,201 @@
+//! Shared by the multi-process tests: the built `ayllu` binary as child processes, their JSON
+//! status lines as they arrive, and cleanup that always happens.
+//!
+//! Promises: every child is SIGKILLed and reaped when its guard drops (also when a test
+//! panics); every wait has a limit; nothing here sleeps longer than a poll interval.
+
+#![allow(dead_code)]
+
+use std::io::{BufRead, BufReader, Read};
+use std::process::{Child, Command, Stdio};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use serde_json::Value as Json;
+
+/// The binary under test.
+pub const BIN: &str = env!("CARGO_BIN_EXE_ayllu");
+
+fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// A running child whose stdout lines (JSON) are collected with the time they were read.
+pub struct Proc {
+    pub name: String,
+    child: Child,
+    lines: Arc<Mutex<Vec<(Instant, Json)>>>,
+    stderr: Arc<Mutex<String>>,
+    killed: bool,
+}
+
+impl Proc {
+    /// Start `cmd` with stdout and stderr captured.
+    pub fn spawn(name: &str, mut cmd: Command) -> Proc {
+        let mut child = cmd
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap_or_else(|e| panic!("starting {name}: {e}"));
+        let lines: Arc<Mutex<Vec<(Instant, Json)>>> = Arc::default();
+        let stderr: Arc<Mutex<String>> = Arc::default();
+        let out = child.stdout.take().expect("piped stdout");
+        let sink = lines.clone();
+        std::thread::spawn(move || {
+            for line in BufReader::new(out).lines() {
+                let Ok(line) = line else { break };
+                let read_at = Instant::now();
+                if let Ok(j) = serde_json::from_str::<Json>(&line) {
+                    lock(&sink).push((read_at, j));
+                }
+            }
+        });
+        let mut err = child.stderr.take().expect("piped stderr");
+        let sink = stderr.clone();
+        std::thread::spawn(move || {
+            let mut buf = [0u8; 4096];
+            while let Ok(n) = err.read(&mut buf) {
+                if n == 0 {
+                    break;
+                }
+                lock(&sink).push_str(&String::from_utf8_lossy(&buf[..n]));
+            }
+        });
+        Proc { name: name.to_owned(), child, lines, stderr, killed: false }
+    }
+
+    pub fn lines(&self) -> Vec<(Instant, Json)> {
+        lock(&self.lines).clone()
+    }
+
+    pub fn latest(&self) -> Option<(Instant, Json)> {
+        lock(&self.lines).last().cloned()
+    }
+
+    pub fn stderr(&self) -> String {
+        lock(&self.stderr).clone()
+    }
+
+    /// Wait until a status line has been printed (the node is up), or panic after `limit`.
+    pub fn wait_ready(&mut self, limit: Duration) {
+        let end = Instant::now() + limit;
+        while self.latest().is_none() {
+            if let Ok(Some(status)) = self.child.try_wait() {
+                panic!("{} exited with {status} before printing a status line: {}", self.name, self.stderr());
+            }
+            assert!(Instant::now() < end, "{} printed no status line within {limit:?}: {}", self.name, self.stderr());
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+
+    /// SIGKILL (a robot that dies without a word) and reap.
+    pub fn kill(&mut self) {
+        if !self.killed {
+            self.killed = true;
+            let _ = self.child.kill();
+            let _ = self.child.wait();
+        }
+    }
+}
+
+impl Drop for Proc {
+    fn drop(&mut self) {
+        self.kill();
+    }
+}
+
+/// What a finished CLI run left.
+#[derive(Debug)]
+pub struct Run {
+    pub code: Option<i32>,
+    pub stdout: String,
+    pub stderr: String,
+    pub took: Duration,
+}
+
+impl Run {
+    pub fn json(&self) -> Json {
+        serde_json::from_str(&self.stdout).unwrap_or_else(|e| panic!("stdout is not JSON ({e}): {self:?}"))
+    }
+    /// Assert exit code 0 and return self.
+    pub fn ok(self) -> Run {
+        assert_eq!(self.code, Some(0), "expected success: {self:?}");
+        self
+    }
+    /// Assert the exit code, that stderr says `needle`, and that nothing panicked.
+    pub fn fails(self, code: i32, needle: &str) -> Run {
+        assert_eq!(self.code, Some(code), "expected exit code {code}: {self:?}");
+        assert!(self.stderr.contains(needle), "stderr should mention `{needle}`: {self:?}");
+        assert!(!self.stderr.contains("panicked") && !self.stderr.contains("internal error"), "{self:?}");
+        self
+    }
+}
+
+/// Run `cmd` to completion, killing it (and failing the test) if it takes longer than `limit`.
+pub fn run(mut cmd: Command, limit: Duration) -> Run {
+    let start = Instant::now();
+    let mut child = cmd
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap_or_else(|e| panic!("starting {cmd:?}: {e}"));
+    let mut out = child.stdout.take().expect("piped stdout");
+    let mut err = child.stderr.take().expect("piped stderr");
+    let reader = std::thread::spawn(move || {
+        let mut s = String::new();
+        let _ = out.read_to_string(&mut s);
+        s
+    });
+    let err_reader = std::thread::spawn(move || {
+        let mut s = String::new();
+        let _ = err.read_to_string(&mut s);
+        s
+    });
+    let status = loop {
+        if let Some(status) = child.try_wait().expect("waiting for the CLI") {
+            break status;
+        }
+        if start.elapsed() > limit {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("{cmd:?} ran longer than {limit:?}");
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    };
+    Run {
+        code: status.code(),
+        stdout: reader.join().unwrap_or_default(),
+        stderr: err_reader.join().unwrap_or_default(),
+        took: start.elapsed(),
+    }
+}
+
+/// `ayllu ARGS...`, run to completion within `limit`.
+pub fn ayllu(args: &[&str], limit: Duration) -> Run {
+    let mut cmd = Command::new(BIN);
+    cmd.args(args);
+    run(cmd, limit)
+}
+
+/// `n` UDP ports on 127.0.0.1 that were free a moment ago (all held at once, so distinct).
+pub fn free_ports(n: usize) -> Vec<u16> {
+    let sockets: Vec<std::net::UdpSocket> =
+        (0..n).map(|_| std::net::UdpSocket::bind("127.0.0.1:0").expect("binding an ephemeral port")).collect();
+    sockets.iter().map(|s| s.local_addr().expect("bound").port()).collect()
+}
+
+/// Poll `check` every `every` until it returns `Some`, or `None` after `limit`.
+pub fn wait_for<T>(limit: Duration, every: Duration, mut check: impl FnMut() -> Option<T>) -> Option<T> {
+    let end = Instant::now() + limit;
+    loop {
+        if let Some(t) = check() {
+            return Some(t);
+        }
+        if Instant::now() >= end {
+            return None;
+        }
+        std::thread::sleep(every);
+    }
+}

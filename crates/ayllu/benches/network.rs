@@ -1,0 +1,568 @@
+//! Network benchmarks: Ayllu nodes talking over `udp://` on loopback, each figure printed
+//! beside a raw-UDP baseline written here and measured in the same run.
+//!
+//! Run with `cargo bench -p ayllu --bench network` (about a minute once compiled). Two
+//! threads on 127.0.0.1, one per node (or per raw socket); every phase is bounded in count
+//! and time. Phases alternate raw / Ayllu and are repeated [`RUNS`] times so that drift of
+//! the machine hits both alike; the table at the end gives each figure, its baseline, the
+//! ratio, the goal and whether it is met, and the machine.
+//!
+//! What is measured:
+//! * Round trip. Raw: one std `UdpSocket` per thread, blocking `recv_from`, an 8-byte
+//!   payload bounced back by the other thread. Ayllu: node A writes its port `A.P` (Normal
+//!   connection to node B's `B.Q`); B's OnWrite process on `Q` writes `B.R`, connected back
+//!   to A's `A.S`; A steps and sleeps on its socket until `S` shows the value, then writes
+//!   again. Both nodes run `Node::step` + `Node::wait` loops, as a robot program would.
+//! * One-way, one message per datagram. Raw: a sender blasting 8-byte datagrams for
+//!   [`FLOW_TIME`]; Ayllu: a sender writing one port and stepping (which flushes: one
+//!   datagram per message) for the same time. The receiver counts what arrives (Ayllu:
+//!   what the port *accepted*); the rate is what was received per second, loss is what was
+//!   sent and never received.
+//! * Batching. The Ayllu sender writes [`BATCH_PORTS`] ports, each connected to a port of
+//!   the receiver, then steps: one turn's messages share datagrams up to the MTU (rule N3).
+//!   Counted as port messages accepted by the receiving node's ports per second.
+//!
+//! `cargo bench -p ayllu --bench network -- callgrind` instead runs the batching path on one
+//! thread (sender turn, receiver turn, alternating, over real loopback sockets) for a fixed
+//! number of turns, so that `valgrind --tool=callgrind --toggle-collect='*lockstep_turns*'`
+//! counts the instructions per port message, sender and receiver together; and the round trip
+//! likewise (`--toggle-collect='*lockstep_round_trips*'`: instructions per round trip). Timings on this
+//! kind of machine move by tens of percent between runs; instruction counts do not.
+
+use std::hint::black_box;
+use std::net::{SocketAddr, UdpSocket};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::thread;
+use std::time::{Duration as StdDuration, Instant as StdInstant};
+
+use ayllu::udp_config::DEFAULT_MTU;
+use ayllu::{
+    BehaviorClass, ConnectionKind, Endpoint, MonotonicClock, Node, NodeId, PortRef, PortSpec, UdpConfig, UdpTransport,
+};
+
+/// Each phase runs this many times, raw and Ayllu alternating.
+const RUNS: usize = 3;
+/// Round trips measured per run, after the warm-up ones.
+const ROUNDS: usize = 20_000;
+const WARM_UP: usize = 2_000;
+/// How long a sender sends in one throughput run.
+const FLOW_TIME: StdDuration = StdDuration::from_secs(1);
+/// How long a receiver waits after the sender stopped and nothing more arrives.
+const DRAIN: StdDuration = StdDuration::from_millis(100);
+/// Ports written per turn in the batching phase.
+const BATCH_PORTS: usize = 64;
+/// The loopback MTU used for the large-datagram batching figure (the largest datagram a
+/// receiver accepts, spec/protocol.md).
+const LOOPBACK_MTU: usize = 8192;
+/// Socket buffers as `ayllu::datagram::OsSocket` sets them, so raw and Ayllu queue alike.
+const SOCKET_BUFFER: usize = 1 << 21;
+
+/// Round-trip goal: Ayllu at most this many times raw UDP.
+const GOAL_RTT_RATIO: f64 = 1.2;
+/// Batching goal, port messages per second.
+const GOAL_BATCHED: f64 = 5e6;
+
+// ----- raw UDP ------------------------------------------------------------------------------
+
+/// A blocking std socket on loopback with the same buffer sizes Ayllu's sockets ask for.
+fn raw_socket() -> UdpSocket {
+    use socket2::{Domain, Protocol, Socket, Type};
+    let s = Socket::new(Domain::IPV4, Type::DGRAM, Some(Protocol::UDP)).expect("socket");
+    let _ = s.set_recv_buffer_size(SOCKET_BUFFER);
+    let _ = s.set_send_buffer_size(SOCKET_BUFFER);
+    s.bind(&"127.0.0.1:0".parse::<SocketAddr>().expect("address").into()).expect("bind");
+    s.into()
+}
+
+/// Round-trip times (ns) of `ROUNDS` 8-byte ping-pongs after `WARM_UP` unmeasured ones.
+fn raw_round_trips() -> Vec<u64> {
+    let (a, b) = (raw_socket(), raw_socket());
+    let a_addr = a.local_addr().expect("addr");
+    let b_addr = b.local_addr().expect("addr");
+    for s in [&a, &b] {
+        s.set_read_timeout(Some(StdDuration::from_secs(2))).expect("timeout");
+    }
+    let echo = thread::spawn(move || {
+        let mut buf = [0u8; 64];
+        for _ in 0..WARM_UP + ROUNDS {
+            let Ok((n, from)) = b.recv_from(&mut buf) else { return };
+            b.send_to(&buf[..n], from).expect("echo");
+        }
+    });
+    let mut samples = Vec::with_capacity(ROUNDS);
+    let mut buf = [0u8; 64];
+    for i in 0..(WARM_UP + ROUNDS) as u64 {
+        let t0 = StdInstant::now();
+        a.send_to(&i.to_le_bytes(), b_addr).expect("ping");
+        let (n, _) = a.recv_from(&mut buf).expect("pong within 2 s (loopback)");
+        let dt = t0.elapsed();
+        assert_eq!(&buf[..n], &i.to_le_bytes());
+        if i >= WARM_UP as u64 {
+            samples.push(dt.as_nanos() as u64);
+        }
+    }
+    let _ = a_addr;
+    echo.join().expect("echo thread");
+    samples
+}
+
+/// Messages sent and received in one throughput run, and over how long.
+#[derive(Clone, Copy, Debug, Default)]
+struct Flow {
+    sent: u64,
+    received: u64,
+    /// From the sender's start to the last message received.
+    secs: f64,
+    datagrams: u64,
+}
+
+impl Flow {
+    fn rate(&self) -> f64 {
+        self.received as f64 / self.secs.max(1e-9)
+    }
+    fn loss(&self) -> f64 {
+        1.0 - self.received as f64 / (self.sent.max(1)) as f64
+    }
+}
+
+/// A raw sender blasting 8-byte datagrams for `FLOW_TIME` at a blocking receiver.
+fn raw_one_way() -> Flow {
+    let (tx, rx) = (raw_socket(), raw_socket());
+    let to = rx.local_addr().expect("addr");
+    rx.set_read_timeout(Some(DRAIN)).expect("timeout");
+    let done = Arc::new(AtomicBool::new(false));
+    let start = StdInstant::now();
+    let receiver = {
+        let done = done.clone();
+        thread::spawn(move || {
+            let mut buf = [0u8; 64];
+            let (mut received, mut last) = (0u64, start);
+            loop {
+                match rx.recv_from(&mut buf) {
+                    Ok(_) => {
+                        received += 1;
+                        last = StdInstant::now();
+                    }
+                    Err(_) if done.load(Ordering::Acquire) => break,
+                    Err(_) => {}
+                }
+            }
+            (received, last)
+        })
+    };
+    let mut sent = 0u64;
+    loop {
+        // The clock is read once per 64 sends so that the baseline is the socket alone.
+        for _ in 0..64 {
+            if tx.send_to(&sent.to_le_bytes(), to).is_ok() {
+                sent += 1;
+            }
+        }
+        if start.elapsed() >= FLOW_TIME {
+            break;
+        }
+    }
+    done.store(true, Ordering::Release);
+    let (received, last) = receiver.join().expect("receiver");
+    Flow { sent, received, secs: (last - start).as_secs_f64(), datagrams: received }
+}
+
+// ----- Ayllu --------------------------------------------------------------------------------
+
+/// A node on a fresh loopback port; `peer` is where it announces itself first.
+fn udp_node(id: u32, mtu: usize, peer: Option<SocketAddr>) -> (Node, SocketAddr) {
+    let mut config = UdpConfig::new("127.0.0.1:0".parse().expect("address"));
+    config.mtu = mtu;
+    config.peers.extend(peer);
+    let transport = UdpTransport::bind(NodeId(id), config).expect("bind loopback");
+    let addr = transport.local_addr().expect("bound address");
+    (Node::new(MonotonicClock::new(), transport), addr)
+}
+
+/// Step both nodes until each knows the other (HELLO, rule N6).
+fn meet(a: &mut Node, b: &mut Node) {
+    let give_up = StdInstant::now() + StdDuration::from_secs(5);
+    while a.peers().is_empty() || b.peers().is_empty() {
+        assert!(StdInstant::now() < give_up, "the two nodes did not hear each other's HELLO");
+        a.step();
+        b.step();
+        thread::sleep(StdDuration::from_millis(1));
+    }
+}
+
+/// How long a node loop may sleep: until its next deadline, at most `cap`.
+fn sleep_for(node: &Node, next: Option<ayllu::Instant>, cap: StdDuration) -> StdDuration {
+    let now = node.now();
+    next.map_or(
+        cap,
+        |n| if n > now { StdDuration::from_nanos((n - now).as_nanos()).min(cap) } else { StdDuration::ZERO },
+    )
+}
+
+/// Run `node` in a step + wait loop on its own thread until `stop` is set; returns it.
+fn spawn_loop(mut node: Node, stop: Arc<AtomicBool>) -> thread::JoinHandle<Node> {
+    thread::spawn(move || {
+        while !stop.load(Ordering::Acquire) {
+            let next = node.step();
+            let t = sleep_for(&node, next, StdDuration::from_millis(10));
+            node.wait(t);
+        }
+        node
+    })
+}
+
+fn int_port(name: &str) -> PortSpec {
+    PortSpec::new(name, 0i64)
+}
+
+/// The two nodes of the round trip (see the module docs), having met; `A.P` and `A.S`.
+fn ping_pair() -> (Node, Node, PortRef, PortRef) {
+    let (mut b, b_addr) = udp_node(2, DEFAULT_MTU, None);
+    let (mut a, _) = udp_node(1, DEFAULT_MTU, Some(b_addr));
+    let mut ping = BehaviorClass::new("Ping");
+    ping.port(int_port("P")).expect("port");
+    ping.port(int_port("S")).expect("port");
+    a.define(ping).expect("class");
+    a.create("Ping", "A").expect("behavior");
+    let mut pong = BehaviorClass::new("Pong");
+    let q = pong.port(int_port("Q")).expect("port");
+    let r = pong.port(int_port("R")).expect("port");
+    pong.on_write("Echo", q, move |ctx| {
+        let v = ctx.int(q).unwrap_or(0);
+        let _ = ctx.write(r, v);
+    })
+    .expect("process");
+    b.define(pong).expect("class");
+    b.create("Pong", "B").expect("behavior");
+    let normal = ConnectionKind::Normal;
+    a.connect(&Endpoint::local("A", "P"), &Endpoint::node(NodeId(2), "B", "Q"), normal).expect("connect");
+    b.connect(&Endpoint::local("B", "R"), &Endpoint::node(NodeId(1), "A", "S"), normal).expect("connect");
+    meet(&mut a, &mut b);
+    let p = a.core().port("A", "P").expect("port");
+    let s = a.core().port("A", "S").expect("port");
+    (a, b, p, s)
+}
+
+/// Round-trip times (ns): see the module docs.
+fn ayllu_round_trips() -> Vec<u64> {
+    let (mut a, b, p, s) = ping_pair();
+    let stop = Arc::new(AtomicBool::new(false));
+    let echo = spawn_loop(b, stop.clone());
+    let mut samples = Vec::with_capacity(ROUNDS);
+    for i in 1..=(WARM_UP + ROUNDS) as i64 {
+        let t0 = StdInstant::now();
+        let mut sent_at = t0;
+        let now = a.now();
+        a.core_mut().write(now, p, i).expect("write");
+        loop {
+            let next = a.step();
+            if a.core().read(s).ok().and_then(|v| v.as_int()) == Some(i) {
+                break;
+            }
+            // Loopback does not lose datagrams in practice; if one is lost, ask again.
+            if sent_at.elapsed() > StdDuration::from_millis(200) {
+                let now = a.now();
+                a.core_mut().write(now, p, i).expect("write");
+                sent_at = StdInstant::now();
+                continue;
+            }
+            let t = sleep_for(&a, next, StdDuration::from_millis(10));
+            a.wait(t);
+        }
+        let dt = t0.elapsed();
+        if i > WARM_UP as i64 {
+            samples.push(dt.as_nanos() as u64);
+        }
+    }
+    stop.store(true, Ordering::Release);
+    echo.join().expect("echo node");
+    samples
+}
+
+/// A sender node whose behavior `S` has `ports` ports, each connected to the same-named port
+/// of the receiver's behavior `D`; the sender steps after every `per_turn` writes.
+fn ayllu_flow(ports: usize, mtu: usize) -> Flow {
+    let (mut tx, mut rx, handles) = batch_pair(ports, mtu);
+    let sent_before = tx.stats().sent;
+    let datagrams_before = counter(&tx, "datagrams_sent");
+
+    let done = Arc::new(AtomicBool::new(false));
+    let start = StdInstant::now();
+    let receiver = {
+        let done = done.clone();
+        thread::spawn(move || {
+            let mut last = start;
+            let mut seen = rx.stats().received;
+            loop {
+                let next = rx.step();
+                let received = rx.stats().received;
+                if received != seen {
+                    seen = received;
+                    last = StdInstant::now();
+                } else if done.load(Ordering::Acquire) && last.elapsed() >= DRAIN {
+                    // Loopback delivers into our socket buffer during the send, so once the
+                    // sender stopped, a quiet DRAIN means everything has been read.
+                    break;
+                }
+                let t = sleep_for(&rx, next, StdDuration::from_millis(10));
+                rx.wait(t);
+            }
+            (rx, last)
+        })
+    };
+    let mut v = 0i64;
+    while start.elapsed() < FLOW_TIME {
+        v += 1;
+        let now = tx.now();
+        for &h in &handles {
+            tx.core_mut().write(now, h, v).expect("write");
+        }
+        black_box(tx.step());
+    }
+    done.store(true, Ordering::Release);
+    let (rx, last) = receiver.join().expect("receiver node");
+    let received: u64 = (0..ports).map(|i| rx.why("D", &format!("p{i:02}")).expect("port").accepted).sum();
+    Flow {
+        sent: tx.stats().sent - sent_before,
+        received,
+        secs: (last - start).as_secs_f64(),
+        datagrams: counter(&tx, "datagrams_sent") - datagrams_before,
+    }
+}
+
+/// Sender and receiver of the batching phase, ready to run on one thread.
+fn batch_pair(ports: usize, mtu: usize) -> (Node, Node, Vec<PortRef>) {
+    let (mut rx, rx_addr) = udp_node(2, mtu, None);
+    let (mut tx, _) = udp_node(1, mtu, Some(rx_addr));
+    let names: Vec<String> = (0..ports).map(|i| format!("p{i:02}")).collect();
+    let mut src = BehaviorClass::new("Src");
+    let mut dst = BehaviorClass::new("Dst");
+    for n in &names {
+        src.port(int_port(n)).expect("port");
+        dst.port(int_port(n)).expect("port");
+    }
+    tx.define(src).expect("class");
+    tx.create("Src", "S").expect("behavior");
+    rx.define(dst).expect("class");
+    rx.create("Dst", "D").expect("behavior");
+    for n in &names {
+        tx.connect(&Endpoint::local("S", n), &Endpoint::node(NodeId(2), "D", n), ConnectionKind::Normal)
+            .expect("connect");
+    }
+    meet(&mut tx, &mut rx);
+    let handles = names.iter().map(|n| tx.core().port("S", n).expect("port")).collect();
+    (tx, rx, handles)
+}
+
+/// `turns` sender turns (write every port, step), each followed by a receiver step.
+#[inline(never)]
+fn lockstep_turns(tx: &mut Node, rx: &mut Node, handles: &[PortRef], turns: i64) {
+    for v in 1..=turns {
+        let now = tx.now();
+        for &h in handles {
+            tx.core_mut().write(now, h, v).expect("write");
+        }
+        tx.step();
+        rx.step();
+    }
+}
+
+/// `rounds` round trips on one thread: A writes and steps, B steps, A steps (and reads).
+#[inline(never)]
+fn lockstep_round_trips(a: &mut Node, b: &mut Node, p: PortRef, s: PortRef, rounds: i64) {
+    for i in 1..=rounds {
+        let now = a.now();
+        a.core_mut().write(now, p, i).expect("write");
+        a.step();
+        while a.core().read(s).ok().and_then(|v| v.as_int()) != Some(i) {
+            b.step();
+            a.step();
+        }
+    }
+}
+
+/// The single-threaded runs for callgrind (see the module docs).
+fn callgrind_mode() {
+    const ROUND_TRIPS: i64 = 10_000;
+    let (mut a, mut b, p, s) = ping_pair();
+    lockstep_round_trips(&mut a, &mut b, p, s, ROUND_TRIPS);
+    println!("callgrind mode: {ROUND_TRIPS} round trips ({} steps of A, {} of B)", a.stats().steps, b.stats().steps);
+    println!("instructions per round trip = Ir of lockstep_round_trips / {ROUND_TRIPS}");
+    const TURNS: i64 = 2_000;
+    let (mut tx, mut rx, handles) = batch_pair(BATCH_PORTS, DEFAULT_MTU);
+    lockstep_turns(&mut tx, &mut rx, &handles, TURNS);
+    let accepted: u64 = (0..BATCH_PORTS).map(|i| rx.why("D", &format!("p{i:02}")).expect("port").accepted).sum();
+    let sent = tx.stats().sent;
+    println!("callgrind mode: {TURNS} turns of {BATCH_PORTS} ports: {sent} port messages sent, {accepted} accepted");
+    println!("instructions per port message = Ir of lockstep_turns / {accepted}");
+}
+
+fn counter(node: &Node, name: &str) -> u64 {
+    node.transport_counters().iter().find(|(c, _)| c == name).map_or(0, |(_, n)| *n)
+}
+
+// ----- figures ------------------------------------------------------------------------------
+
+struct Latency {
+    median: f64,
+    mean: f64,
+    p99: f64,
+}
+
+fn latency(mut ns: Vec<u64>) -> Latency {
+    ns.sort_unstable();
+    let at = |q: f64| ns[((ns.len() - 1) as f64 * q).round() as usize] as f64 / 1000.0;
+    let mean = ns.iter().sum::<u64>() as f64 / ns.len() as f64 / 1000.0;
+    Latency { median: at(0.5), mean, p99: at(0.99) }
+}
+
+/// The run with the median receive rate.
+fn median_flow(mut runs: Vec<Flow>) -> Flow {
+    runs.sort_by(|x, y| x.rate().total_cmp(&y.rate()));
+    runs[runs.len() / 2]
+}
+
+fn machine() -> String {
+    let cpus = std::thread::available_parallelism().map_or(0, |n| n.get());
+    let model = std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("model name"))
+                .and_then(|l| l.split(':').nth(1))
+                .map(|m| m.trim().to_owned())
+        })
+        .unwrap_or_else(|| "unknown CPU".to_owned());
+    format!("{cpus} CPUs (nproc), {model}, {} {}", std::env::consts::OS, std::env::consts::ARCH)
+}
+
+/// The load average, so a reader can tell a quiet run from one sharing the CPUs.
+fn load() -> String {
+    std::fs::read_to_string("/proc/loadavg")
+        .map(|s| s.split_whitespace().take(3).collect::<Vec<_>>().join(" "))
+        .unwrap_or_else(|_| "unknown".to_owned())
+}
+
+fn verdict(met: bool) -> &'static str {
+    if met {
+        "MET"
+    } else {
+        "NOT met"
+    }
+}
+
+fn mps(x: f64) -> String {
+    format!("{:.3} M/s", x / 1e6)
+}
+
+fn main() {
+    if std::env::args().any(|a| a == "callgrind") {
+        return callgrind_mode();
+    }
+    let began = StdInstant::now();
+    println!("network benchmarks on loopback; machine: {}; load average {}", machine(), load());
+
+    let (mut raw_rtt, mut ayllu_rtt) = (Vec::new(), Vec::new());
+    for run in 1..=RUNS {
+        let raw = raw_round_trips();
+        let ayl = ayllu_round_trips();
+        println!(
+            "round trip run {run}: raw median {:.2} us, ayllu median {:.2} us",
+            latency(raw.clone()).median,
+            latency(ayl.clone()).median
+        );
+        raw_rtt.extend(raw);
+        ayllu_rtt.extend(ayl);
+    }
+    let (raw_rtt, ayllu_rtt) = (latency(raw_rtt), latency(ayllu_rtt));
+
+    let (mut raw_flows, mut single_flows, mut batch_flows, mut big_flows) = (vec![], vec![], vec![], vec![]);
+    for run in 1..=RUNS {
+        let raw = raw_one_way();
+        let single = ayllu_flow(1, DEFAULT_MTU);
+        let batch = ayllu_flow(BATCH_PORTS, DEFAULT_MTU);
+        let big = ayllu_flow(BATCH_PORTS, LOOPBACK_MTU);
+        for (what, f) in
+            [("raw", raw), ("ayllu 1/datagram", single), ("ayllu batched", batch), ("ayllu batched 8k", big)]
+        {
+            println!(
+                "flow run {run} {what:<18}: sent {:>9} received {:>9} in {:.3} s = {} (loss {:.2} %, {:.1} msgs/datagram)",
+                f.sent,
+                f.received,
+                f.secs,
+                mps(f.rate()),
+                100.0 * f.loss(),
+                f.received as f64 / f.datagrams.max(1) as f64
+            );
+        }
+        raw_flows.push(raw);
+        single_flows.push(single);
+        batch_flows.push(batch);
+        big_flows.push(big);
+    }
+    let raw = median_flow(raw_flows);
+    let single = median_flow(single_flows);
+    let batch = median_flow(batch_flows);
+    let big = median_flow(big_flows);
+
+    println!();
+    println!("Summary ({RUNS} runs each, raw and Ayllu alternating; round trips pooled, flows = median run)");
+    println!("machine: {}; load average at the end {}", machine(), load());
+    println!("{:<44} {:>14} {:>16} {:>7}  {:<26} verdict", "figure", "ayllu", "raw UDP", "ratio", "goal");
+    let rtt_ratio = ayllu_rtt.median / raw_rtt.median;
+    println!(
+        "{:<44} {:>11.2} us {:>13.2} us {:>6.2}x  {:<26} {}",
+        "round trip, median",
+        ayllu_rtt.median,
+        raw_rtt.median,
+        rtt_ratio,
+        "<= 1.2x raw",
+        verdict(rtt_ratio <= GOAL_RTT_RATIO)
+    );
+    for (what, a, r) in
+        [("round trip, mean", ayllu_rtt.mean, raw_rtt.mean), ("round trip, p99", ayllu_rtt.p99, raw_rtt.p99)]
+    {
+        println!("{what:<44} {a:>11.2} us {r:>13.2} us {:>6.2}x  {:<26} -", a / r, "(information)");
+    }
+    let single_ratio = single.rate() / raw.rate();
+    println!(
+        "{:<44} {:>14} {:>16} {:>6.2}x  {:<26} {}",
+        "one-way, 1 msg/datagram (received/s)",
+        mps(single.rate()),
+        mps(raw.rate()),
+        single_ratio,
+        ">= 1.0x raw, no loss",
+        verdict(single_ratio >= 1.0 && single.received == single.sent)
+    );
+    println!(
+        "{:<44} {:>13.3}% {:>15.3}% {:>7}  {:<26} -",
+        "  loss (sent but never received)",
+        100.0 * single.loss(),
+        100.0 * raw.loss(),
+        "",
+        "(information)"
+    );
+    for (what, f) in [
+        (format!("batched, {BATCH_PORTS} ports/turn, mtu {DEFAULT_MTU} (accepted/s)"), batch),
+        (format!("batched, {BATCH_PORTS} ports/turn, mtu {LOOPBACK_MTU} (accepted/s)"), big),
+    ] {
+        println!(
+            "{what:<44} {:>14} {:>16} {:>6.2}x  {:<26} {}",
+            mps(f.rate()),
+            mps(raw.rate()),
+            f.rate() / raw.rate(),
+            ">= 5 M port msgs/s",
+            verdict(f.rate() >= GOAL_BATCHED)
+        );
+        println!(
+            "{:<44} {:>13.3}% {:>16} {:>7}  {:<26} -",
+            format!("  loss; {:.1} msgs/datagram", f.sent as f64 / f.datagrams.max(1) as f64),
+            100.0 * f.loss(),
+            "",
+            "",
+            "(information)"
+        );
+    }
+    println!("(whole benchmark: {:.1} s)", began.elapsed().as_secs_f64());
+}
