@@ -17,6 +17,8 @@ test:
 	$(MAKE) -C lite/c test
 	$(PYTHON) -m pytest --version >/dev/null 2>&1 || $(PYTHON) -m pip install --quiet pytest
 	$(PYTHON) -m pytest lite/python/tests -q
+	$(CARGO) build -p ayllu-cli
+	$(PYTHON) spec/conformance --ayllu target/debug/ayllu
 
 ## Formatting and lints, warnings as errors.
 lint:
@@ -24,6 +26,7 @@ lint:
 	$(CARGO) clippy --workspace --all-targets -- -D warnings
 	$(PYTHON) -m ruff --version >/dev/null 2>&1 || $(PYTHON) -m pip install --quiet ruff
 	cd lite/python && $(PYTHON) -m ruff check . && $(PYTHON) -m ruff format --check .
+	$(PYTHON) -m ruff check spec/conformance && $(PYTHON) -m ruff format --check spec/conformance
 
 ## Benchmarks (not part of the tests): figures printed beside a baseline measured in the same run.
 bench:

@@ -190,7 +190,8 @@ pub struct NodeCore {
     poll_epoch: u64,
     outbox: VecDeque<Outgoing>,
     pub(crate) counters: Counters,
-    newest_seq: HashMap<(NodeId, u64), Incoming>,
+    /// Keyed by `incoming_key(sender, connection)`.
+    newest_seq: HashMap<u128, Incoming>,
     seq_table_resets: u64,
     requests: Vec<Request>,
     next_request: u64,
@@ -709,12 +710,14 @@ impl NodeCore {
         for &pi in &port.triggers {
             queue(&mut self.pending, &mut beh.processes[usize::from(pi)], b, id, pi);
         }
+        // A port with nowhere to send has nothing to block: only real blocks are counted.
+        if port.out.is_empty() {
+            return Ok(());
+        }
         match port.windows.admit_propagation(now, Origin::Internal) {
             Ok(()) => {
-                if !port.out.is_empty() {
-                    self.stack.push(Frame { b, p, next: 0 });
-                    self.run_wave();
-                }
+                self.stack.push(Frame { b, p, next: 0 });
+                self.run_wave();
             }
             Err(cause) => {
                 port.counters.add(cause);
@@ -822,8 +825,11 @@ impl NodeCore {
         for &pi in &port.triggers {
             queue(&mut self.pending, &mut beh.processes[usize::from(pi)], b, id, pi);
         }
+        if port.out.is_empty() {
+            return false;
+        }
         match port.windows.admit_propagation(now, Origin::Connection(from)) {
-            Ok(()) => !port.out.is_empty(),
+            Ok(()) => true,
             Err(cause) => {
                 port.counters.add(cause);
                 self.counters.add(cause);
@@ -846,7 +852,7 @@ impl NodeCore {
     }
 
     fn receive_port(&mut self, from: NodeId, m: PortMessage) {
-        let key = (from, m.conn.0);
+        let key = incoming_key(from, m.conn);
         // One hash lookup per message from a known connection: this runs for every message.
         let cached = match self.newest_seq.get_mut(&key) {
             Some(incoming) => {
@@ -1224,6 +1230,12 @@ pub(crate) fn current(cell: &PortCell, now: Instant) -> &Value {
     } else {
         &cell.value
     }
+}
+
+/// The sequence table's key for connection `conn` of node `from`: one integer, hashed in one
+/// piece (a tuple is hashed field by field, which costs more on every message received).
+fn incoming_key(from: NodeId, conn: ConnectionId) -> u128 {
+    (u128::from(from.0) << 64) | u128::from(conn.0)
 }
 
 fn queue(pending: &mut VecDeque<(u32, u64, u16)>, proc_: &mut ProcState, b: u32, id: u64, pi: u16) {

@@ -155,3 +155,23 @@ fn inhibit_does_not_block_writes_into_the_port() {
     assert_eq!(why.internal_output_blocked, Some(DropCause::Inhibited));
     assert_eq!(why.connection_output_blocked, Some(DropCause::Inhibited));
 }
+
+#[test]
+fn a_port_with_nowhere_to_send_counts_no_blocks() {
+    // S6 + counters: "every blocked message is counted" — a port with no outgoing connection
+    // stops nothing, so an inhibit window over it counts nothing, while the same window over
+    // a port that has somewhere to send counts each stopped value once.
+    let mut node = wiring(&["I", "A", "D", "E"]);
+    link(&mut node, "I", "D", ConnectionKind::Inhibit(ms(100)));
+    link(&mut node, "A", "D", ConnectionKind::Normal);
+    put(&mut node, at(0), "I", 1);
+    put(&mut node, at(1), "A", 2);
+    put(&mut node, at(2), "D", 3);
+    assert_eq!(value(&node, "D"), 3, "still stored");
+    assert_eq!(dropped(&node, "D", DropCause::Inhibited), 0);
+    link(&mut node, "D", "E", ConnectionKind::Normal);
+    put(&mut node, at(3), "D", 4);
+    put(&mut node, at(4), "A", 5);
+    assert_eq!(dropped(&node, "D", DropCause::Inhibited), 2);
+    assert_eq!(value(&node, "E"), 0);
+}

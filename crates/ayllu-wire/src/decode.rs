@@ -507,4 +507,45 @@ mod tests {
             assert_eq!(DropReason::from_name(r.name()), Some(r));
         }
     }
+
+    fn port(behavior: &str, port: &str, seq: u64) -> WireMessage {
+        WireMessage::Port(PortMessage {
+            conn: ConnectionId(1),
+            seq,
+            behavior: behavior.into(),
+            port: port.into(),
+            kind: ConnectionKind::Normal,
+            priority: 0,
+            value: Value::Int(1),
+        })
+    }
+
+    #[test]
+    fn decoding_with_a_name_cache_gives_what_decode_gives() {
+        let mut names = NameCache::new();
+        let mut reuse = Vec::new();
+        // Far more names than the cache holds, so entries are replaced all along; every
+        // datagram also repeats a name, and ends with a malformed one now and then.
+        for i in 0..(4 * NameCache::SETS) as u64 {
+            let b = format!("B{}", i % 7);
+            let p = format!("port-{i}");
+            let mut w = crate::DatagramWriter::new(7, NodeId(1), i, None, 1400);
+            w.push(&port(&b, &p, i)).unwrap();
+            w.push(&port(&b, "In", i)).unwrap();
+            if i % 50 == 0 {
+                w.push_raw(kind::PORT, &[1, 2, 3]).unwrap();
+            }
+            let bytes = w.finish();
+            let got = decode_with(&bytes, &OPEN, &mut names, std::mem::take(&mut reuse));
+            assert_eq!(got, decode(&bytes, &OPEN));
+            if let Ok(d) = got {
+                reuse = d.messages;
+            }
+        }
+        // A name seen before is handed out again, not allocated again.
+        let bytes = crate::encode_datagram(7, NodeId(1), 1, None, &[port("B1", "In", 1), port("B1", "In", 2)]).unwrap();
+        let d = decode_with(&bytes, &OPEN, &mut names, Vec::new()).unwrap();
+        let (WireMessage::Port(a), WireMessage::Port(b)) = (&d.messages[0], &d.messages[1]) else { unreachable!() };
+        assert!(Arc::ptr_eq(&a.behavior, &b.behavior) && Arc::ptr_eq(&a.port, &b.port));
+    }
 }

@@ -9,7 +9,7 @@
 
 use core::fmt;
 
-use ayllu_core::{ControlBody, Endpoint, NodeId, Value};
+use ayllu_core::{ControlBody, Endpoint, NodeId, PortMessage, Value};
 
 use crate::auth::{mac, Key};
 use crate::message::{conn_kind_code, endpoint_tag, reply_code, value_type, ReplyPart, WireMessage};
@@ -79,14 +79,16 @@ impl DatagramWriter {
     pub fn with_buffer(mut buf: Vec<u8>, team: u32, sender: NodeId, seq: u64, key: Option<Key>, mtu: usize) -> Self {
         let mac_len = if key.is_some() { MAC_LEN } else { 0 };
         let limit = mtu.clamp(HEADER_LEN + mac_len, MAX_DATAGRAM_LEN) - mac_len;
+        let mut header = [0u8; HEADER_LEN];
+        header[..2].copy_from_slice(&MAGIC);
+        header[2] = VERSION;
+        header[3] = if key.is_some() { FLAG_AUTH } else { 0 };
+        header[4..8].copy_from_slice(&team.to_le_bytes());
+        header[8..12].copy_from_slice(&sender.0.to_le_bytes());
+        header[12..].copy_from_slice(&seq.to_le_bytes());
         buf.clear();
         buf.reserve(limit + mac_len);
-        buf.extend_from_slice(&MAGIC);
-        buf.push(VERSION);
-        buf.push(if key.is_some() { FLAG_AUTH } else { 0 });
-        buf.extend_from_slice(&team.to_le_bytes());
-        buf.extend_from_slice(&sender.0.to_le_bytes());
-        buf.extend_from_slice(&seq.to_le_bytes());
+        buf.extend_from_slice(&header);
         DatagramWriter { buf, key, limit, messages: 0 }
     }
 
@@ -182,15 +184,7 @@ pub fn encode_datagram(
 
 fn encode_body(buf: &mut Vec<u8>, message: &WireMessage) -> Result<(), EncodeError> {
     match message {
-        WireMessage::Port(p) => {
-            buf.extend_from_slice(&p.conn.0.to_le_bytes());
-            buf.extend_from_slice(&p.seq.to_le_bytes());
-            put_kind(buf, p.kind)?;
-            buf.extend_from_slice(&p.priority.to_le_bytes());
-            put_str8(buf, &p.behavior, NonEmpty::Yes)?;
-            put_str8(buf, &p.port, NonEmpty::Yes)?;
-            put_value(buf, &p.value)
-        }
+        WireMessage::Port(p) => encode_port(buf, p),
         WireMessage::Hello { interval_ms, name, groups } => {
             if *interval_ms == 0 {
                 return Err(EncodeError::Invalid("HELLO interval_ms must be above zero"));
@@ -248,6 +242,37 @@ fn encode_body(buf: &mut Vec<u8>, message: &WireMessage) -> Result<(), EncodeErr
         }
         WireMessage::Unknown { .. } => Err(EncodeError::Invalid("an unknown message kind has no body to send")),
     }
+}
+
+/// PORT, the message sent most, with the checks (and errors) of the field-by-field encoders:
+/// the fixed-size fields are laid out in one array and everything is appended after a single
+/// reservation, rather than with a capacity check and a copy per field.
+fn encode_port(buf: &mut Vec<u8>, p: &PortMessage) -> Result<(), EncodeError> {
+    let (code, period) = conn_kind_code(p.kind);
+    if code != 0 && period == 0 {
+        return Err(EncodeError::Invalid("a timed connection kind needs a period above zero"));
+    }
+    let name = |s: &str| -> Result<u8, EncodeError> {
+        if s.is_empty() {
+            return Err(EncodeError::Invalid("behavior, port and group names are not empty"));
+        }
+        u8::try_from(s.len()).map_err(|_| EncodeError::Invalid("names are at most 255 bytes"))
+    };
+    let (behavior_len, port_len) = (name(&p.behavior)?, name(&p.port)?);
+    let mut fixed = [0u8; 29];
+    fixed[..8].copy_from_slice(&p.conn.0.to_le_bytes());
+    fixed[8..16].copy_from_slice(&p.seq.to_le_bytes());
+    fixed[16] = code;
+    fixed[17..25].copy_from_slice(&period.to_le_bytes());
+    fixed[25..].copy_from_slice(&p.priority.to_le_bytes());
+    // Scalars need at most 9 bytes; longer values reserve again in `put_value`.
+    buf.reserve(fixed.len() + 2 + p.behavior.len() + p.port.len() + 9);
+    buf.extend_from_slice(&fixed);
+    buf.push(behavior_len);
+    buf.extend_from_slice(p.behavior.as_bytes());
+    buf.push(port_len);
+    buf.extend_from_slice(p.port.as_bytes());
+    put_value(buf, &p.value)
 }
 
 fn put_request(buf: &mut Vec<u8>, body: &ControlBody) -> Result<(), EncodeError> {

@@ -3,9 +3,11 @@
 //!
 //! Run with `cargo bench -p ayllu --bench network` (about a minute once compiled). Two
 //! threads on 127.0.0.1, one per node (or per raw socket); every phase is bounded in count
-//! and time. Phases alternate raw / Ayllu and are repeated [`RUNS`] times so that drift of
-//! the machine hits both alike; the table at the end gives each figure, its baseline, the
-//! ratio, the goal and whether it is met, and the machine.
+//! and time. Raw and Ayllu runs alternate and are repeated ([`RTT_RUNS`], [`FLOW_RUNS`]) so
+//! that drift of the machine hits both alike, and the figures are medians over runs, so that
+//! one run disturbed by another process does not decide them. The table at the end gives
+//! each figure, its baseline, the ratio, the goal and whether it is met, the machine and its
+//! load average. `-- rtt` or `-- flow` runs one part only.
 //!
 //! What is measured:
 //! * Round trip. Raw: one std `UdpSocket` per thread, blocking `recv_from`, an 8-byte
@@ -25,7 +27,8 @@
 //! `cargo bench -p ayllu --bench network -- callgrind` instead runs the batching path on one
 //! thread (sender turn, receiver turn, alternating, over real loopback sockets) for a fixed
 //! number of turns, so that `valgrind --tool=callgrind --toggle-collect='*lockstep_turns*'`
-//! counts the instructions per port message, sender and receiver together; and the round trip
+//! counts the instructions per port message, sender and receiver together (`*sender_turn*` and
+//! `*receiver_turn*` count one side each); and the round trip
 //! likewise (`--toggle-collect='*lockstep_round_trips*'`: instructions per round trip). Timings on this
 //! kind of machine move by tens of percent between runs; instruction counts do not.
 
@@ -41,8 +44,13 @@ use ayllu::{
     BehaviorClass, ConnectionKind, Endpoint, MonotonicClock, Node, NodeId, PortRef, PortSpec, UdpConfig, UdpTransport,
 };
 
-/// Each phase runs this many times, raw and Ayllu alternating.
-const RUNS: usize = 3;
+/// Round-trip runs with both threads on one CPU (about 0.1 s each), raw and Ayllu alternating.
+const RTT_RUNS: usize = 7;
+/// Round-trip runs with the threads on two CPUs, and round trips in each (they take ~75 us).
+const RTT_TWO_CPU_RUNS: usize = 3;
+const TWO_CPU_ROUNDS: usize = 5_000;
+/// Throughput runs (about 4 s each: raw, then three Ayllu flows).
+const FLOW_RUNS: usize = 3;
 /// Round trips measured per run, after the warm-up ones.
 const ROUNDS: usize = 20_000;
 const WARM_UP: usize = 2_000;
@@ -63,6 +71,52 @@ const GOAL_RTT_RATIO: f64 = 1.2;
 /// Batching goal, port messages per second.
 const GOAL_BATCHED: f64 = 5e6;
 
+/// Where the two threads of a measurement run: `(first, second)` CPU. See [`Placement`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Placement {
+    /// Both on CPU 0: a round trip is two thread switches on one CPU.
+    SameCpu,
+    /// First on CPU 0, second on CPU 1. In a virtual machine a message then has to wake an
+    /// idle virtual CPU, which the hypervisor does in tens of microseconds: that, not the
+    /// software under test, is most of what a round trip measures.
+    TwoCpus,
+}
+
+impl Placement {
+    fn cpus(self) -> (usize, usize) {
+        match self {
+            Placement::SameCpu => (0, 0),
+            Placement::TwoCpus => (0, 1),
+        }
+    }
+}
+
+/// The machine's CPUs, counted before any thread is pinned (the count follows the affinity).
+fn cpu_count() -> usize {
+    static CPUS: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
+    *CPUS.get_or_init(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
+}
+
+/// Run the calling thread on `cpu` only, so that where the scheduler happens to put the two
+/// threads (same CPU or not) does not decide the figures: on this kind of machine it changes
+/// a loopback round trip from about 4 to about 75 microseconds.
+fn pin(cpu: usize) {
+    #[cfg(target_os = "linux")]
+    {
+        let cpus = cpu_count();
+        // SAFETY: `set` is a plain bit set, initialised by CPU_ZERO before use; pid 0 is the
+        // calling thread, and the size passed is that of the set.
+        unsafe {
+            let mut set: libc::cpu_set_t = std::mem::zeroed();
+            libc::CPU_ZERO(&mut set);
+            libc::CPU_SET(cpu % cpus, &mut set);
+            libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &set);
+        }
+    }
+    #[cfg(not(target_os = "linux"))]
+    let _ = cpu;
+}
+
 // ----- raw UDP ------------------------------------------------------------------------------
 
 /// A blocking std socket on loopback with the same buffer sizes Ayllu's sockets ask for.
@@ -75,34 +129,87 @@ fn raw_socket() -> UdpSocket {
     s.into()
 }
 
-/// Round-trip times (ns) of `ROUNDS` 8-byte ping-pongs after `WARM_UP` unmeasured ones.
-fn raw_round_trips() -> Vec<u64> {
+/// How a raw-UDP round trip waits for its answer.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum RawStyle {
+    /// The baseline: one blocking `recv_from`.
+    Blocking,
+    /// The system calls a node's loop makes, without the node: a non-blocking socket, a
+    /// receive attempt before each send (the turn's receive), then poll + receive. What Ayllu
+    /// could reach if its own work took no time.
+    NodeLoop,
+}
+
+/// Block until `socket` is readable or `timeout` passes, as `ayllu::datagram::OsSocket` does.
+fn wait_readable(socket: &UdpSocket, timeout: StdDuration) {
+    use std::os::fd::AsRawFd;
+    let mut fd = libc::pollfd { fd: socket.as_raw_fd(), events: libc::POLLIN, revents: 0 };
+    // SAFETY: one valid pollfd for a socket we own; (p)poll only writes `revents`.
+    #[cfg(target_os = "linux")]
+    unsafe {
+        let ts = libc::timespec { tv_sec: timeout.as_secs() as libc::time_t, tv_nsec: timeout.subsec_nanos() as _ };
+        libc::ppoll(&mut fd, 1, &ts, std::ptr::null());
+    }
+    #[cfg(not(target_os = "linux"))]
+    unsafe {
+        libc::poll(&mut fd, 1, timeout.as_millis() as libc::c_int);
+    }
+}
+
+/// Round-trip times (ns) of `rounds` 8-byte ping-pongs after `WARM_UP` unmeasured ones.
+fn raw_round_trips(rounds: usize, place: Placement, style: RawStyle) -> Vec<u64> {
+    let (cpu_a, cpu_b) = place.cpus();
+    pin(cpu_a);
     let (a, b) = (raw_socket(), raw_socket());
-    let a_addr = a.local_addr().expect("addr");
     let b_addr = b.local_addr().expect("addr");
+    let polled = style == RawStyle::NodeLoop;
     for s in [&a, &b] {
         s.set_read_timeout(Some(StdDuration::from_secs(2))).expect("timeout");
+        s.set_nonblocking(polled).expect("non-blocking");
     }
+    let total = WARM_UP + rounds;
     let echo = thread::spawn(move || {
+        pin(cpu_b);
         let mut buf = [0u8; 64];
-        for _ in 0..WARM_UP + ROUNDS {
-            let Ok((n, from)) = b.recv_from(&mut buf) else { return };
-            b.send_to(&buf[..n], from).expect("echo");
+        let (mut echoed, give_up) = (0, StdInstant::now() + StdDuration::from_secs(60));
+        while echoed < total && StdInstant::now() < give_up {
+            if polled {
+                wait_readable(&b, StdDuration::from_millis(10));
+            }
+            match b.recv_from(&mut buf) {
+                Ok((n, from)) => {
+                    b.send_to(&buf[..n], from).expect("echo");
+                    echoed += 1;
+                }
+                Err(_) if polled => {}
+                Err(_) => return,
+            }
         }
     });
-    let mut samples = Vec::with_capacity(ROUNDS);
+    let mut samples = Vec::with_capacity(rounds);
     let mut buf = [0u8; 64];
-    for i in 0..(WARM_UP + ROUNDS) as u64 {
+    for i in 0..total as u64 {
         let t0 = StdInstant::now();
+        if polled {
+            let _ = a.recv_from(&mut buf); // the turn's receive: nothing is waiting
+        }
         a.send_to(&i.to_le_bytes(), b_addr).expect("ping");
-        let (n, _) = a.recv_from(&mut buf).expect("pong within 2 s (loopback)");
+        let n = loop {
+            if polled {
+                wait_readable(&a, StdDuration::from_millis(10));
+            }
+            match a.recv_from(&mut buf) {
+                Ok((n, _)) => break n,
+                Err(_) if polled && t0.elapsed() < StdDuration::from_secs(2) => {}
+                Err(e) => panic!("no pong within 2 s on loopback: {e}"),
+            }
+        };
         let dt = t0.elapsed();
         assert_eq!(&buf[..n], &i.to_le_bytes());
         if i >= WARM_UP as u64 {
             samples.push(dt.as_nanos() as u64);
         }
     }
-    let _ = a_addr;
     echo.join().expect("echo thread");
     samples
 }
@@ -128,6 +235,7 @@ impl Flow {
 
 /// A raw sender blasting 8-byte datagrams for `FLOW_TIME` at a blocking receiver.
 fn raw_one_way() -> Flow {
+    pin(0);
     let (tx, rx) = (raw_socket(), raw_socket());
     let to = rx.local_addr().expect("addr");
     rx.set_read_timeout(Some(DRAIN)).expect("timeout");
@@ -136,6 +244,7 @@ fn raw_one_way() -> Flow {
     let receiver = {
         let done = done.clone();
         thread::spawn(move || {
+            pin(1);
             let mut buf = [0u8; 64];
             let (mut received, mut last) = (0u64, start);
             loop {
@@ -201,8 +310,9 @@ fn sleep_for(node: &Node, next: Option<ayllu::Instant>, cap: StdDuration) -> Std
 }
 
 /// Run `node` in a step + wait loop on its own thread until `stop` is set; returns it.
-fn spawn_loop(mut node: Node, stop: Arc<AtomicBool>) -> thread::JoinHandle<Node> {
+fn spawn_loop(mut node: Node, stop: Arc<AtomicBool>, cpu: usize) -> thread::JoinHandle<Node> {
     thread::spawn(move || {
+        pin(cpu);
         while !stop.load(Ordering::Acquire) {
             let next = node.step();
             let t = sleep_for(&node, next, StdDuration::from_millis(10));
@@ -245,12 +355,14 @@ fn ping_pair() -> (Node, Node, PortRef, PortRef) {
 }
 
 /// Round-trip times (ns): see the module docs.
-fn ayllu_round_trips() -> Vec<u64> {
+fn ayllu_round_trips(rounds: usize, place: Placement) -> Vec<u64> {
+    let (cpu_a, cpu_b) = place.cpus();
+    pin(cpu_a);
     let (mut a, b, p, s) = ping_pair();
     let stop = Arc::new(AtomicBool::new(false));
-    let echo = spawn_loop(b, stop.clone());
-    let mut samples = Vec::with_capacity(ROUNDS);
-    for i in 1..=(WARM_UP + ROUNDS) as i64 {
+    let echo = spawn_loop(b, stop.clone(), cpu_b);
+    let mut samples = Vec::with_capacity(rounds);
+    for i in 1..=(WARM_UP + rounds) as i64 {
         let t0 = StdInstant::now();
         let mut sent_at = t0;
         let now = a.now();
@@ -283,6 +395,7 @@ fn ayllu_round_trips() -> Vec<u64> {
 /// A sender node whose behavior `S` has `ports` ports, each connected to the same-named port
 /// of the receiver's behavior `D`; the sender steps after every `per_turn` writes.
 fn ayllu_flow(ports: usize, mtu: usize) -> Flow {
+    pin(0);
     let (mut tx, mut rx, handles) = batch_pair(ports, mtu);
     let sent_before = tx.stats().sent;
     let datagrams_before = counter(&tx, "datagrams_sent");
@@ -292,6 +405,7 @@ fn ayllu_flow(ports: usize, mtu: usize) -> Flow {
     let receiver = {
         let done = done.clone();
         thread::spawn(move || {
+            pin(1);
             let mut last = start;
             let mut seen = rx.stats().received;
             loop {
@@ -355,17 +469,28 @@ fn batch_pair(ports: usize, mtu: usize) -> (Node, Node, Vec<PortRef>) {
     (tx, rx, handles)
 }
 
-/// `turns` sender turns (write every port, step), each followed by a receiver step.
+/// `turns` sender turns, each followed by a receiver turn.
 #[inline(never)]
 fn lockstep_turns(tx: &mut Node, rx: &mut Node, handles: &[PortRef], turns: i64) {
     for v in 1..=turns {
-        let now = tx.now();
-        for &h in handles {
-            tx.core_mut().write(now, h, v).expect("write");
-        }
-        tx.step();
-        rx.step();
+        sender_turn(tx, handles, v);
+        receiver_turn(rx);
     }
+}
+
+/// Write every port, then step (which sends). Separate so callgrind can count each side.
+#[inline(never)]
+fn sender_turn(tx: &mut Node, handles: &[PortRef], v: i64) {
+    let now = tx.now();
+    for &h in handles {
+        tx.core_mut().write(now, h, v).expect("write");
+    }
+    tx.step();
+}
+
+#[inline(never)]
+fn receiver_turn(rx: &mut Node) {
+    rx.step();
 }
 
 /// `rounds` round trips on one thread: A writes and steps, B steps, A steps (and reads).
@@ -424,7 +549,7 @@ fn median_flow(mut runs: Vec<Flow>) -> Flow {
 }
 
 fn machine() -> String {
-    let cpus = std::thread::available_parallelism().map_or(0, |n| n.get());
+    let cpus = cpu_count();
     let model = std::fs::read_to_string("/proc/cpuinfo")
         .ok()
         .and_then(|s| {
@@ -456,36 +581,63 @@ fn mps(x: f64) -> String {
     format!("{:.3} M/s", x / 1e6)
 }
 
-fn main() {
-    if std::env::args().any(|a| a == "callgrind") {
-        return callgrind_mode();
-    }
-    let began = StdInstant::now();
-    println!("network benchmarks on loopback; machine: {}; load average {}", machine(), load());
+/// Round-trip figures of one side over all runs: the median of the runs' medians (and so on),
+/// so that a run disturbed by another process on the machine does not decide the figure.
+fn across_runs(runs: &[Latency]) -> Latency {
+    let mid = |f: fn(&Latency) -> f64| {
+        let mut v: Vec<f64> = runs.iter().map(f).collect();
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    Latency { median: mid(|l| l.median), mean: mid(|l| l.mean), p99: mid(|l| l.p99) }
+}
 
-    let (mut raw_rtt, mut ayllu_rtt) = (Vec::new(), Vec::new());
-    for run in 1..=RUNS {
-        let raw = raw_round_trips();
-        let ayl = ayllu_round_trips();
+/// Round-trip figures of one placement: Ayllu, the raw baseline, and raw UDP making a node
+/// loop's system calls.
+struct RoundTrips {
+    ayllu: Latency,
+    raw: Latency,
+    raw_node_loop: Latency,
+}
+
+/// Alternating raw / Ayllu round-trip runs with the threads placed as `place` says.
+fn round_trip_phase(place: Placement, runs: usize, rounds: usize) -> RoundTrips {
+    let (mut raw_runs, mut loop_runs, mut ayllu_runs) = (Vec::new(), Vec::new(), Vec::new());
+    for run in 1..=runs {
+        let raw = latency(raw_round_trips(rounds, place, RawStyle::Blocking));
+        let ayl = latency(ayllu_round_trips(rounds, place));
+        let polled = latency(raw_round_trips(rounds, place, RawStyle::NodeLoop));
         println!(
-            "round trip run {run}: raw median {:.2} us, ayllu median {:.2} us",
-            latency(raw.clone()).median,
-            latency(ayl.clone()).median
+            "round trip {place:?} run {run}: raw median {:.2} us (p99 {:.2}), ayllu {:.2} us (p99 {:.2}): {:.2}x; \
+             raw with a node loop's system calls {:.2} us: {:.2}x",
+            raw.median,
+            raw.p99,
+            ayl.median,
+            ayl.p99,
+            ayl.median / raw.median,
+            polled.median,
+            polled.median / raw.median
         );
-        raw_rtt.extend(raw);
-        ayllu_rtt.extend(ayl);
+        raw_runs.push(raw);
+        loop_runs.push(polled);
+        ayllu_runs.push(ayl);
     }
-    let (raw_rtt, ayllu_rtt) = (latency(raw_rtt), latency(ayllu_rtt));
+    RoundTrips { ayllu: across_runs(&ayllu_runs), raw: across_runs(&raw_runs), raw_node_loop: across_runs(&loop_runs) }
+}
 
-    let (mut raw_flows, mut single_flows, mut batch_flows, mut big_flows) = (vec![], vec![], vec![], vec![]);
-    for run in 1..=RUNS {
-        let raw = raw_one_way();
-        let single = ayllu_flow(1, DEFAULT_MTU);
-        let batch = ayllu_flow(BATCH_PORTS, DEFAULT_MTU);
-        let big = ayllu_flow(BATCH_PORTS, LOOPBACK_MTU);
-        for (what, f) in
-            [("raw", raw), ("ayllu 1/datagram", single), ("ayllu batched", batch), ("ayllu batched 8k", big)]
-        {
+/// Alternating raw / Ayllu flows; returns the median run of each: raw, one message per
+/// datagram, batched at the default MTU, batched at the loopback MTU.
+fn flow_phase() -> [Flow; 4] {
+    let mut runs: [Vec<Flow>; 4] = Default::default();
+    for run in 1..=FLOW_RUNS {
+        let flows = [
+            raw_one_way(),
+            ayllu_flow(1, DEFAULT_MTU),
+            ayllu_flow(BATCH_PORTS, DEFAULT_MTU),
+            ayllu_flow(BATCH_PORTS, LOOPBACK_MTU),
+        ];
+        for (i, f) in flows.into_iter().enumerate() {
+            let what = ["raw", "ayllu 1/datagram", "ayllu batched 1472", "ayllu batched 8192"][i];
             println!(
                 "flow run {run} {what:<18}: sent {:>9} received {:>9} in {:.3} s = {} (loss {:.2} %, {:.1} msgs/datagram)",
                 f.sent,
@@ -493,76 +645,102 @@ fn main() {
                 f.secs,
                 mps(f.rate()),
                 100.0 * f.loss(),
-                f.received as f64 / f.datagrams.max(1) as f64
+                f.sent as f64 / f.datagrams.max(1) as f64
             );
+            runs[i].push(f);
         }
-        raw_flows.push(raw);
-        single_flows.push(single);
-        batch_flows.push(batch);
-        big_flows.push(big);
     }
-    let raw = median_flow(raw_flows);
-    let single = median_flow(single_flows);
-    let batch = median_flow(batch_flows);
-    let big = median_flow(big_flows);
+    runs.map(median_flow)
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).filter(|a| !a.starts_with('-')).collect();
+    if args.iter().any(|a| a == "callgrind") {
+        return callgrind_mode();
+    }
+    // `rtt` or `flow` runs only that part; nothing (or anything else) runs both.
+    let only = |part: &str| args.iter().any(|a| a == "rtt" || a == "flow") && !args.iter().any(|a| a == part);
+    let began = StdInstant::now();
+    cpu_count(); // before any pinning
+    println!("network benchmarks on loopback; machine: {}; load average {}", machine(), load());
+    let rtt = (!only("rtt")).then(|| {
+        (
+            round_trip_phase(Placement::SameCpu, RTT_RUNS, ROUNDS),
+            round_trip_phase(Placement::TwoCpus, RTT_TWO_CPU_RUNS, TWO_CPU_ROUNDS),
+        )
+    });
+    let flows = (!only("flow")).then(flow_phase);
 
     println!();
-    println!("Summary ({RUNS} runs each, raw and Ayllu alternating; round trips pooled, flows = median run)");
+    println!(
+        "Summary: raw UDP and Ayllu alternating in this run; round trips: median over {RTT_RUNS} runs (two CPUs: \
+         {RTT_TWO_CPU_RUNS}) of each run's statistic; flows (sender on CPU 0, receiver on CPU 1): the median of \
+         {FLOW_RUNS} runs"
+    );
     println!("machine: {}; load average at the end {}", machine(), load());
     println!("{:<44} {:>14} {:>16} {:>7}  {:<26} verdict", "figure", "ayllu", "raw UDP", "ratio", "goal");
-    let rtt_ratio = ayllu_rtt.median / raw_rtt.median;
-    println!(
-        "{:<44} {:>11.2} us {:>13.2} us {:>6.2}x  {:<26} {}",
-        "round trip, median",
-        ayllu_rtt.median,
-        raw_rtt.median,
-        rtt_ratio,
-        "<= 1.2x raw",
-        verdict(rtt_ratio <= GOAL_RTT_RATIO)
-    );
-    for (what, a, r) in
-        [("round trip, mean", ayllu_rtt.mean, raw_rtt.mean), ("round trip, p99", ayllu_rtt.p99, raw_rtt.p99)]
-    {
-        println!("{what:<44} {a:>11.2} us {r:>13.2} us {:>6.2}x  {:<26} -", a / r, "(information)");
-    }
-    let single_ratio = single.rate() / raw.rate();
-    println!(
-        "{:<44} {:>14} {:>16} {:>6.2}x  {:<26} {}",
-        "one-way, 1 msg/datagram (received/s)",
-        mps(single.rate()),
-        mps(raw.rate()),
-        single_ratio,
-        ">= 1.0x raw, no loss",
-        verdict(single_ratio >= 1.0 && single.received == single.sent)
-    );
-    println!(
-        "{:<44} {:>13.3}% {:>15.3}% {:>7}  {:<26} -",
-        "  loss (sent but never received)",
-        100.0 * single.loss(),
-        100.0 * raw.loss(),
-        "",
-        "(information)"
-    );
-    for (what, f) in [
-        (format!("batched, {BATCH_PORTS} ports/turn, mtu {DEFAULT_MTU} (accepted/s)"), batch),
-        (format!("batched, {BATCH_PORTS} ports/turn, mtu {LOOPBACK_MTU} (accepted/s)"), big),
-    ] {
+    if let Some((one, two)) = rtt {
+        let (ayllu, raw) = (one.ayllu, one.raw);
+        let ratio = ayllu.median / raw.median;
         println!(
-            "{what:<44} {:>14} {:>16} {:>6.2}x  {:<26} {}",
-            mps(f.rate()),
+            "{:<44} {:>11.2} us {:>13.2} us {:>6.2}x  {:<26} {}",
+            "round trip, median (threads on one CPU)",
+            ayllu.median,
+            raw.median,
+            ratio,
+            "<= 1.2x raw",
+            verdict(ratio <= GOAL_RTT_RATIO)
+        );
+        for (what, a, r) in [
+            ("round trip, mean (one CPU)", ayllu.mean, raw.mean),
+            ("round trip, p99 (one CPU)", ayllu.p99, raw.p99),
+            ("  raw UDP with a node loop's system calls", one.raw_node_loop.median, raw.median),
+            ("round trip, median (threads on two CPUs)", two.ayllu.median, two.raw.median),
+            ("round trip, p99 (two CPUs)", two.ayllu.p99, two.raw.p99),
+        ] {
+            println!("{what:<44} {a:>11.2} us {r:>13.2} us {:>6.2}x  {:<26} -", a / r, "(information)");
+        }
+    }
+    if let Some([raw, single, batch, big]) = flows {
+        let single_ratio = single.rate() / raw.rate();
+        println!(
+            "{:<44} {:>14} {:>16} {:>6.2}x  {:<26} {}",
+            "one-way, 1 msg/datagram (received/s)",
+            mps(single.rate()),
             mps(raw.rate()),
-            f.rate() / raw.rate(),
-            ">= 5 M port msgs/s",
-            verdict(f.rate() >= GOAL_BATCHED)
+            single_ratio,
+            ">= 1.0x raw, no loss",
+            verdict(single_ratio >= 1.0 && single.received == single.sent)
         );
         println!(
-            "{:<44} {:>13.3}% {:>16} {:>7}  {:<26} -",
-            format!("  loss; {:.1} msgs/datagram", f.sent as f64 / f.datagrams.max(1) as f64),
-            100.0 * f.loss(),
-            "",
+            "{:<44} {:>13.3}% {:>15.3}% {:>7}  {:<26} -",
+            "  loss (sent but never received)",
+            100.0 * single.loss(),
+            100.0 * raw.loss(),
             "",
             "(information)"
         );
+        for (what, f) in [
+            (format!("batched, {BATCH_PORTS} ports/turn, mtu {DEFAULT_MTU} (accepted/s)"), batch),
+            (format!("batched, {BATCH_PORTS} ports/turn, mtu {LOOPBACK_MTU} (accepted/s)"), big),
+        ] {
+            println!(
+                "{what:<44} {:>14} {:>16} {:>6.2}x  {:<26} {}",
+                mps(f.rate()),
+                mps(raw.rate()),
+                f.rate() / raw.rate(),
+                ">= 5 M port msgs/s",
+                verdict(f.rate() >= GOAL_BATCHED)
+            );
+            println!(
+                "{:<44} {:>13.3}% {:>16} {:>7}  {:<26} -",
+                format!("  loss; {:.1} msgs/datagram", f.sent as f64 / f.datagrams.max(1) as f64),
+                100.0 * f.loss(),
+                "",
+                "",
+                "(information)"
+            );
+        }
     }
     println!("(whole benchmark: {:.1} s)", began.elapsed().as_secs_f64());
 }

@@ -423,3 +423,35 @@ impl Drop for BusSocket {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The read-ahead hands out every datagram once, in order, with its sender and length
+    /// (a longer one than accepted cut to `SLOT`), across more than one batch.
+    #[test]
+    fn os_socket_reads_ahead_without_losing_or_reordering() {
+        let loopback: SocketAddr = "127.0.0.1:0".parse().unwrap();
+        let mut rx = OsSocket::bind(loopback).unwrap();
+        let mut tx = OsSocket::bind(loopback).unwrap();
+        let (to, from) = (rx.local_addr().unwrap(), tx.local_addr().unwrap());
+        let sizes: Vec<usize> = (0..3 * READ_AHEAD + 5).map(|i| if i == 7 { SLOT + 100 } else { 1 + i * 37 }).collect();
+        for (i, &n) in sizes.iter().enumerate() {
+            tx.send_to(&vec![i as u8; n], to).unwrap();
+        }
+        let mut buf = vec![0u8; SLOT];
+        for (i, &n) in sizes.iter().enumerate() {
+            rx.wait(StdDuration::from_secs(1));
+            let (len, sender) = rx.recv_from(&mut buf).unwrap().expect("datagram waiting");
+            assert_eq!((len, sender), (n.min(SLOT), from), "datagram {i}");
+            assert!(buf[..len].iter().all(|&b| b == i as u8), "datagram {i} content");
+        }
+        // Nothing left: asked twice, since the first answer may come from the read-ahead.
+        assert_eq!(rx.recv_from(&mut buf).unwrap(), None);
+        assert_eq!(rx.recv_from(&mut buf).unwrap(), None);
+        let t = std::time::Instant::now();
+        rx.wait(StdDuration::from_millis(20));
+        assert!(t.elapsed() >= StdDuration::from_millis(15), "wait returned early with nothing to read");
+    }
+}

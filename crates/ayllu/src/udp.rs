@@ -43,13 +43,16 @@ struct Tally(Vec<(&'static str, u64)>);
 
 impl Tally {
     fn add(&mut self, cause: &'static str) {
+        self.add_n(cause, 1);
+    }
+    fn add_n(&mut self, cause: &'static str, n: u64) {
         if let Some(entry) = self.0.iter_mut().find(|(name, _)| std::ptr::eq(*name, cause)) {
-            entry.1 += 1;
+            entry.1 += n;
             return;
         }
         match self.0.binary_search_by(|(name, _)| (*name).cmp(cause)) {
-            Ok(i) => self.0[i].1 += 1,
-            Err(i) => self.0.insert(i, (cause, 1)),
+            Ok(i) => self.0[i].1 += n,
+            Err(i) => self.0.insert(i, (cause, n)),
         }
     }
 }
@@ -89,6 +92,9 @@ pub struct UdpTransport<S: DatagramSocket = OsSocket> {
     counters: Tally,
     generation: u64,
     buf: Vec<u8>,
+    /// Messages handed over since the last flush, counted as `messages_sent` at the flush
+    /// (one count per loop turn instead of one per message).
+    unflushed: u64,
     /// Buffers of sent datagrams, for the next ones.
     spare: Vec<Vec<u8>>,
     /// Scratch list of a message's destination addresses.
@@ -154,6 +160,7 @@ impl<S: DatagramSocket> UdpTransport<S> {
             counters: Tally::default(),
             generation: 0,
             buf: vec![0u8; MAX_DATAGRAM + 1],
+            unflushed: 0,
             spare: Vec::new(),
             route_buf: Vec::new(),
             names: NameCache::new(),
@@ -375,7 +382,7 @@ impl<S: DatagramSocket> UdpTransport<S> {
             for &addr in &addrs {
                 self.push(addr, &m);
             }
-            self.count("messages_sent");
+            self.unflushed += 1;
         } else {
             match WireMessage::from_core(&message, self.config.mtu, self.config.key.is_some()) {
                 Ok(parts) => {
@@ -384,7 +391,7 @@ impl<S: DatagramSocket> UdpTransport<S> {
                             self.push(addr, m);
                         }
                     }
-                    self.count("messages_sent");
+                    self.unflushed += 1;
                 }
                 Err(_) => self.count("unencodable"),
             }
@@ -415,6 +422,10 @@ impl<S: DatagramSocket> Transport for UdpTransport<S> {
         self.send_message(&out.to, out.message);
     }
     fn flush(&mut self) {
+        if self.unflushed > 0 {
+            self.counters.add_n("messages_sent", std::mem::take(&mut self.unflushed));
+            self.generation += 1;
+        }
         let greet = std::mem::take(&mut self.greet);
         if !greet.is_empty() {
             let hello = self.hello();
