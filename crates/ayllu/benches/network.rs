@@ -1,20 +1,23 @@
 //! Network benchmarks: Ayllu nodes talking over `udp://` on loopback, each figure printed
 //! beside a raw-UDP baseline written here and measured in the same run.
 //!
-//! Run with `cargo bench -p ayllu --bench network` (about a minute once compiled). Two
-//! threads on 127.0.0.1, one per node (or per raw socket); every phase is bounded in count
-//! and time. Raw and Ayllu runs alternate and are repeated ([`RTT_RUNS`], [`FLOW_RUNS`]) so
-//! that drift of the machine hits both alike, and the figures are medians over runs, so that
-//! one run disturbed by another process does not decide them. The table at the end gives
-//! each figure, its baseline, the ratio, the goal and whether it is met, the machine and its
-//! load average. `-- rtt` or `-- flow` runs one part only.
+//! Run with `cargo bench -p ayllu --bench network` (about 20 s once compiled; `-- rtt` or
+//! `-- flow` runs one part). Two threads on 127.0.0.1, one per node (or per raw socket),
+//! pinned to CPUs (see [`Placement`]: on a virtual machine, where the scheduler puts them
+//! changes a round trip twentyfold); every phase is bounded in count and time. Raw and Ayllu
+//! runs alternate and are repeated ([`RTT_RUNS`], [`FLOW_RUNS`]) so that drift of the machine
+//! hits both alike, and the figures are medians over runs, so that one run disturbed by
+//! another process does not decide them. The table at the end gives each figure, its
+//! baseline, the ratio, the goal and whether it is met, the machine and its load average.
 //!
 //! What is measured:
 //! * Round trip. Raw: one std `UdpSocket` per thread, blocking `recv_from`, an 8-byte
 //!   payload bounced back by the other thread. Ayllu: node A writes its port `A.P` (Normal
 //!   connection to node B's `B.Q`); B's OnWrite process on `Q` writes `B.R`, connected back
 //!   to A's `A.S`; A steps and sleeps on its socket until `S` shows the value, then writes
-//!   again. Both nodes run `Node::step` + `Node::wait` loops, as a robot program would.
+//!   again. Both nodes run `Node::step` + `Node::wait` loops, as a robot program would. Also
+//!   raw UDP making the system calls such a loop makes ([`RawStyle::NodeLoop`]): the floor
+//!   for any node loop that sleeps in `poll`.
 //! * One-way, one message per datagram. Raw: a sender blasting 8-byte datagrams for
 //!   [`FLOW_TIME`]; Ayllu: a sender writing one port and stepping (which flushes: one
 //!   datagram per message) for the same time. The receiver counts what arrives (Ayllu:
@@ -24,13 +27,13 @@
 //!   the receiver, then steps: one turn's messages share datagrams up to the MTU (rule N3).
 //!   Counted as port messages accepted by the receiving node's ports per second.
 //!
-//! `cargo bench -p ayllu --bench network -- callgrind` instead runs the batching path on one
-//! thread (sender turn, receiver turn, alternating, over real loopback sockets) for a fixed
-//! number of turns, so that `valgrind --tool=callgrind --toggle-collect='*lockstep_turns*'`
-//! counts the instructions per port message, sender and receiver together (`*sender_turn*` and
-//! `*receiver_turn*` count one side each); and the round trip
-//! likewise (`--toggle-collect='*lockstep_round_trips*'`: instructions per round trip). Timings on this
-//! kind of machine move by tens of percent between runs; instruction counts do not.
+//! `cargo bench -p ayllu --bench network -- callgrind` instead runs the round trip and the
+//! batching path on one thread (one node's turn, then the other's, over real loopback
+//! sockets) a fixed number of times, for `valgrind --tool=callgrind --toggle-collect=PATTERN`:
+//! `*lockstep_round_trips*` counts the instructions of 10 000 round trips; `*sender_turn*`
+//! and `*receiver_turn*` those of one side of 128 000 batched port messages (and
+//! `*lockstep_turns*` both). Timings on this kind of machine move by tens of percent between
+//! runs; instruction counts do not.
 
 use std::hint::black_box;
 use std::net::{SocketAddr, UdpSocket};
