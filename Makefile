@@ -9,6 +9,8 @@ demo:
 	$(CARGO) run --release --quiet --example cross_subsumption
 
 PYTHON ?= python3
+# Where cargo puts binaries (honours CARGO_TARGET_DIR).
+TARGET_DIR ?= $(or $(CARGO_TARGET_DIR),target)
 
 ## Run every test: Rust (unit, rule, property, golden vectors, examples, processes over real
 ## sockets), AylluLite C and Python (golden vectors, node logic over loopback).
@@ -18,7 +20,7 @@ test:
 	$(PYTHON) -m pytest --version >/dev/null 2>&1 || $(PYTHON) -m pip install --quiet pytest
 	$(PYTHON) -m pytest lite/python/tests -q
 	$(CARGO) build -p ayllu-cli
-	$(PYTHON) spec/conformance --ayllu target/debug/ayllu
+	$(PYTHON) spec/conformance --ayllu $(TARGET_DIR)/debug/ayllu
 
 ## Formatting and lints, warnings as errors.
 lint:
