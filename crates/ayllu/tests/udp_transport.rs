@@ -333,3 +333,38 @@ fn n2_an_unknown_request_operation_is_answered_with_an_error() {
     }
     assert!(answered, "no error reply to an unknown operation");
 }
+
+#[test]
+fn s10_a_group_with_a_multicast_address_is_delivered_by_multicast() {
+    // `group=NAME@239.x.y.z:PORT`: members join the multicast group; non-members on the same
+    // port do not hear it, and nothing goes to the broadcast address.
+    let bus = DatagramBus::new();
+    let mut team = Lockstep::new("udp-multicast");
+    let group: SocketAddr = "239.7.7.7:7400".parse().unwrap();
+    let mut sniffer = bus.bind("10.0.0.255:7400".parse().unwrap()).ok();
+    for id in 1..=3u32 {
+        let mut c = UdpConfig::new(addr(id));
+        c.peers = vec![addr(1), addr(2), addr(3)];
+        if id != 3 {
+            c.groups = vec![("team".to_owned(), group)];
+        }
+        let t = UdpTransport::with_socket(NodeId(id), c, bus.bind(addr(id)).unwrap()).unwrap();
+        let i = team.add_node(Node::new(team.clock().clone(), t));
+        let n = team.node(i);
+        let mut relay = BehaviorClass::new("Relay");
+        relay.port(PortSpec::new("In", 0i64)).unwrap();
+        relay.port(PortSpec::new("Out", 0i64)).unwrap();
+        n.define(relay).unwrap();
+        n.create("Relay", "R").unwrap();
+    }
+    team.advance(Duration::from_millis(300), TICK);
+    team.node(0)
+        .connect(&Endpoint::local("R", "Out"), &Endpoint::group("team", "R", "In"), ConnectionKind::Normal)
+        .unwrap();
+    team.node(0).write("R", "Out", 3i64).unwrap();
+    team.advance(TICK * 2, TICK);
+    assert_eq!(input(&team.nodes()[1]), Value::Int(3), "member 2 joined 239.7.7.7");
+    assert_eq!(input(&team.nodes()[2]), Value::Int(0), "node 3 did not join the multicast group");
+    let mut buf = [0u8; 9000];
+    assert!(sniffer.as_mut().unwrap().recv_from(&mut buf).unwrap().is_none(), "nothing was broadcast");
+}
