@@ -35,6 +35,10 @@
 //! `*lockstep_turns*` both). Timings on this kind of machine move by tens of percent between
 //! runs; instruction counts do not.
 
+#[path = "machine/mod.rs"]
+mod machine;
+use machine::machine;
+
 use std::hint::black_box;
 use std::net::{SocketAddr, UdpSocket};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -549,20 +553,6 @@ fn latency(mut ns: Vec<u64>) -> Latency {
 fn median_flow(mut runs: Vec<Flow>) -> Flow {
     runs.sort_by(|x, y| x.rate().total_cmp(&y.rate()));
     runs[runs.len() / 2]
-}
-
-fn machine() -> String {
-    let cpus = cpu_count();
-    let model = std::fs::read_to_string("/proc/cpuinfo")
-        .ok()
-        .and_then(|s| {
-            s.lines()
-                .find(|l| l.starts_with("model name"))
-                .and_then(|l| l.split(':').nth(1))
-                .map(|m| m.trim().to_owned())
-        })
-        .unwrap_or_else(|| "unknown CPU".to_owned());
-    format!("{cpus} CPUs (nproc), {model}, {} {}", std::env::consts::OS, std::env::consts::ARCH)
 }
 
 /// The load average, so a reader can tell a quiet run from one sharing the CPUs.

@@ -18,6 +18,10 @@
 //!
 //! The clock advances 1 µs per iteration, so windows are refreshed as in a live system.
 
+#[path = "machine/mod.rs"]
+mod machine;
+use machine::machine;
+
 use std::fs;
 use std::hint::black_box;
 use std::path::PathBuf;
@@ -175,20 +179,6 @@ fn median_ns(dir: &std::path::Path, name: &str, since: SystemTime) -> Option<f64
     let rest = rest.trim_start().strip_prefix(':')?.trim_start();
     let end = rest.find([',', '}']).unwrap_or(rest.len());
     rest[..end].trim().parse().ok()
-}
-
-fn machine() -> String {
-    let cpus = std::thread::available_parallelism().map_or(0, |n| n.get());
-    let model = fs::read_to_string("/proc/cpuinfo")
-        .ok()
-        .and_then(|s| {
-            s.lines()
-                .find(|l| l.starts_with("model name"))
-                .and_then(|l| l.split(':').nth(1))
-                .map(|m| m.trim().to_owned())
-        })
-        .unwrap_or_else(|| "unknown CPU".to_owned());
-    format!("{cpus} CPUs (nproc), {model}, {} {}", std::env::consts::OS, std::env::consts::ARCH)
 }
 
 fn main() {

@@ -28,15 +28,19 @@ fn node(team: &mut Lockstep, bus: &DatagramBus, id: u32, key: Option<[u8; 32]>, 
     config.hello_interval = Duration::from_millis(100);
     let transport = UdpTransport::with_socket(NodeId(id), config, bus.bind(addr(id)).unwrap()).unwrap();
     let i = team.add_node(Node::new(team.clock().clone(), transport));
-    let n = team.node(i);
+    relay(team.node(i));
+    team.node(i).join("team");
+    i
+}
+
+/// Give a node the Relay behavior `R` (int ports In, Out; text port Txt).
+fn relay(n: &mut Node) {
     let mut relay = BehaviorClass::new("Relay");
     relay.port(PortSpec::new("In", 0i64)).unwrap();
     relay.port(PortSpec::new("Out", 0i64)).unwrap();
     relay.port(PortSpec::new("Txt", "")).unwrap();
     n.define(relay).unwrap();
     n.create("Relay", "R").unwrap();
-    n.join("team");
-    i
 }
 
 fn count(node: &Node, cause: &str) -> u64 {
@@ -266,12 +270,7 @@ fn n6_silent_peers_are_forgotten_and_s10_groups_route_by_announcement() {
     for id in 1..=3 {
         let t = UdpTransport::with_socket(NodeId(id), config(id), bus.bind(addr(id)).unwrap()).unwrap();
         let i = team.add_node(Node::new(team.clock().clone(), t));
-        let n = team.node(i);
-        let mut relay = BehaviorClass::new("Relay");
-        relay.port(PortSpec::new("In", 0i64)).unwrap();
-        relay.port(PortSpec::new("Out", 0i64)).unwrap();
-        n.define(relay).unwrap();
-        n.create("Relay", "R").unwrap();
+        relay(team.node(i));
         ids.push(i);
     }
     team.node(1).join("team"); // only node 2 is in the group
@@ -350,12 +349,7 @@ fn s10_a_group_with_a_multicast_address_is_delivered_by_multicast() {
         }
         let t = UdpTransport::with_socket(NodeId(id), c, bus.bind(addr(id)).unwrap()).unwrap();
         let i = team.add_node(Node::new(team.clock().clone(), t));
-        let n = team.node(i);
-        let mut relay = BehaviorClass::new("Relay");
-        relay.port(PortSpec::new("In", 0i64)).unwrap();
-        relay.port(PortSpec::new("Out", 0i64)).unwrap();
-        n.define(relay).unwrap();
-        n.create("Relay", "R").unwrap();
+        relay(team.node(i));
     }
     team.advance(Duration::from_millis(300), TICK);
     team.node(0)
