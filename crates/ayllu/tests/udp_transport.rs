@@ -266,12 +266,10 @@ fn n6_silent_peers_are_forgotten_and_s10_groups_route_by_announcement() {
         c.hello_interval = Duration::from_millis(100);
         c
     };
-    let mut ids = Vec::new();
     for id in 1..=3 {
         let t = UdpTransport::with_socket(NodeId(id), config(id), bus.bind(addr(id)).unwrap()).unwrap();
         let i = team.add_node(Node::new(team.clock().clone(), t));
         relay(team.node(i));
-        ids.push(i);
     }
     team.node(1).join("team"); // only node 2 is in the group
     team.advance(Duration::from_millis(300), TICK);
