@@ -45,6 +45,7 @@
 #include <unistd.h>
 
 #include "../ayllu_lite.h"
+#include "posix_udp.h"
 #include "../ayllu_sha256.h"
 
 #define MAX_CONNS 16
@@ -97,36 +98,6 @@ static uint64_t now_ns(void) {
     struct timespec ts;
     clock_gettime(CLOCK_MONOTONIC, &ts);
     return (uint64_t)ts.tv_sec * 1000000000u + (uint64_t)ts.tv_nsec;
-}
-
-/* The transport: an ayl_addr holds a struct sockaddr_in / sockaddr_in6 as bytes. */
-static int udp_send(void *user, const ayl_addr *to, const uint8_t *data, size_t len) {
-    struct sockaddr_storage sa;
-    (void)user;
-    memset(&sa, 0, sizeof sa);
-    memcpy(&sa, to->bytes, to->len);
-    return sendto(sock, data, len, 0, (struct sockaddr *)&sa, to->len) < 0 ? -1 : 0;
-}
-
-static int udp_recv(void *user, ayl_addr *from, uint8_t *buf, size_t cap) {
-    struct sockaddr_storage sa;
-    socklen_t sl = sizeof sa;
-    ssize_t n;
-    int flags = MSG_DONTWAIT;
-    (void)user;
-#ifdef MSG_TRUNC
-    flags |= MSG_TRUNC; /* Linux: the true length, so an oversized datagram is counted */
-#endif
-    n = recvfrom(sock, buf, cap, flags, (struct sockaddr *)&sa, &sl);
-    if (n < 0) {
-        return (errno == EAGAIN || errno == EWOULDBLOCK) ? 0 : -1;
-    }
-    if (sl > AYL_ADDR_SIZE) {
-        return 0;
-    }
-    from->len = (uint8_t)sl;
-    memcpy(from->bytes, &sa, sl);
-    return (int)n;
 }
 
 /* Wait for the socket (or the timeout), then let the node handle what arrived. */
@@ -502,7 +473,7 @@ static void cmd_raw(int argc, char **argv) {
         return;
     }
     for (i = 0; i < copies; i++) {
-        if (udp_send(NULL, &target, raw_buf, (size_t)len) != 0) {
+        if (posix_udp_send(&sock, &target, raw_buf, (size_t)len) != 0) {
             printf("err sendto failed\n");
             return;
         }
@@ -645,8 +616,9 @@ int main(int argc, char **argv) {
         raw_seq = cfg.seq_start;
         raw_conn_seq = cfg.seq_start;
     }
-    cfg.send = udp_send;
-    cfg.recv = udp_recv;
+    cfg.send = posix_udp_send;
+    cfg.recv = posix_udp_recv;
+    cfg.io_user = &sock;
     cfg.ports = ports;
     cfg.max_ports = MAX_PORTS;
     cfg.peers = peers;

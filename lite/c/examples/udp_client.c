@@ -29,6 +29,7 @@
 #include <unistd.h>
 
 #include "../ayllu_lite.h"
+#include "posix_udp.h"
 
 static int sock = -1;
 
@@ -43,36 +44,6 @@ static void sleep_ms(long ms) {
     ts.tv_sec = ms / 1000;
     ts.tv_nsec = (ms % 1000) * 1000000L;
     nanosleep(&ts, NULL);
-}
-
-/* The transport: an ayl_addr holds a struct sockaddr_in / sockaddr_in6 as bytes. */
-static int udp_send(void *user, const ayl_addr *to, const uint8_t *data, size_t len) {
-    struct sockaddr_storage sa;
-    (void)user;
-    memset(&sa, 0, sizeof sa);
-    memcpy(&sa, to->bytes, to->len);
-    return sendto(sock, data, len, 0, (struct sockaddr *)&sa, to->len) < 0 ? -1 : 0;
-}
-
-static int udp_recv(void *user, ayl_addr *from, uint8_t *buf, size_t cap) {
-    struct sockaddr_storage sa;
-    socklen_t sl = sizeof sa;
-    ssize_t n;
-    int flags = MSG_DONTWAIT;
-    (void)user;
-#ifdef MSG_TRUNC
-    flags |= MSG_TRUNC; /* Linux: report the true length, so oversized datagrams are counted */
-#endif
-    n = recvfrom(sock, buf, cap, flags, (struct sockaddr *)&sa, &sl);
-    if (n < 0) {
-        return (errno == EAGAIN || errno == EWOULDBLOCK) ? 0 : -1;
-    }
-    if (sl > AYL_ADDR_SIZE) {
-        return 0; /* an address family we cannot hold */
-    }
-    from->len = (uint8_t)sl;
-    memcpy(from->bytes, &sa, sl);
-    return n == 0 ? 0 : (int)n; /* a zero-length datagram is nothing to apply */
 }
 
 static int parse_hex(const char *s, uint8_t *out, size_t cap, size_t *len) {
@@ -263,8 +234,9 @@ int main(int argc, char **argv) {
         clock_gettime(CLOCK_REALTIME, &ts);
         cfg.seq_start = ((uint64_t)ts.tv_sec << 32) | (((uint64_t)ts.tv_nsec << 32) / 1000000000u);
     }
-    cfg.send = udp_send;
-    cfg.recv = udp_recv;
+    cfg.send = posix_udp_send;
+    cfg.recv = posix_udp_recv;
+    cfg.io_user = &sock;
     cfg.ports = ports;
     cfg.max_ports = 1;
     cfg.peers = peers;
