@@ -1114,6 +1114,12 @@ impl NodeCore {
         self.resolve(port).map(|ps| ps.cell.fresh(now))
     }
 
+    /// When the port last accepted a value (refused writes do not count), if ever — e.g. to
+    /// tell which subsumption layer is driving without allocating a report.
+    pub fn last_accepted(&self, port: PortRef) -> Result<Option<Instant>, Error> {
+        self.resolve(port).map(|ps| ps.cell.last_accepted)
+    }
+
     /// Empty an aggregating port (a Normal port returns to its default).
     pub fn reset(&mut self, port: PortRef) -> Result<(), Error> {
         self.resolve(port)?;

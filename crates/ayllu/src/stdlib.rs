@@ -1,6 +1,13 @@
-//! The standard behavior library (the paper's `ayllustd.h`), as far as the core needs it:
-//! a vision stand-in, a base (motors), a wander behavior, the target observer of Fig. 2, and
+//! The standard behavior library (the paper's `ayllustd.h`): the body's interface (vision,
+//! base, sonar — what a robot or the simulator writes and reads), safe velocity from sonar
+//! (`MakeSafeVelBeh`), wander (constant and seeded random), the target observer of Fig. 2, and
 //! [`make_observer`] / [`cross_subsumption`] — the paper's `MakeObserver` macro and `main`.
+//!
+//! Conventions shared with every body: `TargetNAngle` is the bearing in radians, positive to the
+//! *right* of the camera's axis (like image x growing to the right); `Rotate` is rad/s,
+//! positive to the *left* (counter-clockwise), so an observer turns with `Rotate = -angle`;
+//! `Translate` is m/s forward; `Ranges` holds one sonar range (m, from the robot's rim) per
+//! beam, beam k pointing `k * 2π / beams` counter-clockwise from straight ahead.
 //!
 //! Values follow Fig. 2 with its errata fixed (docs/semantics.md, "Fig. 2 errata"):
 //! * each observer's eligibility goes to the *same* layer's `Best` on the peers (Fig. 2 sends
@@ -20,6 +27,10 @@ pub const VISION: &str = "VISION";
 pub const BASE: &str = "BASE";
 /// The wander behavior's name.
 pub const WANDER: &str = "WANDER";
+/// The sonar behavior's name.
+pub const SONAR: &str = "SONAR";
+/// The safe-velocity behavior's name (the paper's `VEL`).
+pub const VEL: &str = "VEL";
 /// What WANDER writes to `Rotate` (a gentle left turn, rad/s).
 pub const WANDER_TURN: f64 = 0.25;
 /// How long a vision reading stays fresh: a little over two frames at 10 Hz.
@@ -39,10 +50,107 @@ pub fn vision_class(targets: u32) -> Result<BehaviorClass, Error> {
     Ok(c)
 }
 
-/// `Base`: the motors. `Rotate` (rad/s) is what finally turns the robot.
+/// `Base`: the motors. `Rotate` (rad/s) is what finally turns the robot, `Translate` (m/s)
+/// what drives it forward.
 pub fn base_class() -> Result<BehaviorClass, Error> {
     let mut c = BehaviorClass::new("Base");
     c.port(PortSpec::new("Rotate", 0.0))?;
+    c.port(PortSpec::new("Translate", 0.0))?;
+    Ok(c)
+}
+
+/// How long a sonar reading stays fresh: a little over two sweeps at 10 Hz.
+pub const SONAR_LIFESPAN: Duration = Duration::from_millis(250);
+
+/// `Sonar`: `Ranges`, one range per beam (see the module's conventions), written by the body.
+pub fn sonar_class(beams: usize, max_range: f64) -> Result<BehaviorClass, Error> {
+    let mut c = BehaviorClass::new("Sonar");
+    c.port(PortSpec::new("Ranges", vec![max_range; beams]).lifespan(SONAR_LIFESPAN))?;
+    Ok(c)
+}
+
+/// How the safe-velocity behavior slows down: full `speed` when the nearest obstacle in the
+/// front sector is `slow` metres away or more, nothing at `stop` or less, linear between.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SafeVelocity {
+    pub speed: f64,
+    pub stop: f64,
+    pub slow: f64,
+    /// Half-width of the front sector (rad) whose beams count.
+    pub sector: f64,
+}
+
+impl Default for SafeVelocity {
+    /// A Pioneer-like robot: 0.4 m/s, stops about a foot from what is ahead.
+    fn default() -> Self {
+        SafeVelocity { speed: 0.4, stop: 0.3, slow: 1.2, sector: 0.8 }
+    }
+}
+
+/// `SafeVelocity` (the paper's `MakeSafeVelBeh`): at 10 Hz, reads `Ranges` (fed from SONAR) and
+/// writes `Translate` from the nearest obstacle ahead. Stale or missing sonar: stop, because
+/// driving blind is what a safety behavior must not do.
+pub fn safe_velocity_class(cfg: SafeVelocity) -> Result<BehaviorClass, Error> {
+    let mut c = BehaviorClass::new("SafeVelocity");
+    let ranges = c.port(PortSpec::new("Ranges", Vec::<f64>::new()).lifespan(SONAR_LIFESPAN))?;
+    let translate = c.port(PortSpec::new("Translate", 0.0))?;
+    c.every_hz("SafeVel", 10.0, move |ctx| {
+        let speed = match ctx.get(ranges) {
+            Some(ayllu_core::Value::Vector(r)) if !r.is_empty() => {
+                let step = std::f64::consts::TAU / r.len() as f64;
+                let front = r
+                    .iter()
+                    .enumerate()
+                    .filter(|(k, _)| {
+                        let a = *k as f64 * step;
+                        a.min(std::f64::consts::TAU - a) <= cfg.sector + 1e-9
+                    })
+                    .map(|(_, d)| *d)
+                    .fold(f64::INFINITY, f64::min);
+                cfg.speed * ((front - cfg.stop) / (cfg.slow - cfg.stop)).clamp(0.0, 1.0)
+            }
+            _ => 0.0,
+        };
+        let _ = ctx.write(translate, speed);
+    })?;
+    Ok(c)
+}
+
+/// `RandomWander`: at `hz`, writes a turn rate to `Rotate` that changes every 1 to 4 s to a
+/// new value of 0.15 to 0.6 rad/s either way — never straight, so a robot stopped by
+/// SafeVelocity at a wall always turns free. Seeded from `seed` and the node id: the same
+/// seed gives the same walk.
+pub fn random_wander_class(hz: f64, seed: u64) -> Result<BehaviorClass, Error> {
+    let mut c = BehaviorClass::new("RandomWander");
+    let rotate = c.port(PortSpec::new("Rotate", 0.0))?;
+    // The PRNG state and the current leg live in slots, so one class serves many behaviors.
+    let state = c.slot("Rng", 0i64)?;
+    let turn = c.slot("Turn", 0.0)?;
+    let until = c.slot("Until", 0i64)?;
+    c.every_hz("Wander", hz, move |ctx| {
+        let now = ctx.now().as_nanos() as i64;
+        let mut s = match ctx.slot(state) {
+            ayllu_core::Value::Int(0) => seed ^ (u64::from(ctx.node().0).wrapping_mul(0x9E37_79B9_7F4A_7C15)),
+            ayllu_core::Value::Int(x) => x as u64,
+            _ => seed,
+        };
+        let leg_over = matches!(ctx.slot(until), ayllu_core::Value::Int(t) if now >= t);
+        if leg_over {
+            let mut rng = fastrand::Rng::with_seed(s);
+            let w = 0.15 + 0.45 * rng.f64();
+            let w = if rng.bool() { w } else { -w };
+            let leg = 1_000_000_000 + rng.i64(0..3_000_000_000);
+            s = rng.get_seed().max(1);
+            let _ = ctx.set_slot(turn, w);
+            let _ = ctx.set_slot(until, now + leg);
+        }
+        let _ = ctx.set_slot(state, s as i64);
+        let w = match ctx.slot(turn) {
+            ayllu_core::Value::Float(w) => w,
+            _ => 0.0,
+        };
+        let _ = ctx.write(rotate, w);
+    })?;
     Ok(c)
 }
 
@@ -77,6 +185,13 @@ pub fn observer_class() -> Result<BehaviorClass, Error> {
 /// VISION, let its `Rotate` override `next.Rotate` (subsumption), and join the layer's BLE
 /// group (cross-inhibition) with `ble` (whose `output` must be `Rotate`).
 pub fn make_observer(node: &mut NodeCore, num: u32, next: &str, ble: &BleConfig) -> Result<BleGroup, Error> {
+    let name = make_observer_layer(node, num, next)?;
+    node.ble_join(&name, ble)
+}
+
+/// [`make_observer`] without the BLE group: one layer of plain (local) subsumption. Returns
+/// the observer's name, `OBS{num}`.
+pub fn make_observer_layer(node: &mut NodeCore, num: u32, next: &str) -> Result<String, Error> {
     let name = format!("OBS{num}");
     node.create("Observer", &name)?;
     let normal = ConnectionKind::Normal;
@@ -99,7 +214,7 @@ pub fn make_observer(node: &mut NodeCore, num: u32, next: &str, ble: &BleConfig)
         ConnectionKind::OverrideOut(OVERRIDE_PERIOD),
         opts,
     )?;
-    node.ble_join(&name, ble)
+    Ok(name)
 }
 
 /// The whole Fig. 2 controller on one node: VISION, BASE, WANDER, and `layers` observers in a

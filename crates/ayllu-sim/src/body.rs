@@ -1,0 +1,78 @@
+//! A robot's body as behaviors with ports — the simulator's stand-in for the paper's
+//! `ayInitPioControl`. The body is three behaviors on the robot's node, with the stdlib's
+//! interface: `VISION` (`Target{n}Angle`, `Target{n}Bottom`), `SONAR` (`Ranges`) and `BASE`
+//! (`Rotate`, `Translate`). The simulator writes the sensor ports and reads the motor ports,
+//! exactly as a robot driver would; a controller connects to them by name and cannot tell the
+//! difference.
+//!
+//! Promise: a frame in which a target is not seen writes nothing for it, so its ports go
+//! stale after the stdlib's lifespan (the observer then stays silent, rule S4).
+
+use ayllu::stdlib::{base_class, sonar_class, vision_class, BASE, SONAR, VISION};
+use ayllu_core::{Error, Instant, NodeCore, PortRef};
+
+use crate::world::{Command, Sighting, World, WorldConfig};
+
+/// The port handles of one robot's body on its node.
+pub struct Body {
+    vision: Vec<(PortRef, PortRef)>,
+    ranges: PortRef,
+    rotate: PortRef,
+    translate: PortRef,
+    sightings: Vec<Sighting>,
+    sonar: Vec<f64>,
+}
+
+impl Body {
+    /// Define and create VISION, SONAR and BASE on `core` for `targets` targets.
+    pub fn install(core: &mut NodeCore, targets: usize, world: &WorldConfig) -> Result<Body, Error> {
+        core.define(vision_class(targets as u32)?)?;
+        core.define(sonar_class(world.sonar_beams, world.sonar_range)?)?;
+        core.define(base_class()?)?;
+        core.create("Vision", VISION)?;
+        core.create("Sonar", SONAR)?;
+        core.create("Base", BASE)?;
+        Body::attach(core, targets, world.sonar_beams)
+    }
+
+    /// Handles to a body that already exists on `core`.
+    pub fn attach(core: &NodeCore, targets: usize, beams: usize) -> Result<Body, Error> {
+        let vision = (1..=targets)
+            .map(|n| {
+                Ok((core.port(VISION, &format!("Target{n}Angle"))?, core.port(VISION, &format!("Target{n}Bottom"))?))
+            })
+            .collect::<Result<_, Error>>()?;
+        Ok(Body {
+            vision,
+            ranges: core.port(SONAR, "Ranges")?,
+            rotate: core.port(BASE, "Rotate")?,
+            translate: core.port(BASE, "Translate")?,
+            sightings: Vec::new(),
+            sonar: vec![0.0; beams],
+        })
+    }
+
+    /// Take one camera frame and one sonar sweep of robot `i` and write them to the ports.
+    pub fn sense(&mut self, core: &mut NodeCore, now: Instant, world: &mut World, i: usize) -> Result<(), Error> {
+        world.camera(i, &mut self.sightings);
+        for s in &self.sightings {
+            let (angle, bottom) = self.vision[s.target];
+            core.write(now, angle, s.angle)?;
+            core.write(now, bottom, s.height)?;
+        }
+        world.sonar(i, &mut self.sonar);
+        core.write(now, self.ranges, self.sonar.as_slice())?;
+        Ok(())
+    }
+
+    /// What the controller asks of the motors now.
+    pub fn command(&self, core: &NodeCore) -> Command {
+        let f = |p| core.read(p).ok().and_then(|v| v.as_float()).unwrap_or(0.0);
+        Command { translate: f(self.translate), rotate: f(self.rotate) }
+    }
+
+    /// The last camera frame (for the distributed server, which forwards it).
+    pub fn sightings(&self) -> &[Sighting] {
+        &self.sightings
+    }
+}

@@ -1,0 +1,20 @@
+//! A deterministic 2-D multi-robot simulator for Ayllu, and the paper's multi-target
+//! observation task (W-CMOMMT) on it.
+//!
+//! Promises: virtual time only (nothing reads a clock); the same [`scenario::Scenario`] and
+//! seed give the same run bit for bit (positions, messages, metrics, trace hash); each robot's
+//! body is a set of behaviors with ports on the robot's own node (VISION, BASE, SONAR), so a
+//! controller written for a robot runs here unchanged.
+//!
+//! Non-goals: physical fidelity beyond unicycle kinematics and circle/segment contacts; 3-D;
+//! real-time pacing (the distributed server paces itself).
+
+pub mod body;
+pub mod controller;
+pub mod metrics;
+pub mod radio;
+pub mod recording;
+pub mod report;
+pub mod scenario;
+pub mod study;
+pub mod world;

@@ -1,0 +1,176 @@
+//! The task's figures of merit, computed online from the world's ground truth each tick.
+//!
+//! Formulas (docs/cmommt.md): over ticks t of length dt, T = total time, m targets with
+//! priorities w_j, o_j(t) = 1 if some live robot observes target j (in its field of view,
+//! within the observe range), n_j(t) = how many do.
+//! * A = (1/T) Σ_t dt Σ_j o_j(t) (Parker's average number of targets observed); A/m = A / m.
+//! * A_w = (1/T) Σ_t dt Σ_j w_j o_j(t) / Σ_j w_j (priority-weighted fraction, 0..1).
+//! * top-k = (1/T) Σ_t dt (1/k) Σ_{j ≤ k} o_j(t), with k = min(robots, m) and targets sorted by
+//!   priority: how well the targets a perfect team could always cover are covered.
+//! * redundant = (1/T) Σ_t dt Σ_j max(0, n_j(t) - 1): robot-observations beyond the first.
+//! * switches/min: changes of the target driving each robot (including to and from none), per
+//!   live robot per minute.
+//! * recover: for each target observed by a robot when it is killed, the time until another
+//!   robot observes it; the mean over such targets (None when no kill, or nothing to re-cover;
+//!   a target never re-covered counts as the time left in the run).
+//! * msgs/robot/s: radio messages sent (one per destination node, a broadcast counts once per
+//!   sender) per robot per second.
+
+use serde::{Deserialize, Serialize};
+
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Metrics {
+    pub a: f64,
+    pub a_per_m: f64,
+    pub a_w: f64,
+    pub top_k: f64,
+    pub k: u32,
+    pub redundant: f64,
+    pub switches_per_min: f64,
+    pub recover_s: Option<f64>,
+    pub msgs_per_robot_s: f64,
+}
+
+use crate::world::World;
+
+/// Accumulates the metrics tick by tick from the world's ground truth.
+pub struct Meter {
+    /// Priorities by target index (target id - 1), non-increasing.
+    priorities: Vec<f64>,
+    k: usize,
+    time: f64,
+    a: f64,
+    a_w: f64,
+    top_k: f64,
+    redundant: f64,
+    switches: u64,
+    live_robot_time: f64,
+    last_drive: Vec<u32>,
+    /// (target index, time of the kill) not yet re-covered.
+    pending: Vec<(usize, f64)>,
+    recovered: Vec<f64>,
+    /// Scratch: observers per target this tick.
+    count: Vec<u32>,
+}
+
+impl Meter {
+    pub fn new(priorities: &[f64], robots: usize) -> Meter {
+        Meter {
+            priorities: priorities.to_vec(),
+            k: robots.min(priorities.len()),
+            time: 0.0,
+            a: 0.0,
+            a_w: 0.0,
+            top_k: 0.0,
+            redundant: 0.0,
+            switches: 0,
+            live_robot_time: 0.0,
+            last_drive: vec![0; robots],
+            pending: Vec::new(),
+            recovered: Vec::new(),
+            count: vec![0; priorities.len()],
+        }
+    }
+
+    /// How many live robots observe each target now (noise-free), into the scratch counts.
+    fn count(&mut self, world: &World) {
+        self.count.iter_mut().for_each(|c| *c = 0);
+        let range = world.config.observe_range;
+        for (i, r) in world.robots.iter().enumerate() {
+            if r.alive {
+                let count = &mut self.count;
+                world.in_view(i, range, |j, _, _| count[j] += 1);
+            }
+        }
+    }
+
+    /// Account one tick of `dt` seconds ending at `now` (s); `drives[i]` is the target driving
+    /// robot i. Returns (targets observed, priority-weighted fraction observed).
+    pub fn observe(&mut self, now: f64, dt: f64, world: &World, drives: &[u32]) -> (u32, f64) {
+        self.count(world);
+        let total_w: f64 = self.priorities.iter().sum();
+        let mut observed = 0u32;
+        let mut weighted = 0.0;
+        let mut top = 0u32;
+        let mut redundant = 0u32;
+        for (j, &c) in self.count.iter().enumerate() {
+            if c > 0 {
+                observed += 1;
+                weighted += self.priorities[j];
+                if j < self.k {
+                    top += 1;
+                }
+                redundant += c - 1;
+            }
+        }
+        let weighted = if total_w > 0.0 { weighted / total_w } else { 0.0 };
+        self.time += dt;
+        self.a += dt * f64::from(observed);
+        self.a_w += dt * weighted;
+        if self.k > 0 {
+            self.top_k += dt * f64::from(top) / self.k as f64;
+        }
+        self.redundant += dt * f64::from(redundant);
+        for (i, r) in world.robots.iter().enumerate() {
+            if r.alive {
+                self.live_robot_time += dt;
+                if drives[i] != self.last_drive[i] {
+                    self.switches += 1;
+                    self.last_drive[i] = drives[i];
+                }
+            }
+        }
+        let count = &self.count;
+        let recovered = &mut self.recovered;
+        self.pending.retain(|&(j, since)| {
+            if count[j] > 0 {
+                recovered.push(now - since);
+                false
+            } else {
+                true
+            }
+        });
+        (observed, weighted)
+    }
+
+    /// Robot `i` was just killed (already marked dead in `world`): every target it observed
+    /// that no other robot observes is a task to re-cover.
+    pub fn killed(&mut self, now: f64, world: &World, i: usize) {
+        self.count(world);
+        let range = world.config.observe_range;
+        let mut lost = Vec::new();
+        world.in_view(i, range, |j, _, _| lost.push(j));
+        for j in lost {
+            if self.count[j] == 0 {
+                self.pending.push((j, now));
+            } else {
+                self.recovered.push(0.0);
+            }
+        }
+    }
+
+    /// The metrics of the whole run; `messages` radio emissions by `robots` robots.
+    pub fn finish(mut self, end: f64, robots: usize, messages: u64) -> Metrics {
+        for (_, since) in self.pending.drain(..) {
+            self.recovered.push(end - since);
+        }
+        let t = self.time.max(f64::MIN_POSITIVE);
+        let m = self.priorities.len().max(1) as f64;
+        Metrics {
+            a: self.a / t,
+            a_per_m: self.a / t / m,
+            a_w: self.a_w / t,
+            top_k: self.top_k / t,
+            k: self.k as u32,
+            redundant: self.redundant / t,
+            switches_per_min: if self.live_robot_time > 0.0 {
+                self.switches as f64 / (self.live_robot_time / 60.0)
+            } else {
+                0.0
+            },
+            recover_s: (!self.recovered.is_empty())
+                .then(|| self.recovered.iter().sum::<f64>() / self.recovered.len() as f64),
+            msgs_per_robot_s: messages as f64 / robots.max(1) as f64 / t,
+        }
+    }
+}

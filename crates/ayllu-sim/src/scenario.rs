@@ -1,0 +1,482 @@
+//! A run of the task: the world, one Ayllu node per robot (body + controller), the radio
+//! between them, and the metrics — all on virtual time, stepped by [`Sim::step`].
+//!
+//! Promise: [`run`] is a pure function of the [`Scenario`]: same scenario and seed, same
+//! outcome bit for bit, on any machine (no clock, no threads, no hash-map iteration order; all
+//! randomness from seeded streams). The trace hash is SHA-256 over every frame's exact state
+//! (f64 bits), so any divergence shows.
+//!
+//! One tick (`dt`, 50 ms = the observers' 20 Hz): kills due; radio deliveries due; every
+//! `sense_every` ticks a camera frame and sonar sweep into each body; the oracle (Centralized
+//! only); every live node polls at the tick's time and its outgoing messages enter the radio;
+//! motors read; the world moves; metrics account the tick; every `frame_dt` a frame is hashed
+//! (and recorded if asked).
+
+use ayllu_core::{Duration, Error, Instant, NodeCore, NodeId, Outgoing, PortRef};
+use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
+
+use crate::body::Body;
+use crate::controller::{build, Brain, Controller, ControllerConfig};
+use crate::metrics::{Meter, Metrics};
+use crate::radio::{Radio, RadioConfig, Station};
+use crate::recording::{CoverageSeries, Event, Frame, Recording, RecordingMeta, RobotFrame, RobotInfo, TargetInfo};
+use crate::world::{wrap, Command, World, WorldConfig};
+
+/// A scheduled robot failure.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Kill {
+    /// Seconds into the run.
+    pub at: f64,
+    /// The robot's node id; `None`: the robot observing the highest-priority observed target
+    /// at that moment (lowest id on ties; robot 1 if none observes anything) — the failure
+    /// that hurts most, so re-covering is tested where it matters.
+    pub robot: Option<u32>,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Scenario {
+    pub world: WorldConfig,
+    pub robots: usize,
+    pub controller: Controller,
+    pub controllers: ControllerConfig,
+    pub radio: RadioConfig,
+    /// Seconds of virtual time.
+    pub duration: f64,
+    pub seed: u64,
+    pub kills: Vec<Kill>,
+    /// Keep every frame for a replay (costs memory; the hash is computed either way).
+    pub record: bool,
+    /// Seconds between frames.
+    pub frame_dt: f64,
+    /// Tick length (s) and camera/sonar rate divider (2: 10 Hz at 50 ms ticks).
+    pub dt: f64,
+    pub sense_every: u32,
+}
+
+/// The paper's target priorities for m targets: m, m-1, ..., 1.
+pub fn priorities(targets: usize) -> Vec<f64> {
+    (1..=targets).rev().map(|p| p as f64).collect()
+}
+
+impl Scenario {
+    /// The paper's setting (section 4.3): 3 robots, 4 targets with priorities 4, 3, 2, 1, in
+    /// the 8 m x 8 m lab, 300 s, no loss.
+    pub fn paper(controller: Controller, seed: u64) -> Scenario {
+        Scenario::sized(controller, 3, 4, seed)
+    }
+
+    /// `robots` robots and `targets` targets in a room that grows with the larger of the two
+    /// so that density stays that of the paper's setting (8 m x 8 m for 4).
+    pub fn sized(controller: Controller, robots: usize, targets: usize, seed: u64) -> Scenario {
+        let mut world = WorldConfig::lab(&priorities(targets));
+        let side = 8.0 * (robots.max(targets) as f64 / 4.0).sqrt().max(1.0);
+        world.arena = [side, side];
+        Scenario {
+            world,
+            robots,
+            controller,
+            controllers: ControllerConfig { wander_seed: seed, ..ControllerConfig::default() },
+            radio: RadioConfig::default(),
+            duration: 300.0,
+            seed,
+            kills: Vec::new(),
+            record: false,
+            frame_dt: 0.2,
+            dt: 0.05,
+            sense_every: 2,
+        }
+    }
+
+    pub fn loss(mut self, loss: f64) -> Scenario {
+        self.radio.loss = loss;
+        self
+    }
+
+    pub fn duration(mut self, seconds: f64) -> Scenario {
+        self.duration = seconds;
+        self
+    }
+
+    pub fn recorded(mut self) -> Scenario {
+        self.record = true;
+        self
+    }
+
+    /// Kill the most useful robot halfway through (see [`Kill::robot`]).
+    pub fn kill_halfway(mut self) -> Scenario {
+        self.kills.push(Kill { at: self.duration / 2.0, robot: None });
+        self
+    }
+}
+
+/// Radio totals of a run.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct RadioStats {
+    pub sent: u64,
+    pub delivered: u64,
+    pub lost: u64,
+    pub cut: u64,
+}
+
+/// What a run produced.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Outcome {
+    pub metrics: Metrics,
+    /// SHA-256 of every frame, hex.
+    pub trace_hash: String,
+    pub coverage: CoverageSeries,
+    pub recording: Option<Recording>,
+    pub radio: RadioStats,
+}
+
+struct RobotNode {
+    core: NodeCore,
+    body: Body,
+    brain: Brain,
+}
+
+/// A run in progress.
+pub struct Sim {
+    scenario: Scenario,
+    world: World,
+    radio: Radio,
+    robots: Vec<RobotNode>,
+    meter: Meter,
+    tick: u64,
+    dt: Duration,
+    frame_every: u64,
+    kills_done: Vec<bool>,
+    commands: Vec<Command>,
+    drives: Vec<u32>,
+    stations: Vec<Station>,
+    outgoing: Vec<Outgoing>,
+    hash: Sha256,
+    coverage: CoverageSeries,
+    frames: Vec<Frame>,
+    events: Vec<Event>,
+    /// Centralized: current assignment target index per robot, and the messages it costs.
+    assignment: Vec<Option<usize>>,
+    oracle_messages: u64,
+}
+
+/// Node id of robot index `i`.
+pub fn node_id(i: usize) -> NodeId {
+    NodeId(i as u32 + 1)
+}
+
+impl Sim {
+    pub fn new(scenario: &Scenario) -> Result<Sim, Error> {
+        let mut scenario = scenario.clone();
+        // Target n must be the n-th most important: OBSn follows TargetN.
+        scenario.world.targets.sort_by(|a, b| b.priority.total_cmp(&a.priority));
+        let prios: Vec<f64> = scenario.world.targets.iter().map(|t| t.priority).collect();
+        let dt = Duration::try_from_secs_f64(scenario.dt)?;
+        let world = World::new(scenario.world.clone(), scenario.robots, scenario.seed);
+        let mut radio = Radio::new(scenario.radio.clone(), scenario.robots, scenario.seed);
+        let mut robots = Vec::with_capacity(scenario.robots);
+        for i in 0..scenario.robots {
+            let mut core = NodeCore::new(node_id(i));
+            let body = Body::install(&mut core, prios.len(), &scenario.world)?;
+            let brain = build(&mut core, scenario.controller, &prios, &scenario.controllers)?;
+            radio.set_groups(i, core.groups());
+            robots.push(RobotNode { core, body, brain });
+        }
+        let frame_every = ((scenario.frame_dt / scenario.dt).round() as u64).max(1);
+        let n = scenario.robots;
+        let mut sim = Sim {
+            meter: Meter::new(&prios, n),
+            kills_done: vec![false; scenario.kills.len()],
+            scenario,
+            world,
+            radio,
+            robots,
+            tick: 0,
+            dt,
+            frame_every,
+            commands: vec![Command::default(); n],
+            drives: vec![0; n],
+            stations: Vec::with_capacity(n),
+            outgoing: Vec::new(),
+            hash: Sha256::new(),
+            coverage: CoverageSeries::default(),
+            frames: Vec::new(),
+            events: Vec::new(),
+            assignment: vec![None; n],
+            oracle_messages: 0,
+        };
+        for r in &mut sim.robots {
+            r.core.poll(Instant::ZERO);
+        }
+        sim.frame(0, 0.0);
+        Ok(sim)
+    }
+
+    pub fn now(&self) -> Instant {
+        Instant::from_nanos(self.tick * self.dt.as_nanos())
+    }
+
+    pub fn world(&self) -> &World {
+        &self.world
+    }
+
+    pub fn core(&self, i: usize) -> &NodeCore {
+        &self.robots[i].core
+    }
+
+    /// The target driving robot `i` now (0: none).
+    pub fn drive(&self, i: usize) -> u32 {
+        self.drives[i]
+    }
+
+    /// True once the scenario's duration has been simulated.
+    pub fn done(&self) -> bool {
+        self.now().as_secs_f64() >= self.scenario.duration - 1e-9
+    }
+
+    /// Advance one tick.
+    pub fn step(&mut self) -> Result<(), Error> {
+        self.tick += 1;
+        let now = self.now();
+        let t = now.as_secs_f64();
+        self.apply_kills(t);
+        let robots = &mut self.robots;
+        let alive: Vec<bool> = self.world.robots.iter().map(|r| r.alive).collect();
+        self.radio.deliver(now, |to, from, msg| {
+            if alive[to] {
+                robots[to].core.receive(now, from, msg);
+            }
+        });
+        if self.tick % u64::from(self.scenario.sense_every.max(1)) == 0 {
+            self.world.index();
+            for (i, r) in self.robots.iter_mut().enumerate() {
+                if self.world.robots[i].alive {
+                    r.body.sense(&mut r.core, now, &mut self.world, i)?;
+                }
+            }
+        }
+        if self.scenario.controller == Controller::Centralized {
+            self.oracle(now)?;
+        }
+        self.stations.clear();
+        self.stations.extend(self.world.robots.iter().enumerate().map(|(i, r)| Station {
+            node: node_id(i),
+            x: r.pose.x,
+            y: r.pose.y,
+            alive: r.alive,
+        }));
+        for i in 0..self.robots.len() {
+            if !self.world.robots[i].alive {
+                continue;
+            }
+            let r = &mut self.robots[i];
+            r.core.poll(now);
+            while let Some(out) = r.core.pop_outgoing() {
+                self.outgoing.push(out);
+            }
+            for out in self.outgoing.drain(..) {
+                self.radio.send(now, i, out, &self.stations);
+            }
+            self.commands[i] = r.body.command(&r.core);
+            self.drives[i] = r.brain.drive(&r.core);
+        }
+        self.world.step(self.scenario.dt, &self.commands);
+        let (observed, weighted) = self.meter.observe(t, self.scenario.dt, &self.world, &self.drives);
+        if self.tick % self.frame_every == 0 {
+            self.frame(observed, weighted);
+        }
+        Ok(())
+    }
+
+    fn apply_kills(&mut self, t: f64) {
+        for k in 0..self.scenario.kills.len() {
+            if self.kills_done[k] || self.scenario.kills[k].at > t {
+                continue;
+            }
+            self.kills_done[k] = true;
+            let i = match self.scenario.kills[k].robot {
+                Some(id) => (id as usize).checked_sub(1).filter(|&i| i < self.robots.len()),
+                None => self.most_useful_robot(),
+            };
+            let Some(i) = i else { continue };
+            if !self.world.robots[i].alive {
+                continue;
+            }
+            self.world.robots[i].alive = false;
+            self.meter.killed(t, &self.world, i);
+            self.events.push(Event { t, kind: "kill".into(), robot: node_id(i).0 });
+        }
+    }
+
+    /// The live robot observing the highest-priority observed target (lowest index on ties).
+    fn most_useful_robot(&self) -> Option<usize> {
+        let range = self.world.config.observe_range;
+        let mut best: Option<(usize, usize)> = None; // (target index, robot)
+        for (i, r) in self.world.robots.iter().enumerate() {
+            if !r.alive {
+                continue;
+            }
+            self.world.in_view(i, range, |j, _, _| {
+                if best.is_none_or(|(bj, _)| j < bj) {
+                    best = Some((j, i));
+                }
+            });
+        }
+        best.map(|(_, i)| i).or_else(|| self.world.robots.iter().position(|r| r.alive))
+    }
+
+    /// The omniscient planner: every second, give each target in priority order the nearest
+    /// free live robot (keeping the current holder unless another free robot is less than
+    /// half as far — hysteresis so that it does not thrash); every tick, tell each assigned
+    /// robot the exact bearing of its target.
+    fn oracle(&mut self, now: Instant) -> Result<(), Error> {
+        let w = &self.world;
+        if self.tick % 20 == 1 {
+            let mut free: Vec<bool> = w.robots.iter().map(|r| r.alive).collect();
+            let mut next = vec![None; w.robots.len()];
+            for (j, t) in w.targets.iter().enumerate() {
+                let dist = |i: usize| (w.robots[i].pose.x - t.x).hypot(w.robots[i].pose.y - t.y);
+                let nearest = (0..free.len()).filter(|&i| free[i]).min_by(|&a, &b| dist(a).total_cmp(&dist(b)));
+                let Some(nearest) = nearest else { break };
+                let holder = (0..free.len()).find(|&i| free[i] && self.assignment[i] == Some(j));
+                let pick = match holder {
+                    Some(h) if dist(nearest) * 2.0 >= dist(h) => h,
+                    _ => nearest,
+                };
+                free[pick] = false;
+                next[pick] = Some(j);
+            }
+            self.oracle_messages += next.iter().filter(|a| a.is_some()).count() as u64;
+            self.assignment = next;
+        }
+        for (i, r) in self.robots.iter_mut().enumerate() {
+            let (Some(j), Brain::Oracle { angle, assigned }) = (self.assignment[i], &r.brain) else { continue };
+            if !w.robots[i].alive {
+                continue;
+            }
+            let p = w.robots[i].pose;
+            let t = &w.targets[j];
+            let bearing = wrap((t.y - p.y).atan2(t.x - p.x) - p.theta);
+            let (angle, assigned): (PortRef, PortRef) = (*angle, *assigned);
+            r.core.write(now, angle, -bearing)?;
+            r.core.write(now, assigned, j as i64 + 1)?;
+        }
+        Ok(())
+    }
+
+    fn frame(&mut self, observed: u32, weighted: f64) {
+        let t = self.now().as_secs_f64();
+        let h = &mut self.hash;
+        h.update(t.to_bits().to_le_bytes());
+        for (i, r) in self.world.robots.iter().enumerate() {
+            for v in [r.pose.x, r.pose.y, r.pose.theta] {
+                h.update(v.to_bits().to_le_bytes());
+            }
+            h.update([r.alive as u8]);
+            h.update(self.drives[i].to_le_bytes());
+        }
+        for tg in &self.world.targets {
+            h.update(tg.x.to_bits().to_le_bytes());
+            h.update(tg.y.to_bits().to_le_bytes());
+        }
+        h.update(self.radio.sent.iter().sum::<u64>().to_le_bytes());
+        self.coverage.t.push(t);
+        self.coverage.observed.push(observed);
+        self.coverage.weighted.push(weighted);
+        if self.scenario.record {
+            let f = self.record_frame(t);
+            self.frames.push(f);
+        }
+    }
+
+    fn record_frame(&self, t: f64) -> Frame {
+        let m = self.world.targets.len() as u32;
+        let range = self.world.config.observe_range;
+        let robots = self
+            .world
+            .robots
+            .iter()
+            .enumerate()
+            .map(|(i, r)| {
+                let core = &self.robots[i].core;
+                let mut claims = Vec::new();
+                let mut inhibited = Vec::new();
+                if self.scenario.controller == Controller::Ble {
+                    for n in 1..=m {
+                        if let Ok(Some(s)) = core.ble_status(&format!("OBS{n}")) {
+                            if s.claiming && r.alive {
+                                claims.push(n);
+                            }
+                            if !s.inhibited_by.is_empty() && r.alive {
+                                inhibited.push(n);
+                            }
+                        }
+                    }
+                }
+                let mut observing = Vec::new();
+                if r.alive {
+                    self.world.in_view(i, range, |j, _, _| observing.push(j as u32 + 1));
+                }
+                RobotFrame {
+                    x: r.pose.x,
+                    y: r.pose.y,
+                    theta: r.pose.theta,
+                    alive: r.alive,
+                    drive: if r.alive { self.drives[i] } else { 0 },
+                    claims,
+                    inhibited,
+                    observing,
+                }
+            })
+            .collect();
+        Frame { t, robots, targets: self.world.targets.iter().map(|tg| [tg.x, tg.y]).collect() }
+    }
+
+    /// End the run: metrics, hash, series, and the recording if asked.
+    pub fn finish(self) -> Outcome {
+        let s = &self.scenario;
+        let end = self.now().as_secs_f64();
+        let sent = self.radio.sent.iter().sum::<u64>() + self.oracle_messages;
+        let metrics = self.meter.finish(end, s.robots, sent);
+        let recording = s.record.then(|| Recording {
+            meta: RecordingMeta {
+                controller: s.controller.name().to_owned(),
+                seed: s.seed,
+                arena: s.world.arena,
+                camera_fov: s.world.camera_fov,
+                camera_range: s.world.camera_range,
+                observe_range: s.world.observe_range,
+                frame_dt: s.frame_dt,
+                duration: s.duration,
+                loss: s.radio.loss,
+            },
+            robots: (0..s.robots).map(|i| RobotInfo { id: node_id(i).0, radius: s.world.robot_radius }).collect(),
+            targets: s
+                .world
+                .targets
+                .iter()
+                .enumerate()
+                .map(|(j, t)| TargetInfo { id: j as u32 + 1, priority: t.priority, radius: s.world.target_radius })
+                .collect(),
+            frames: self.frames,
+            events: self.events,
+        });
+        let hash: String = self.hash.finalize().iter().map(|b| format!("{b:02x}")).collect();
+        Outcome {
+            metrics,
+            trace_hash: hash,
+            coverage: self.coverage,
+            recording,
+            radio: RadioStats { sent, delivered: self.radio.delivered, lost: self.radio.lost, cut: self.radio.cut },
+        }
+    }
+}
+
+/// Run `scenario` to its end.
+pub fn run(scenario: &Scenario) -> Result<Outcome, Error> {
+    let mut sim = Sim::new(scenario)?;
+    while !sim.done() {
+        sim.step()?;
+    }
+    Ok(sim.finish())
+}

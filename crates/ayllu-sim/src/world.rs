@@ -1,0 +1,457 @@
+//! The physical world: a walled rectangular arena, unicycle robots with a sonar ring and a
+//! camera, and moving targets with priorities. Pure and deterministic: [`World::step`] takes
+//! the commands and a time step, and every random draw comes from the world's own seeded
+//! streams (target motion and sensor noise are separate streams, so a controller's choices never
+//! change how the targets move: every controller meets the same targets).
+//!
+//! Geometry: metres and radians, origin at the arena's bottom-left corner, headings
+//! counter-clockwise from +x. Collisions are resolved by pushing circles apart and back inside
+//! the walls; nothing tunnels at the speeds allowed (a step moves less than a radius).
+
+use std::f64::consts::{PI, TAU};
+
+use serde::{Deserialize, Serialize};
+
+/// How a target moves.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub enum Motion {
+    /// Stays where it starts.
+    Static,
+    /// Picks a random point in the arena, goes there at its speed, pauses 0-5 s, repeats.
+    RandomWaypoint,
+    /// Straight lines, reflecting off the walls; the heading drifts a little at random.
+    Bounce,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TargetSpec {
+    /// Larger is more important; the scenario numbers targets by decreasing priority.
+    pub priority: f64,
+    /// m/s
+    pub speed: f64,
+    pub motion: Motion,
+}
+
+/// Everything fixed about a world.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct WorldConfig {
+    pub arena: [f64; 2],
+    pub robot_radius: f64,
+    pub target_radius: f64,
+    /// Height of a target (m); its apparent height is `focal * height / distance`.
+    pub target_height: f64,
+    /// Camera focal length in pixels: apparent height 100 px for a 0.5 m target at 1 m.
+    pub focal: f64,
+    /// Motor limits.
+    pub max_speed: f64,
+    pub max_turn: f64,
+    pub camera_fov: f64,
+    pub camera_range: f64,
+    /// A target counts as observed (metrics) in the field of view and within this distance.
+    pub observe_range: f64,
+    pub sonar_beams: usize,
+    pub sonar_range: f64,
+    /// Sensor noise: bearing (rad, s.d.), apparent height (fraction, s.d.), sonar (m, s.d.),
+    /// and the chance that a visible target is missed in one camera frame.
+    pub bearing_noise: f64,
+    pub height_noise: f64,
+    pub sonar_noise: f64,
+    pub miss_rate: f64,
+    pub targets: Vec<TargetSpec>,
+}
+
+impl WorldConfig {
+    /// The paper's lab, scaled to a Pioneer team: an 8 m x 8 m room, a 60° camera seeing 5 m,
+    /// targets observed within 2 m, targets slower than robots.
+    pub fn lab(priorities: &[f64]) -> WorldConfig {
+        WorldConfig {
+            arena: [8.0, 8.0],
+            robot_radius: 0.25,
+            target_radius: 0.2,
+            target_height: 0.5,
+            focal: 200.0,
+            max_speed: 0.4,
+            max_turn: 1.5,
+            camera_fov: 60f64.to_radians(),
+            camera_range: 5.0,
+            observe_range: 2.0,
+            sonar_beams: 8,
+            sonar_range: 3.0,
+            bearing_noise: 0.02,
+            height_noise: 0.05,
+            sonar_noise: 0.02,
+            miss_rate: 0.02,
+            targets: priorities
+                .iter()
+                .map(|&p| TargetSpec { priority: p, speed: 0.15, motion: Motion::RandomWaypoint })
+                .collect(),
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Pose {
+    pub x: f64,
+    pub y: f64,
+    pub theta: f64,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Robot {
+    pub pose: Pose,
+    pub alive: bool,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Target {
+    pub x: f64,
+    pub y: f64,
+    pub heading: f64,
+    waypoint: (f64, f64),
+    pause: f64,
+}
+
+/// One target as one camera frame sees it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sighting {
+    /// Index into the world's targets (target id - 1).
+    pub target: usize,
+    /// Bearing (rad) positive to the right of the camera axis (the stdlib convention).
+    pub angle: f64,
+    /// Apparent height in pixels: larger is closer.
+    pub height: f64,
+}
+
+/// What the motors are asked to do.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Command {
+    pub translate: f64,
+    pub rotate: f64,
+}
+
+pub struct World {
+    pub config: WorldConfig,
+    pub robots: Vec<Robot>,
+    pub targets: Vec<Target>,
+    motion_rng: fastrand::Rng,
+    noise_rng: fastrand::Rng,
+    /// Spatial hash of robots and targets for sonar: cell size = sonar range.
+    grid: Grid,
+    /// Reused by `camera` so a frame allocates nothing.
+    view: Vec<(usize, f64, f64)>,
+}
+
+/// A standard normal draw (Box-Muller), from a stream that only this module uses.
+fn gauss(rng: &mut fastrand::Rng) -> f64 {
+    let u = rng.f64().max(f64::MIN_POSITIVE);
+    let v = rng.f64();
+    (-2.0 * u.ln()).sqrt() * (TAU * v).cos()
+}
+
+/// Wrap an angle into (-π, π].
+pub fn wrap(a: f64) -> f64 {
+    let a = a.rem_euclid(TAU);
+    if a > PI {
+        a - TAU
+    } else {
+        a
+    }
+}
+
+/// Distance along a ray from (ox, oy) in direction (dx, dy) (unit) to a circle, if it hits
+/// ahead of the origin.
+fn ray_circle(ox: f64, oy: f64, dx: f64, dy: f64, cx: f64, cy: f64, r: f64) -> Option<f64> {
+    let (fx, fy) = (ox - cx, oy - cy);
+    let b = fx * dx + fy * dy;
+    let c = fx * fx + fy * fy - r * r;
+    let disc = b * b - c;
+    if disc < 0.0 {
+        return None;
+    }
+    let t = -b - disc.sqrt();
+    (t >= 0.0).then_some(t)
+}
+
+impl World {
+    /// A world with `robots` robots and the configured targets placed at random (seeded),
+    /// apart from each other and from the walls.
+    pub fn new(config: WorldConfig, robots: usize, seed: u64) -> World {
+        let mut place_rng = fastrand::Rng::with_seed(seed ^ 0x5EED_0001);
+        let motion_rng = fastrand::Rng::with_seed(seed ^ 0x5EED_0002);
+        let noise_rng = fastrand::Rng::with_seed(seed ^ 0x5EED_0003);
+        let [w, h] = config.arena;
+        let mut taken: Vec<(f64, f64, f64)> = Vec::new();
+        let mut place = |r: f64, rng: &mut fastrand::Rng| {
+            // Bounded tries: a crowded arena still gets a (possibly overlapping) place, and
+            // the collision step separates overlaps.
+            for attempt in 0..200 {
+                let x = r + rng.f64() * (w - 2.0 * r);
+                let y = r + rng.f64() * (h - 2.0 * r);
+                let clear = taken.iter().all(|&(tx, ty, tr)| (tx - x).hypot(ty - y) > tr + r + 0.2);
+                if clear || attempt == 199 {
+                    taken.push((x, y, r));
+                    return (x, y);
+                }
+            }
+            unreachable!("the last attempt always places")
+        };
+        let targets = (0..config.targets.len())
+            .map(|_| {
+                let (x, y) = place(config.target_radius, &mut place_rng);
+                Target { x, y, heading: place_rng.f64() * TAU, waypoint: (x, y), pause: 0.0 }
+            })
+            .collect();
+        let robots = (0..robots)
+            .map(|_| {
+                let (x, y) = place(config.robot_radius, &mut place_rng);
+                Robot { pose: Pose { x, y, theta: wrap(place_rng.f64() * TAU) }, alive: true }
+            })
+            .collect();
+        let grid = Grid::new(config.arena, config.sonar_range.max(config.robot_radius * 4.0));
+        World { config, robots, targets, motion_rng, noise_rng, grid, view: Vec::new() }
+    }
+
+    /// Advance by `dt` seconds: targets move, live robots follow `commands` (clamped to the
+    /// motor limits; dead robots stay where they died, still solid), then contacts resolve.
+    pub fn step(&mut self, dt: f64, commands: &[Command]) {
+        self.move_targets(dt);
+        let c = &self.config;
+        for (robot, cmd) in self.robots.iter_mut().zip(commands) {
+            if !robot.alive {
+                continue;
+            }
+            let v = cmd.translate.clamp(-c.max_speed, c.max_speed);
+            let w = cmd.rotate.clamp(-c.max_turn, c.max_turn);
+            let p = &mut robot.pose;
+            // Midpoint heading: exact enough at 20 Hz and symmetric in time.
+            let mid = p.theta + 0.5 * w * dt;
+            p.x += v * mid.cos() * dt;
+            p.y += v * mid.sin() * dt;
+            p.theta = wrap(p.theta + w * dt);
+        }
+        self.resolve_contacts();
+    }
+
+    fn move_targets(&mut self, dt: f64) {
+        let [w, h] = self.config.arena;
+        let r = self.config.target_radius;
+        for (t, spec) in self.targets.iter_mut().zip(&self.config.targets) {
+            match spec.motion {
+                Motion::Static => {}
+                Motion::RandomWaypoint => {
+                    if t.pause > 0.0 {
+                        t.pause -= dt;
+                        continue;
+                    }
+                    let (dx, dy) = (t.waypoint.0 - t.x, t.waypoint.1 - t.y);
+                    let d = dx.hypot(dy);
+                    let step = spec.speed * dt;
+                    if d <= step {
+                        t.x = t.waypoint.0;
+                        t.y = t.waypoint.1;
+                        t.pause = self.motion_rng.f64() * 5.0;
+                        t.waypoint =
+                            (r + self.motion_rng.f64() * (w - 2.0 * r), r + self.motion_rng.f64() * (h - 2.0 * r));
+                    } else {
+                        t.heading = dy.atan2(dx);
+                        t.x += dx / d * step;
+                        t.y += dy / d * step;
+                    }
+                }
+                Motion::Bounce => {
+                    t.heading = wrap(t.heading + gauss(&mut self.motion_rng) * 0.3 * dt.sqrt());
+                    t.x += spec.speed * t.heading.cos() * dt;
+                    t.y += spec.speed * t.heading.sin() * dt;
+                    if t.x < r || t.x > w - r {
+                        t.heading = wrap(PI - t.heading);
+                        t.x = t.x.clamp(r, w - r);
+                    }
+                    if t.y < r || t.y > h - r {
+                        t.heading = wrap(-t.heading);
+                        t.y = t.y.clamp(r, h - r);
+                    }
+                }
+            }
+        }
+    }
+
+    /// Push robots out of each other, out of targets (targets are not pushed: they are
+    /// people or other robots with their own minds) and back inside the walls.
+    fn resolve_contacts(&mut self) {
+        let rr = self.config.robot_radius;
+        let tr = self.config.target_radius;
+        let [w, h] = self.config.arena;
+        self.grid.fill_robots(&self.robots);
+        for i in 0..self.robots.len() {
+            let (x, y) = (self.robots[i].pose.x, self.robots[i].pose.y);
+            let mut push = (0.0, 0.0);
+            for &j in self.grid.near(x, y) {
+                if j <= i {
+                    continue;
+                }
+                let o = &self.robots[j].pose;
+                let (dx, dy) = (o.x - x, o.y - y);
+                let d = dx.hypot(dy);
+                let overlap = 2.0 * rr - d;
+                if overlap > 0.0 {
+                    // Coincident centres separate along x, deterministically.
+                    let (ux, uy) = if d > 1e-12 { (dx / d, dy / d) } else { (1.0, 0.0) };
+                    let (mi, mj) = (self.robots[i].alive as u8 as f64, self.robots[j].alive as u8 as f64);
+                    let total = (mi + mj).max(1.0);
+                    let (si, sj) = (overlap * mi / total, overlap * mj / total);
+                    push.0 -= ux * si;
+                    push.1 -= uy * si;
+                    self.robots[j].pose.x += ux * sj;
+                    self.robots[j].pose.y += uy * sj;
+                }
+            }
+            let p = &mut self.robots[i].pose;
+            p.x += push.0;
+            p.y += push.1;
+            for t in &self.targets {
+                let (dx, dy) = (p.x - t.x, p.y - t.y);
+                let d = dx.hypot(dy);
+                let overlap = rr + tr - d;
+                if overlap > 0.0 {
+                    let (ux, uy) = if d > 1e-12 { (dx / d, dy / d) } else { (1.0, 0.0) };
+                    p.x += ux * overlap;
+                    p.y += uy * overlap;
+                }
+            }
+            p.x = p.x.clamp(rr, w - rr);
+            p.y = p.y.clamp(rr, h - rr);
+        }
+    }
+
+    /// Noise-free: targets robot `i` sees, with their true distance (for metrics and the
+    /// omniscient baseline).
+    pub fn in_view(&self, i: usize, range: f64, mut f: impl FnMut(usize, f64, f64)) {
+        let p = self.robots[i].pose;
+        let half = 0.5 * self.config.camera_fov;
+        for (j, t) in self.targets.iter().enumerate() {
+            let (dx, dy) = (t.x - p.x, t.y - p.y);
+            let d = dx.hypot(dy);
+            if d > range {
+                continue;
+            }
+            let bearing = wrap(dy.atan2(dx) - p.theta);
+            if bearing.abs() <= half {
+                f(j, d, bearing);
+            }
+        }
+    }
+
+    /// One camera frame of robot `i`, with noise and misses, into `out` (cleared first).
+    pub fn camera(&mut self, i: usize, out: &mut Vec<Sighting>) {
+        out.clear();
+        let mut seen = std::mem::take(&mut self.view);
+        seen.clear();
+        self.in_view(i, self.config.camera_range, |j, d, b| seen.push((j, d, b)));
+        let c = &self.config;
+        for &(j, d, b) in &seen {
+            if self.noise_rng.f64() < c.miss_rate {
+                continue;
+            }
+            let angle = -(b + c.bearing_noise * gauss(&mut self.noise_rng));
+            let height = c.focal * c.target_height / d.max(0.05) * (1.0 + c.height_noise * gauss(&mut self.noise_rng));
+            out.push(Sighting { target: j, angle, height: height.max(0.0) });
+        }
+        self.view = seen;
+    }
+
+    /// One sonar sweep of robot `i` into `out` (one range per beam, from the robot's rim,
+    /// capped at the sonar range), with noise. Sees walls, other robots (dead ones too) and
+    /// targets. Call [`World::index`] once after the robots moved, before the sweeps.
+    pub fn sonar(&mut self, i: usize, out: &mut [f64]) {
+        let c = &self.config;
+        let p = self.robots[i].pose;
+        let [w, h] = c.arena;
+        let beams = out.len();
+        let near = self.grid.near(p.x, p.y);
+        for (k, slot) in out.iter_mut().enumerate() {
+            let a = p.theta + k as f64 * TAU / beams as f64;
+            let (dx, dy) = (a.cos(), a.sin());
+            // Walls: the arena box from the inside.
+            let mut best = f64::INFINITY;
+            if dx > 1e-12 {
+                best = best.min((w - p.x) / dx);
+            } else if dx < -1e-12 {
+                best = best.min(-p.x / dx);
+            }
+            if dy > 1e-12 {
+                best = best.min((h - p.y) / dy);
+            } else if dy < -1e-12 {
+                best = best.min(-p.y / dy);
+            }
+            for &j in near {
+                if j == i {
+                    continue;
+                }
+                let o = &self.robots[j].pose;
+                if let Some(t) = ray_circle(p.x, p.y, dx, dy, o.x, o.y, c.robot_radius) {
+                    best = best.min(t);
+                }
+            }
+            for t in &self.targets {
+                if let Some(d) = ray_circle(p.x, p.y, dx, dy, t.x, t.y, c.target_radius) {
+                    best = best.min(d);
+                }
+            }
+            let r = best - c.robot_radius + c.sonar_noise * gauss(&mut self.noise_rng);
+            *slot = r.clamp(0.0, c.sonar_range);
+        }
+    }
+
+    /// Rebuild the spatial index after robots moved (the sonar uses it).
+    pub fn index(&mut self) {
+        self.grid.fill_robots(&self.robots);
+    }
+}
+
+/// A uniform grid over the arena holding robot indices, so that contacts and sonar look only
+/// at nearby robots: cost per robot stays constant as the team grows at constant density.
+struct Grid {
+    cell: f64,
+    cols: usize,
+    rows: usize,
+    cells: Vec<Vec<usize>>,
+    scratch: Vec<usize>,
+}
+
+impl Grid {
+    fn new(arena: [f64; 2], cell: f64) -> Grid {
+        let cols = ((arena[0] / cell).ceil() as usize).max(1);
+        let rows = ((arena[1] / cell).ceil() as usize).max(1);
+        Grid { cell, cols, rows, cells: vec![Vec::new(); cols * rows], scratch: Vec::new() }
+    }
+
+    fn cell_of(&self, x: f64, y: f64) -> (usize, usize) {
+        let c = ((x / self.cell).max(0.0) as usize).min(self.cols - 1);
+        let r = ((y / self.cell).max(0.0) as usize).min(self.rows - 1);
+        (c, r)
+    }
+
+    fn fill_robots(&mut self, robots: &[Robot]) {
+        for c in &mut self.cells {
+            c.clear();
+        }
+        for (i, r) in robots.iter().enumerate() {
+            let (c, row) = self.cell_of(r.pose.x, r.pose.y);
+            self.cells[row * self.cols + c].push(i);
+        }
+    }
+
+    /// Robots in the 3 x 3 cells around (x, y), in increasing index order (determinism does
+    /// not depend on it, but reproducible iteration makes debugging easier).
+    fn near(&mut self, x: f64, y: f64) -> &[usize] {
+        let (c, r) = self.cell_of(x, y);
+        self.scratch.clear();
+        for row in r.saturating_sub(1)..=(r + 1).min(self.rows - 1) {
+            for col in c.saturating_sub(1)..=(c + 1).min(self.cols - 1) {
+                self.scratch.extend_from_slice(&self.cells[row * self.cols + col]);
+            }
+        }
+        self.scratch.sort_unstable();
+        &self.scratch
+    }
+}
