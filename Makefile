@@ -4,17 +4,20 @@ CARGO ?= cargo
 
 .PHONY: demo test lint bench bench-net fuzz fmt
 
-## Run the main demo: the paper's cross-subsumption, 3 robots x 4 targets, with a robot failure.
+## Run the main demo: W-CMOMMT in the simulator (the paper's setting, a sweep, a robot killed
+## halfway) for BLE and every baseline; prints the tables and writes ayllu-report/index.html.
 demo:
-	$(CARGO) run --release --quiet --example cross_subsumption
+	$(CARGO) run --release --quiet -p ayllu-cli -- sim cmommt
 
 PYTHON ?= python3
 # Where cargo puts binaries (honours CARGO_TARGET_DIR).
 TARGET_DIR ?= $(or $(CARGO_TARGET_DIR),target)
 
 ## Run every test: Rust (unit, rule, property, golden vectors, examples, processes over real
-## sockets), AylluLite C and Python (golden vectors, node logic over loopback).
+## sockets, the report page in headless Chromium), AylluLite C and Python (golden vectors,
+## node logic over loopback). Installs Debian's chromium first if it is missing.
 test:
+	scripts/install-chromium
 	$(CARGO) test --workspace
 	$(MAKE) -C lite/c test
 	$(PYTHON) -m pytest --version >/dev/null 2>&1 || $(PYTHON) -m pip install --quiet pytest

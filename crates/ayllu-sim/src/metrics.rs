@@ -28,6 +28,9 @@ pub struct Metrics {
     pub redundant: f64,
     pub switches_per_min: f64,
     pub recover_s: Option<f64>,
+    /// Tasks lost to a kill and never re-covered before the end (counted in `recover_s` as
+    /// the time left).
+    pub unrecovered: u32,
     pub msgs_per_robot_s: f64,
 }
 
@@ -151,6 +154,7 @@ impl Meter {
 
     /// The metrics of the whole run; `messages` radio emissions by `robots` robots.
     pub fn finish(mut self, end: f64, robots: usize, messages: u64) -> Metrics {
+        let unrecovered = self.pending.len() as u32;
         for (_, since) in self.pending.drain(..) {
             self.recovered.push(end - since);
         }
@@ -170,6 +174,7 @@ impl Meter {
             },
             recover_s: (!self.recovered.is_empty())
                 .then(|| self.recovered.iter().sum::<f64>() / self.recovered.len() as f64),
+            unrecovered,
             msgs_per_robot_s: messages as f64 / robots.max(1) as f64 / t,
         }
     }

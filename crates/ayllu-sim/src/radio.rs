@@ -52,12 +52,12 @@ pub struct Station {
     pub alive: bool,
 }
 
+/// A heap entry: small, so that sifting moves 24 bytes, not a whole message (the message
+/// waits in `Radio::parked`).
 struct InFlight {
     at: Instant,
     order: u64,
-    to: usize,
-    from: NodeId,
-    message: Message,
+    slot: usize,
 }
 
 impl PartialEq for InFlight {
@@ -83,8 +83,11 @@ pub struct Radio {
     rng: fastrand::Rng,
     queue: BinaryHeap<Reverse<InFlight>>,
     order: u64,
-    /// Group memberships, by station index.
-    groups: Vec<Vec<Arc<str>>>,
+    /// Messages in flight (receiver, sender, message), and the free entries.
+    parked: Vec<Option<(usize, NodeId, Message)>>,
+    free: Vec<usize>,
+    /// Members of each group, by station index in increasing order.
+    groups: Vec<(Arc<str>, Vec<usize>)>,
     /// Emissions per station, and deliveries lost (by loss draw) / cut (range, partition).
     pub sent: Vec<u64>,
     pub lost: u64,
@@ -99,7 +102,9 @@ impl Radio {
             rng: fastrand::Rng::with_seed(seed ^ 0x5EED_0004),
             queue: BinaryHeap::new(),
             order: 0,
-            groups: vec![Vec::new(); stations],
+            parked: Vec::new(),
+            free: Vec::new(),
+            groups: Vec::new(),
             sent: vec![0; stations],
             lost: 0,
             cut: 0,
@@ -111,9 +116,22 @@ impl Radio {
         &self.config
     }
 
-    /// Station `i` is a member of `groups` (its node's joined groups).
+    /// Station `i` is a member of `groups` (its node's joined groups). Call in station order.
     pub fn set_groups(&mut self, i: usize, groups: &[Arc<str>]) {
-        self.groups[i] = groups.to_vec();
+        for g in groups {
+            let gi = match self.groups.iter().position(|(name, _)| name == g) {
+                Some(gi) => gi,
+                None => {
+                    self.groups.push((g.clone(), Vec::new()));
+                    self.groups.len() - 1
+                }
+            };
+            let members = &mut self.groups[gi].1;
+            if !members.contains(&i) {
+                members.push(i);
+                members.sort_unstable();
+            }
+        }
     }
 
     fn connected(&self, now: f64, a: &Station, b: &Station) -> bool {
@@ -140,11 +158,16 @@ impl Radio {
                 }
             }
             Destination::Group(g) => {
-                for (to, st) in stations.iter().enumerate() {
-                    if to != from && self.groups[to].iter().any(|m| m == g) {
-                        self.route(now, t, &src, to, st, out.message.clone());
+                // Teams have a handful of groups: a scan beats hashing the name.
+                let Some(gi) = self.groups.iter().position(|(name, _)| name == g) else { return };
+                // Taken out for the loop so `route` can borrow the radio; put back after.
+                let members = std::mem::take(&mut self.groups[gi].1);
+                for &to in &members {
+                    if to != from {
+                        self.route(now, t, &src, to, &stations[to], out.message.clone());
                     }
                 }
+                self.groups[gi].1 = members;
             }
         }
     }
@@ -161,15 +184,28 @@ impl Radio {
         let delay = self.config.delay + self.config.jitter * self.rng.f64();
         let at = now + Duration::from_nanos((delay * 1e9) as u64);
         self.order += 1;
-        self.queue.push(Reverse(InFlight { at, order: self.order, to, from: src.node, message }));
+        let entry = Some((to, src.node, message));
+        let slot = match self.free.pop() {
+            Some(slot) => {
+                self.parked[slot] = entry;
+                slot
+            }
+            None => {
+                self.parked.push(entry);
+                self.parked.len() - 1
+            }
+        };
+        self.queue.push(Reverse(InFlight { at, order: self.order, slot }));
     }
 
     /// Hand every message due at or before `now` to `deliver(station, from, message)`.
     pub fn deliver(&mut self, now: Instant, mut deliver: impl FnMut(usize, NodeId, Message)) {
         while self.queue.peek().is_some_and(|Reverse(m)| m.at <= now) {
             let Reverse(m) = self.queue.pop().expect("peeked");
+            let (to, from, message) = self.parked[m.slot].take().expect("parked while queued");
+            self.free.push(m.slot);
             self.delivered += 1;
-            deliver(m.to, m.from, m.message);
+            deliver(to, from, message);
         }
     }
 

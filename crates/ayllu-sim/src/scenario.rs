@@ -247,7 +247,7 @@ impl Sim {
                 robots[to].core.receive(now, from, msg);
             }
         });
-        if self.tick % u64::from(self.scenario.sense_every.max(1)) == 0 {
+        if self.tick.is_multiple_of(u64::from(self.scenario.sense_every.max(1))) {
             self.world.index();
             for (i, r) in self.robots.iter_mut().enumerate() {
                 if self.world.robots[i].alive {
@@ -282,7 +282,7 @@ impl Sim {
         }
         self.world.step(self.scenario.dt, &self.commands);
         let (observed, weighted) = self.meter.observe(t, self.scenario.dt, &self.world, &self.drives);
-        if self.tick % self.frame_every == 0 {
+        if self.tick.is_multiple_of(self.frame_every) {
             self.frame(observed, weighted);
         }
         Ok(())

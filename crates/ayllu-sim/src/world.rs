@@ -139,6 +139,8 @@ pub struct World {
     grid: Grid,
     /// Reused by `camera` so a frame allocates nothing.
     view: Vec<(usize, f64, f64)>,
+    /// (sin, cos) of each sonar beam's offset from the heading.
+    beams: Vec<(f64, f64)>,
 }
 
 /// A standard normal draw (Box-Muller), from a stream that only this module uses.
@@ -146,6 +148,13 @@ fn gauss(rng: &mut fastrand::Rng) -> f64 {
     let u = rng.f64().max(f64::MIN_POSITIVE);
     let v = rng.f64();
     (-2.0 * u.ln()).sqrt() * (TAU * v).cos()
+}
+
+/// Euclidean length; `f64::hypot` guards against overflow we cannot have here, at several
+/// times the cost in the sonar's inner loop.
+#[inline]
+fn dist(dx: f64, dy: f64) -> f64 {
+    (dx * dx + dy * dy).sqrt()
 }
 
 /// Wrap an angle into (-π, π].
@@ -187,7 +196,7 @@ impl World {
             for attempt in 0..200 {
                 let x = r + rng.f64() * (w - 2.0 * r);
                 let y = r + rng.f64() * (h - 2.0 * r);
-                let clear = taken.iter().all(|&(tx, ty, tr)| (tx - x).hypot(ty - y) > tr + r + 0.2);
+                let clear = taken.iter().all(|&(tx, ty, tr)| dist(tx - x, ty - y) > tr + r + 0.2);
                 if clear || attempt == 199 {
                     taken.push((x, y, r));
                     return (x, y);
@@ -208,7 +217,7 @@ impl World {
             })
             .collect();
         let grid = Grid::new(config.arena, config.sonar_range.max(config.robot_radius * 4.0));
-        World { config, robots, targets, motion_rng, noise_rng, grid, view: Vec::new() }
+        World { config, robots, targets, motion_rng, noise_rng, grid, view: Vec::new(), beams: Vec::new() }
     }
 
     /// Advance by `dt` seconds: targets move, live robots follow `commands` (clamped to the
@@ -244,7 +253,7 @@ impl World {
                         continue;
                     }
                     let (dx, dy) = (t.waypoint.0 - t.x, t.waypoint.1 - t.y);
-                    let d = dx.hypot(dy);
+                    let d = dist(dx, dy);
                     let step = spec.speed * dt;
                     if d <= step {
                         t.x = t.waypoint.0;
@@ -291,7 +300,7 @@ impl World {
                 }
                 let o = &self.robots[j].pose;
                 let (dx, dy) = (o.x - x, o.y - y);
-                let d = dx.hypot(dy);
+                let d = dist(dx, dy);
                 let overlap = 2.0 * rr - d;
                 if overlap > 0.0 {
                     // Coincident centres separate along x, deterministically.
@@ -310,7 +319,7 @@ impl World {
             p.y += push.1;
             for t in &self.targets {
                 let (dx, dy) = (p.x - t.x, p.y - t.y);
-                let d = dx.hypot(dy);
+                let d = dist(dx, dy);
                 let overlap = rr + tr - d;
                 if overlap > 0.0 {
                     let (ux, uy) = if d > 1e-12 { (dx / d, dy / d) } else { (1.0, 0.0) };
@@ -330,7 +339,7 @@ impl World {
         let half = 0.5 * self.config.camera_fov;
         for (j, t) in self.targets.iter().enumerate() {
             let (dx, dy) = (t.x - p.x, t.y - p.y);
-            let d = dx.hypot(dy);
+            let d = dist(dx, dy);
             if d > range {
                 continue;
             }
@@ -367,10 +376,15 @@ impl World {
         let p = self.robots[i].pose;
         let [w, h] = c.arena;
         let beams = out.len();
+        if self.beams.len() != beams {
+            self.beams = (0..beams).map(|k| (k as f64 * TAU / beams as f64).sin_cos()).collect();
+        }
+        let (s0, c0) = p.theta.sin_cos();
         let near = self.grid.near(p.x, p.y);
         for (k, slot) in out.iter_mut().enumerate() {
-            let a = p.theta + k as f64 * TAU / beams as f64;
-            let (dx, dy) = (a.cos(), a.sin());
+            // Beam direction = heading rotated by the beam's fixed offset (one sin_cos a sweep).
+            let (sk, ck) = self.beams[k];
+            let (dx, dy) = (c0 * ck - s0 * sk, s0 * ck + c0 * sk);
             // Walls: the arena box from the inside.
             let mut best = f64::INFINITY;
             if dx > 1e-12 {
