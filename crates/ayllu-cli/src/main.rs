@@ -20,6 +20,8 @@ mod commands;
 mod controllers;
 mod fail;
 mod signals;
+mod sim_cmommt;
+mod sim_serve;
 mod text;
 
 use std::process::ExitCode;
@@ -68,6 +70,17 @@ impl std::fmt::Display for PortPath {
 }
 
 #[derive(Subcommand, Debug)]
+enum SimCommand {
+    /// Run W-CMOMMT (the paper's section 4) for BLE and every baseline: the paper's setting, a
+    /// sweep and a robustness scenario; print the tables and write a report folder.
+    Cmommt(sim_cmommt::CmommtArgs),
+    /// Host a simulated world and expose each robot's body (VISION, SONAR, BASE) over udp://.
+    Serve(sim_serve::ServeArgs),
+    /// Run one robot's controller as its own process, driving a body that `sim serve` hosts.
+    Robot(sim_serve::RobotArgs),
+}
+
+#[derive(Subcommand, Debug)]
 enum Command {
     /// List the nodes heard on the network, or describe one node (behaviors, ports,
     /// connections, groups, counters).
@@ -108,6 +121,10 @@ enum Command {
     Write(WriteArgs),
     /// Run a node hosting a standard controller, printing a JSON status line periodically.
     Node(NodeArgs),
+    /// The simulator: the paper's multi-target observation task (`cmommt`), and the
+    /// distributed mode (`serve` the world, run each `robot` controller as its own process).
+    #[command(subcommand)]
+    Sim(SimCommand),
 }
 
 #[derive(Args, Debug)]
@@ -254,6 +271,9 @@ fn run(cli: Cli) -> Result<(), Fail> {
         Command::Echo { node, target, count, net } => commands::echo(node, &target, count, &net),
         Command::Write(args) => commands::write(&args),
         Command::Node(args) => controllers::run(&args),
+        Command::Sim(SimCommand::Cmommt(args)) => sim_cmommt::run(&args),
+        Command::Sim(SimCommand::Serve(args)) => sim_serve::serve(&args),
+        Command::Sim(SimCommand::Robot(args)) => sim_serve::robot(&args),
     }
 }
 

@@ -1,9 +1,23 @@
 //! Many runs: the paper's setting over seeds, the sweep (robots x targets x loss) and the
 //! robustness scenario (a robot killed halfway), each for BLE and every baseline.
+//!
+//! A [`Plan`] lists [`Cell`]s (a controller in one setting, run over seeds 1..=seeds); [`run_plan`]
+//! runs every (cell, seed) on worker threads and [`aggregate`]s each cell into a [`Row`].
+//!
+//! Promise: the rows are a pure function of the plan. Runs are independent and each is
+//! deterministic (see [`crate::scenario`]); results are stored by their place in the plan, not
+//! by when a worker finished, and averaged in seed order, so the number of workers and the
+//! scheduling change nothing, down to the last bit.
 
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::Mutex;
+
+use ayllu_core::Error;
 use serde::{Deserialize, Serialize};
 
+use crate::controller::Controller;
 use crate::metrics::Metrics;
+use crate::scenario::{self, Outcome, Scenario};
 
 /// One cell of a table: a controller in one setting, metrics averaged over `seeds` runs.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -19,4 +33,369 @@ pub struct Row {
     pub metrics: Metrics,
     /// Standard deviation of A_w over the seeds.
     pub a_w_sd: f64,
+}
+
+/// A controller in one setting, to be run with seeds 1..=`seeds`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Cell {
+    pub controller: Controller,
+    pub robots: usize,
+    pub targets: usize,
+    pub loss: f64,
+    /// Kill the most useful robot halfway through.
+    pub kill: bool,
+    pub seeds: u32,
+    /// Seconds of virtual time per run.
+    pub duration: f64,
+}
+
+impl Cell {
+    /// The run of this cell with `seed`.
+    pub fn scenario(&self, seed: u64) -> Scenario {
+        let s =
+            Scenario::sized(self.controller, self.robots, self.targets, seed).loss(self.loss).duration(self.duration);
+        if self.kill {
+            s.kill_halfway()
+        } else {
+            s
+        }
+    }
+
+    /// Every run of the cell, seeds in order.
+    pub fn scenarios(&self) -> impl Iterator<Item = Scenario> + '_ {
+        (1..=u64::from(self.seeds)).map(|seed| self.scenario(seed))
+    }
+}
+
+/// What a study covers. The defaults are the study the README describes.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StudyConfig {
+    /// Runs per cell (seeds 1..=seeds).
+    pub seeds: u32,
+    /// Seconds of virtual time per run.
+    pub duration: f64,
+    pub controllers: Vec<Controller>,
+    pub sweep_robots: Vec<usize>,
+    pub sweep_targets: Vec<usize>,
+    pub sweep_loss: Vec<f64>,
+    /// Loss levels of the robustness scenario (the paper's setting, a robot killed halfway).
+    pub robustness_loss: Vec<f64>,
+}
+
+impl Default for StudyConfig {
+    fn default() -> Self {
+        StudyConfig {
+            seeds: 10,
+            duration: 300.0,
+            controllers: Controller::ALL.to_vec(),
+            sweep_robots: vec![2, 3, 5, 8],
+            sweep_targets: vec![4, 8],
+            sweep_loss: vec![0.0, 0.1, 0.3],
+            robustness_loss: vec![0.0, 0.1, 0.3],
+        }
+    }
+}
+
+impl StudyConfig {
+    /// A study small enough for a smoke run: 3 seeds of 120 s, sweep 2 and 5 robots x 4
+    /// targets x 0 and 30 % loss.
+    pub fn quick() -> StudyConfig {
+        StudyConfig {
+            seeds: 3,
+            duration: 120.0,
+            sweep_robots: vec![2, 5],
+            sweep_targets: vec![4],
+            sweep_loss: vec![0.0, 0.3],
+            ..StudyConfig::default()
+        }
+    }
+}
+
+/// The three tables' cells, each table in the order its rows print.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Plan {
+    /// The paper's setting (3 robots, 4 targets, no loss): one cell per controller.
+    pub paper: Vec<Cell>,
+    /// robots x targets x loss x controller, in that nesting order.
+    pub sweep: Vec<Cell>,
+    /// The paper's setting with a robot killed halfway: loss x controller.
+    pub robustness: Vec<Cell>,
+}
+
+/// Robots and targets of the paper's setting (section 4.3).
+pub const PAPER_ROBOTS: usize = 3;
+pub const PAPER_TARGETS: usize = 4;
+
+impl Plan {
+    pub fn new(config: &StudyConfig) -> Plan {
+        let cell = |controller, robots, targets, loss, kill| Cell {
+            controller,
+            robots,
+            targets,
+            loss,
+            kill,
+            seeds: config.seeds,
+            duration: config.duration,
+        };
+        let cs = &config.controllers;
+        let paper = cs.iter().map(|&c| cell(c, PAPER_ROBOTS, PAPER_TARGETS, 0.0, false)).collect();
+        let mut sweep = Vec::new();
+        for &robots in &config.sweep_robots {
+            for &targets in &config.sweep_targets {
+                for &loss in &config.sweep_loss {
+                    sweep.extend(cs.iter().map(|&c| cell(c, robots, targets, loss, false)));
+                }
+            }
+        }
+        let robustness = config
+            .robustness_loss
+            .iter()
+            .flat_map(|&loss| cs.iter().map(move |&c| (c, loss)))
+            .map(|(c, loss)| cell(c, PAPER_ROBOTS, PAPER_TARGETS, loss, true))
+            .collect();
+        Plan { paper, sweep, robustness }
+    }
+
+    /// Every cell: paper, then sweep, then robustness.
+    pub fn cells(&self) -> impl Iterator<Item = &Cell> {
+        self.paper.iter().chain(&self.sweep).chain(&self.robustness)
+    }
+
+    /// How many runs the plan makes.
+    pub fn runs(&self) -> usize {
+        self.cells().map(|c| c.seeds as usize).sum()
+    }
+}
+
+/// The plan's rows, table by table, in the plan's order.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Results {
+    pub paper: Vec<Row>,
+    pub sweep: Vec<Row>,
+    pub robustness: Vec<Row>,
+}
+
+/// One cell's row from its runs' metrics (in seed order): means of every metric; `recover_s`
+/// the mean over the runs that have one (`None` if none has); `unrecovered` the total over the
+/// runs (a count of failures to report, not a rate); `a_w_sd` the sample standard deviation of
+/// A_w (0 for fewer than two runs).
+pub fn aggregate(cell: &Cell, runs: &[Metrics]) -> Row {
+    let n = runs.len().max(1) as f64;
+    let mean = |f: fn(&Metrics) -> f64| runs.iter().map(f).sum::<f64>() / n;
+    let recovers: Vec<f64> = runs.iter().filter_map(|m| m.recover_s).collect();
+    let a_w = mean(|m| m.a_w);
+    let a_w_sd = if runs.len() > 1 {
+        let ss: f64 = runs.iter().map(|m| (m.a_w - a_w).powi(2)).sum();
+        (ss / (runs.len() - 1) as f64).sqrt()
+    } else {
+        0.0
+    };
+    Row {
+        controller: cell.controller.name().to_owned(),
+        robots: cell.robots as u32,
+        targets: cell.targets as u32,
+        loss: cell.loss,
+        kill: cell.kill,
+        seeds: runs.len() as u32,
+        metrics: Metrics {
+            a: mean(|m| m.a),
+            a_per_m: mean(|m| m.a_per_m),
+            a_w,
+            top_k: mean(|m| m.top_k),
+            // The same in every run of a cell: min(robots, targets).
+            k: runs.first().map_or(cell.robots.min(cell.targets) as u32, |m| m.k),
+            redundant: mean(|m| m.redundant),
+            switches_per_min: mean(|m| m.switches_per_min),
+            recover_s: (!recovers.is_empty()).then(|| recovers.iter().sum::<f64>() / recovers.len() as f64),
+            unrecovered: runs.iter().map(|m| m.unrecovered).sum(),
+            msgs_per_robot_s: mean(|m| m.msgs_per_robot_s),
+        },
+        a_w_sd,
+    }
+}
+
+/// Run every scenario on up to `jobs` worker threads, keeping what `keep` takes of each
+/// outcome; results in the order of `scenarios`. `done` is called (from a worker) after each
+/// run. On an error the workers stop taking runs and the error of the first failed scenario
+/// (in the order of `scenarios`, among those that ran) is returned.
+pub fn run_all<R: Send>(
+    scenarios: &[Scenario],
+    jobs: usize,
+    done: &(dyn Fn() + Sync),
+    keep: &(dyn Fn(Outcome) -> R + Sync),
+) -> Result<Vec<R>, Error> {
+    // Bigger teams in bigger rooms take longer: start them first so that no long run is left
+    // alone at the end while the other workers idle. Only the order of work changes.
+    let mut order: Vec<usize> = (0..scenarios.len()).collect();
+    order.sort_by(|&a, &b| cost(&scenarios[b]).total_cmp(&cost(&scenarios[a])));
+    let next = AtomicUsize::new(0);
+    let failed = AtomicBool::new(false);
+    let slots: Vec<Mutex<Option<Result<R, Error>>>> = scenarios.iter().map(|_| Mutex::new(None)).collect();
+    let workers = jobs.clamp(1, scenarios.len().max(1));
+    std::thread::scope(|scope| {
+        for _ in 0..workers {
+            scope.spawn(|| loop {
+                if failed.load(Ordering::Relaxed) {
+                    break;
+                }
+                let Some(&i) = order.get(next.fetch_add(1, Ordering::Relaxed)) else { break };
+                let result = scenario::run(&scenarios[i]).map(keep);
+                if result.is_err() {
+                    failed.store(true, Ordering::Relaxed);
+                }
+                *slots[i].lock().unwrap_or_else(|e| e.into_inner()) = Some(result);
+                done();
+            });
+        }
+    });
+    let mut out = Vec::with_capacity(scenarios.len());
+    for slot in slots {
+        match slot.into_inner().unwrap_or_else(|e| e.into_inner()) {
+            Some(Ok(r)) => out.push(r),
+            Some(Err(e)) => return Err(e),
+            // Skipped because a run failed: its error is in a slot further on (a worker sets
+            // `failed` only after a run fails and writes the error before the scope ends).
+            None => {}
+        }
+    }
+    Ok(out)
+}
+
+/// Relative cost of a run, for scheduling only: robots x (robots + targets) interactions per
+/// tick, times the ticks.
+fn cost(s: &Scenario) -> f64 {
+    let robots = s.robots as f64;
+    robots * (robots + s.world.targets.len() as f64) * s.duration
+}
+
+/// Run the whole plan on up to `jobs` threads; `done` is called after each run.
+pub fn run_plan(plan: &Plan, jobs: usize, done: &(dyn Fn() + Sync)) -> Result<Results, Error> {
+    let cells: Vec<&Cell> = plan.cells().collect();
+    let scenarios: Vec<Scenario> = cells.iter().flat_map(|c| c.scenarios()).collect();
+    let metrics = run_all(&scenarios, jobs, done, &|o: Outcome| o.metrics)?;
+    let mut rest = metrics.as_slice();
+    let mut rows = cells.iter().map(|cell| {
+        let (runs, tail) = rest.split_at(cell.seeds as usize);
+        rest = tail;
+        aggregate(cell, runs)
+    });
+    let mut take = |n: usize| rows.by_ref().take(n).collect::<Vec<Row>>();
+    let paper = take(plan.paper.len());
+    let sweep = take(plan.sweep.len());
+    let robustness = take(plan.robustness.len());
+    Ok(Results { paper, sweep, robustness })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn metrics(a_w: f64, recover_s: Option<f64>) -> Metrics {
+        Metrics {
+            a: 4.0 * a_w,
+            a_per_m: a_w,
+            a_w,
+            top_k: a_w / 2.0,
+            k: 3,
+            redundant: 0.5,
+            switches_per_min: 2.0 * a_w,
+            recover_s,
+            unrecovered: u32::from(recover_s.is_some()),
+            msgs_per_robot_s: 10.0,
+        }
+    }
+
+    fn cell(kill: bool) -> Cell {
+        Cell { controller: Controller::Ble, robots: 3, targets: 4, loss: 0.1, kill, seeds: 3, duration: 10.0 }
+    }
+
+    #[test]
+    fn a_row_is_the_mean_and_sample_sd_of_its_runs() {
+        let runs = [metrics(0.2, Some(3.0)), metrics(0.4, None), metrics(0.6, Some(5.0))];
+        let row = aggregate(&cell(true), &runs);
+        let close = |a: f64, b: f64| (a - b).abs() < 1e-12;
+        assert_eq!((row.controller.as_str(), row.robots, row.targets, row.seeds), ("BLE", 3, 4, 3));
+        assert!(row.kill && close(row.loss, 0.1));
+        assert!(close(row.metrics.a_w, 0.4));
+        assert!(close(row.metrics.a, 1.6));
+        assert!(close(row.metrics.top_k, 0.2));
+        assert!(close(row.metrics.switches_per_min, 0.8));
+        assert!(close(row.metrics.redundant, 0.5) && close(row.metrics.msgs_per_robot_s, 10.0));
+        assert_eq!(row.metrics.k, 3);
+        // Over the two runs that had something to re-cover, not three.
+        assert!(close(row.metrics.recover_s.unwrap(), 4.0));
+        assert_eq!(row.metrics.unrecovered, 2);
+        // Sample sd (n - 1): deviations ±0.2 and 0 -> sqrt(0.08 / 2) = 0.2.
+        assert!(close(row.a_w_sd, 0.2), "{}", row.a_w_sd);
+    }
+
+    #[test]
+    fn edge_cases_of_aggregation() {
+        let one = aggregate(&cell(false), &[metrics(0.3, None)]);
+        assert_eq!(one.a_w_sd, 0.0);
+        assert_eq!(one.metrics.recover_s, None);
+        assert_eq!(one.seeds, 1);
+        let none = aggregate(&cell(false), &[]);
+        assert_eq!((none.seeds, none.metrics.a_w, none.metrics.k), (0, 0.0, 3));
+    }
+
+    #[test]
+    fn the_default_plan_has_the_documented_sizes() {
+        let plan = Plan::new(&StudyConfig::default());
+        let n = Controller::ALL.len();
+        assert_eq!(plan.paper.len(), n);
+        assert_eq!(plan.sweep.len(), 4 * 2 * 3 * n);
+        assert_eq!(plan.robustness.len(), 3 * n);
+        assert!(plan.paper.iter().all(|c| (c.robots, c.targets, c.loss, c.kill) == (3, 4, 0.0, false)));
+        assert!(plan.robustness.iter().all(|c| (c.robots, c.targets, c.kill) == (3, 4, true)));
+        assert!(plan.sweep.iter().all(|c| !c.kill));
+        assert!(plan.cells().all(|c| c.seeds == 10 && c.duration == 300.0));
+        assert_eq!(plan.runs(), (n + 24 * n + 3 * n) * 10);
+        // Every controller in every setting, BLE first.
+        assert_eq!(plan.paper.iter().map(|c| c.controller).collect::<Vec<_>>(), Controller::ALL);
+
+        let quick = Plan::new(&StudyConfig::quick());
+        assert_eq!(quick.sweep.len(), 2 * 2 * n);
+        assert!(quick.cells().all(|c| c.seeds == 3 && c.duration == 120.0));
+    }
+
+    #[test]
+    fn a_cell_scenario_carries_its_setting() {
+        let s = cell(true).scenario(7);
+        assert_eq!((s.robots, s.world.targets.len(), s.seed, s.duration), (3, 4, 7, 10.0));
+        assert_eq!(s.radio.loss, 0.1);
+        assert_eq!(s.kills.len(), 1);
+        assert_eq!(s.kills[0].at, 5.0);
+        assert!(cell(false).scenario(7).kills.is_empty());
+    }
+
+    #[test]
+    fn the_same_plan_gives_the_same_rows_whatever_the_threads() {
+        let config = StudyConfig {
+            seeds: 2,
+            duration: 8.0,
+            controllers: vec![Controller::Ble, Controller::Random],
+            sweep_robots: vec![2, 4],
+            sweep_targets: vec![3],
+            sweep_loss: vec![0.0, 0.3],
+            robustness_loss: vec![0.2],
+        };
+        let plan = Plan::new(&config);
+        let count = AtomicUsize::new(0);
+        let tick = || {
+            count.fetch_add(1, Ordering::Relaxed);
+        };
+        let one = run_plan(&plan, 1, &tick).unwrap();
+        let four = run_plan(&plan, 4, &tick).unwrap();
+        let again = run_plan(&plan, 3, &tick).unwrap();
+        assert_eq!(count.load(Ordering::Relaxed), 3 * plan.runs());
+        // Bit for bit: PartialEq on f64 fields.
+        assert_eq!(one, four);
+        assert_eq!(one, again);
+        assert_eq!((one.paper.len(), one.sweep.len(), one.robustness.len()), (2, 8, 2));
+        let names: Vec<&str> = one.sweep.iter().map(|r| r.controller.as_str()).collect();
+        assert_eq!(&names[..4], ["BLE", "Random", "BLE", "Random"]);
+        assert_eq!((one.sweep[2].robots, one.sweep[2].loss), (2, 0.3));
+        assert!(one.robustness.iter().all(|r| r.kill && r.seeds == 2));
+    }
 }

@@ -54,7 +54,7 @@ fn only_seen_targets_are_written_and_unseen_ones_go_stale() {
     w.robots[0].pose.theta = std::f64::consts::PI;
     let mut t = t0;
     for _ in 0..4 {
-        t = t + Duration::from_millis(100);
+        t += Duration::from_millis(100);
         body.sense(&mut core, t, &mut w, 0).unwrap();
         core.poll(t);
     }
@@ -71,7 +71,7 @@ fn the_observer_and_safe_velocity_bring_the_robot_to_its_target() {
     let dt = Duration::from_millis(50);
     let mut now = Instant::ZERO;
     for tick in 1..=600u32 {
-        now = now + dt;
+        now += dt;
         if tick % 2 == 0 {
             w.index();
             body.sense(&mut core, now, &mut w, 0).unwrap();

@@ -1,0 +1,438 @@
+//! The simulator's distributed mode: `ayllu sim serve` hosts the world, `ayllu sim robot` runs
+//! one robot's controller as its own OS process. They talk real UDP, as a team of real robots
+//! and their drivers would; the controllers talk to each other (BLE group `Peers`) by the
+//! udp:// transport's group delivery (subnet broadcast, or unicast to the peers that announced
+//! the group).
+//!
+//! Node ids (docs/cli.md): controller of robot K = node K (1..=N, as in the in-process
+//! simulator); its body on the server = node [`BODY_BASE`] + K. The server connects each body's
+//! `VISION.Target{n}Angle/Bottom` and `SONAR.Ranges` to the same ports of node K; the robot
+//! connects its `BASE.Rotate/Translate` to the same ports of node `BODY_BASE + K`. Neither side
+//! is told the other's address: a body greets the addresses its URL names (`peer=`,
+//! `broadcast=`) and its controller greets back, and from then on each routes by node id.
+//!
+//! Promises:
+//! * the world is the in-process one: `Scenario::sized(.., robots, targets, seed).world`, the same
+//!   seed, a 50 ms tick (camera and sonar at 10 Hz) paced on the real clock; coverage is measured
+//!   on the world's ground truth with the same [`Meter`];
+//! * the controllers are built by [`ayllu_sim::controller::build`] unchanged, on a node whose
+//!   VISION/SONAR/BASE are local behaviors of the same classes, fed and read over the network;
+//! * a body whose motor commands stop arriving stops the robot ([`WATCHDOG`]), as a Pioneer's
+//!   firmware does;
+//! * stdout carries only JSON lines (one per `--status-ms`); both commands stop cleanly on
+//!   Ctrl-C / SIGTERM (the server still prints its final metrics line).
+//!
+//! Not measured by the server: switches/min and messages per robot (the brains and the radio are
+//! in the robot processes; each robot's status line carries its drive and message counts).
+//! `centralized` is refused: it needs the world's truth, which only the server has.
+
+use std::io::Write as _;
+use std::time::{Duration as StdDuration, Instant as StdInstant};
+
+use ayllu::stdlib::{BASE, SONAR, VISION};
+use ayllu::{ConnectionKind, Endpoint, MonotonicClock, Node, NodeId, PortRef, UdpConfig, UdpTransport};
+use ayllu_sim::body::Body;
+use ayllu_sim::controller::{build, Brain, Controller, ControllerConfig};
+use ayllu_sim::metrics::Meter;
+use ayllu_sim::scenario::{priorities, Scenario};
+use ayllu_sim::world::{Command, World, WorldConfig};
+use clap::Args;
+use serde_json::{json, Value as Json};
+
+use crate::fail::Fail;
+use crate::{parse_node, positive_secs, signals};
+
+/// The body of robot K is node `BODY_BASE + K`.
+pub const BODY_BASE: u32 = 1000;
+/// Robots are numbered 1..=N below the bodies' ids.
+const MAX_ROBOTS: u64 = BODY_BASE as u64 - 1;
+/// The world's tick and its camera/sonar divider (the in-process defaults).
+const DT: f64 = 0.05;
+const SENSE_EVERY: u64 = 2;
+/// A body whose `BASE` has not been written for this long stops (the controller is gone).
+const WATCHDOG: ayllu::Duration = ayllu::Duration::from_secs(1);
+/// If the server falls this far behind the real clock, it stops trying to catch up.
+const MAX_LAG: StdDuration = StdDuration::from_millis(500);
+
+#[derive(Args, Debug)]
+pub struct ServeArgs {
+    /// How many robots (their controllers are nodes 1..=N, their bodies nodes 1001..=1000+N).
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..=MAX_ROBOTS))]
+    pub robots: u64,
+    /// How many targets (priorities M, M-1, ..., 1).
+    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u64).range(1..=64))]
+    pub targets: u64,
+    /// The world's seed (start poses, target motion, sensor noise), as in `sim cmommt`.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Seconds of world time to run (paced on the real clock).
+    #[arg(long, value_name = "SECS", default_value_t = 300.0, value_parser = positive_secs)]
+    pub duration: f64,
+    /// The bodies' udp:// URLs: one per robot in order, or a single one for all in which `{i}`
+    /// stands for the robot's number (a single URL without `{i}` must bind port 0). Each body
+    /// greets the addresses its URL names (peer=, broadcast=); its controller greets back.
+    #[arg(long, value_name = "URL", required = true)]
+    pub udp: Vec<String>,
+    /// Wait this long for every body to hear its controller before the world starts (it
+    /// starts anyway after that, and late controllers join when they come).
+    #[arg(long, value_name = "SECS", default_value_t = 10.0, value_parser = positive_secs)]
+    pub wait: f64,
+    /// Print a JSON status line this often (world time).
+    #[arg(long, value_name = "MS", default_value_t = 1000, value_parser = clap::value_parser!(u64).range(50..))]
+    pub status_ms: u64,
+}
+
+#[derive(Args, Debug)]
+pub struct RobotArgs {
+    /// This robot's number K: its controller is node K, its body node 1000+K.
+    #[arg(long, value_parser = parse_node)]
+    pub id: NodeId,
+    /// The controller: ble, local, random or forcefield (centralized needs the world's truth
+    /// and exists only in-process).
+    #[arg(long, value_name = "NAME", default_value = "ble", value_parser = parse_distributed_controller)]
+    pub controller: Controller,
+    /// How many targets (must match the server's).
+    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u64).range(1..=64))]
+    pub targets: u64,
+    /// Seed of the wander behavior (the in-process simulator uses the world's seed).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// BLE claims per second.
+    #[arg(long, value_name = "HZ", default_value_t = 1.0, value_parser = positive_secs)]
+    pub claim_hz: f64,
+    /// The controller node's udp:// URL: its address, and how it finds its peers (peer=,
+    /// broadcast=). Its body finds it (the server's URLs name it).
+    #[arg(long, value_name = "URL")]
+    pub udp: String,
+    /// Stop after this many seconds (default: until Ctrl-C or SIGTERM).
+    #[arg(long, value_name = "SECS", value_parser = positive_secs)]
+    pub duration: Option<f64>,
+    /// Print a JSON status line this often.
+    #[arg(long, value_name = "MS", default_value_t = 1000, value_parser = clap::value_parser!(u64).range(1..))]
+    pub status_ms: u64,
+}
+
+fn parse_distributed_controller(s: &str) -> Result<Controller, String> {
+    match Controller::parse(s) {
+        Some(Controller::Centralized) => Err("centralized is not available in distributed mode: its planner \
+             reads the world's true state, which only `sim serve` has (use `sim cmommt` for it)"
+            .into()),
+        Some(c) => Ok(c),
+        None => Err(format!("`{s}` is not a controller (ble, local, random, forcefield)")),
+    }
+}
+
+/// Seconds, rounded to the millisecond; positions to the millimetre.
+fn round3(x: f64) -> f64 {
+    (x * 1000.0).round() / 1000.0
+}
+
+fn body_id(robot: u32) -> NodeId {
+    NodeId(BODY_BASE + robot)
+}
+
+/// The udp:// config of node `id`, named `name` unless the URL names it.
+fn udp_config(url: &str, name: String) -> Result<UdpConfig, Fail> {
+    if !url.starts_with("udp://") {
+        return Err(Fail::usage(format!("--udp must be a udp:// URL, got `{url}`")));
+    }
+    let mut config = UdpConfig::parse(url)?;
+    if config.name.is_empty() {
+        config.name = name;
+    }
+    Ok(config)
+}
+
+/// The URL of robot `k`'s body (1-based) from the `--udp` list (see [`ServeArgs::udp`]).
+fn body_url(urls: &[String], robots: usize, k: usize) -> Result<String, Fail> {
+    match urls {
+        [one] => {
+            if robots > 1 && !one.contains("{i}") {
+                let port = UdpConfig::parse(one).map(|c| c.bind.port()).unwrap_or(0);
+                if port != 0 {
+                    return Err(Fail::usage(format!(
+                        "one --udp URL for {robots} bodies must use `{{i}}` or bind port 0 (got `{one}`)"
+                    )));
+                }
+            }
+            Ok(one.replace("{i}", &k.to_string()))
+        }
+        many if many.len() == robots => Ok(many[k - 1].clone()),
+        many => Err(Fail::usage(format!("{} --udp URLs for {robots} robots: give one per robot, or one", many.len()))),
+    }
+}
+
+/// One robot's body on the server: a node of its own, the body's ports, the controller it
+/// feeds.
+struct BodyNode {
+    node: Node,
+    body: Body,
+    rotate: PortRef,
+    translate: PortRef,
+    controller: NodeId,
+}
+
+impl BodyNode {
+    fn open(k: u32, url: &str, targets: usize, world: &WorldConfig) -> Result<BodyNode, Fail> {
+        let id = body_id(k);
+        let config = udp_config(url, format!("body-{k}"))?;
+        let mut node = Node::new(MonotonicClock::new(), UdpTransport::bind(id, config)?);
+        let body = Body::install(node.core_mut(), targets, world)?;
+        let controller = NodeId(k);
+        let mut sensors: Vec<(&str, String)> = (1..=targets)
+            .flat_map(|n| [(VISION, format!("Target{n}Angle")), (VISION, format!("Target{n}Bottom"))])
+            .collect();
+        sensors.push((SONAR, "Ranges".to_owned()));
+        for (behavior, port) in &sensors {
+            node.connect(
+                &Endpoint::local(behavior, port),
+                &Endpoint::node(controller, behavior, port),
+                ConnectionKind::Normal,
+            )?;
+        }
+        let rotate = node.core().port(BASE, "Rotate")?;
+        let translate = node.core().port(BASE, "Translate")?;
+        Ok(BodyNode { node, body, rotate, translate, controller })
+    }
+
+    /// Whether the body has heard its controller (it can send it the sensors).
+    fn linked(&self) -> bool {
+        self.node.peers().iter().any(|p| p.node == self.controller)
+    }
+
+    /// The motor command, or a stop if the controller has been silent for [`WATCHDOG`].
+    fn command(&self) -> Command {
+        let core = self.node.core();
+        let now = self.node.now();
+        let recent = |p| core.last_accepted(p).ok().flatten().is_some_and(|t| now < t + WATCHDOG);
+        if recent(self.rotate) || recent(self.translate) {
+            self.body.command(core)
+        } else {
+            Command::default()
+        }
+    }
+}
+
+/// `ayllu sim serve`.
+pub fn serve(args: &ServeArgs) -> Result<(), Fail> {
+    let robots = args.robots as usize;
+    let targets = args.targets as usize;
+    // The in-process world for these sizes, targets numbered by decreasing priority (OBSn
+    // follows TargetN), exactly as `scenario::Sim` sets it up.
+    let mut config = Scenario::sized(Controller::Random, robots, targets, args.seed).world;
+    config.targets.sort_by(|a, b| b.priority.total_cmp(&a.priority));
+    let prios: Vec<f64> = config.targets.iter().map(|t| t.priority).collect();
+    let mut bodies = Vec::with_capacity(robots);
+    for k in 1..=robots {
+        bodies.push(BodyNode::open(k as u32, &body_url(&args.udp, robots, k)?, targets, &config)?);
+    }
+    let mut world = World::new(config.clone(), robots, args.seed);
+    signals::install();
+    let mut out = std::io::stdout().lock();
+
+    // Let every body find its controller before the clock starts, so that the run measures
+    // the team, not the time its processes took to start.
+    let waited = StdInstant::now();
+    let limit = StdDuration::from_secs_f64(args.wait);
+    while !bodies.iter().all(BodyNode::linked) && waited.elapsed() < limit && !signals::stopped() {
+        for b in &mut bodies {
+            b.node.step();
+        }
+        std::thread::sleep(StdDuration::from_millis(20));
+    }
+    let missing: Vec<u32> = bodies.iter().filter(|b| !b.linked()).map(|b| b.controller.0).collect();
+    if !missing.is_empty() {
+        eprintln!(
+            "ayllu: warning: no controller heard for robots {missing:?} after {:.1}s; starting anyway",
+            args.wait
+        );
+    }
+    let start_line = json!({
+        "start": true,
+        "waited": round3(waited.elapsed().as_secs_f64()),
+        "missing": missing,
+        "arena": config.arena,
+        "robots": robots,
+        "targets": targets,
+        "seed": args.seed,
+    });
+    writeln!(out, "{start_line}")?;
+    out.flush()?;
+
+    let mut meter = Meter::new(&prios, robots);
+    let drives = vec![0u32; robots];
+    let mut commands = vec![Command::default(); robots];
+    let ticks = (args.duration / DT).round().max(1.0) as u64;
+    let status_every = ((args.status_ms as f64 / 1000.0 / DT).round() as u64).max(1);
+    let (mut weighted_time, mut resyncs) = (0.0, 0u64);
+    let mut anchor = StdInstant::now();
+    let mut anchor_tick = 0u64;
+    let mut tick = 0u64;
+    while tick < ticks && !signals::stopped() {
+        let due = anchor + StdDuration::from_secs_f64((tick + 1 - anchor_tick) as f64 * DT);
+        let now = StdInstant::now();
+        if due > now {
+            std::thread::sleep(due - now);
+        } else if now - due > MAX_LAG {
+            // Stalled (machine overloaded): keep world time, restart the pacing from here.
+            anchor = now;
+            anchor_tick = tick;
+            resyncs += 1;
+        }
+        tick += 1;
+        let t = tick as f64 * DT;
+        let sense = tick.is_multiple_of(SENSE_EVERY);
+        if sense {
+            world.index();
+        }
+        for (i, b) in bodies.iter_mut().enumerate() {
+            if sense {
+                let now = b.node.now();
+                b.body.sense(b.node.core_mut(), now, &mut world, i)?;
+            }
+            // Sends this frame, then takes in what the controller wrote since the last tick.
+            b.node.step();
+            commands[i] = b.command();
+        }
+        world.step(DT, &commands);
+        let (observed, weighted) = meter.observe(t, DT, &world, &drives);
+        weighted_time += DT * weighted;
+        if tick.is_multiple_of(status_every) {
+            let robots: Vec<Json> = world
+                .robots
+                .iter()
+                .zip(&bodies)
+                .zip(&commands)
+                .map(|((r, b), c)| {
+                    json!({
+                        "id": b.controller.0,
+                        "x": round3(r.pose.x),
+                        "y": round3(r.pose.y),
+                        "theta": round3(r.pose.theta),
+                        "translate": round3(c.translate),
+                        "rotate": round3(c.rotate),
+                        "linked": b.linked(),
+                    })
+                })
+                .collect();
+            let line = json!({
+                "t": round3(t),
+                "observed": observed,
+                "weighted": round3(weighted),
+                "a_w": round3(weighted_time / t),
+                "robots": robots,
+            });
+            writeln!(out, "{line}")?;
+            out.flush()?;
+        }
+    }
+    let t = tick as f64 * DT;
+    let metrics = meter.finish(t, robots, 0);
+    let done = json!({
+        "done": true,
+        "t": round3(t),
+        "stopped": tick < ticks,
+        "resyncs": resyncs,
+        "metrics": serde_json::to_value(&metrics).map_err(|e| Fail::error(format!("metrics as JSON: {e}")))?,
+    });
+    writeln!(out, "{done}")?;
+    out.flush()?;
+    Ok(())
+}
+
+/// `ayllu sim robot`.
+pub fn robot(args: &RobotArgs) -> Result<(), Fail> {
+    let k = args.id.0;
+    if k == 0 || u64::from(k) > MAX_ROBOTS {
+        return Err(Fail::usage(format!("--id must be a robot number from 1 to {MAX_ROBOTS}, got {k}")));
+    }
+    let targets = args.targets as usize;
+    let prios = priorities(targets);
+    // Only the sensor classes' shapes matter here (beams, range), and they do not depend on
+    // the room's size.
+    let world = WorldConfig::lab(&prios);
+    let config = udp_config(&args.udp, format!("robot-{k}"))?;
+    let mut node = Node::new(MonotonicClock::new(), UdpTransport::bind(args.id, config)?);
+    // The body's ports, as local behaviors the server writes (sensors) and reads (motors).
+    Body::install(node.core_mut(), targets, &world)?;
+    let cfg = ControllerConfig { claim_hz: args.claim_hz, wander_seed: args.seed };
+    let brain = build(node.core_mut(), args.controller, &prios, &cfg)?;
+    let body = body_id(k);
+    for port in ["Rotate", "Translate"] {
+        node.connect(&Endpoint::local(BASE, port), &Endpoint::node(body, BASE, port), ConnectionKind::Normal)?;
+    }
+    let vision: Vec<PortRef> =
+        (1..=targets).map(|n| node.core().port(VISION, &format!("Target{n}Angle"))).collect::<Result<_, _>>()?;
+    signals::install();
+
+    let start = StdInstant::now();
+    let end = args.duration.map(|s| start + StdDuration::from_secs_f64(s));
+    let period = StdDuration::from_millis(args.status_ms);
+    let mut next_status = start + period;
+    let mut out = std::io::stdout().lock();
+    loop {
+        let now = StdInstant::now();
+        if signals::stopped() || end.is_some_and(|e| now >= e) {
+            return Ok(());
+        }
+        if now >= next_status {
+            writeln!(out, "{}", robot_status(&node, &brain, &vision, body))?;
+            out.flush()?;
+            next_status = (next_status + period).max(now);
+        }
+        let until = end.map_or(next_status, |e| e.min(next_status));
+        node.run_for(until.saturating_duration_since(StdInstant::now()));
+    }
+}
+
+fn robot_status(node: &Node, brain: &Brain, vision: &[PortRef], body: NodeId) -> Json {
+    let core = node.core();
+    let claims: Vec<u32> = core
+        .ble_statuses()
+        .iter()
+        .filter(|s| s.claiming)
+        .filter_map(|s| s.behavior.strip_prefix("OBS").and_then(|n| n.parse().ok()))
+        .collect();
+    let sees: Vec<usize> =
+        vision.iter().enumerate().filter(|(_, p)| core.fresh(**p).unwrap_or(false)).map(|(n, _)| n + 1).collect();
+    let peers = node.peers();
+    let stats = node.stats();
+    json!({
+        "t": round3(node.now().as_secs_f64()),
+        "id": node.id().0,
+        "drive": brain.drive(core),
+        "claims": claims,
+        "sees": sees,
+        "body": peers.iter().any(|p| p.node == body),
+        "peers": peers.iter().map(|p| p.node.0).filter(|&n| n < BODY_BASE).collect::<Vec<_>>(),
+        "sent": stats.sent,
+        "received": stats.received,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn body_urls_come_one_per_robot_or_from_a_template() {
+        let one = ["udp://127.0.0.1:0?peer=10.0.0.{i}:7400".to_owned()];
+        assert_eq!(body_url(&one, 3, 2).unwrap(), "udp://127.0.0.1:0?peer=10.0.0.2:7400");
+        let shared = ["udp://0.0.0.0:0?broadcast=10.0.0.255:7400".to_owned()];
+        assert_eq!(body_url(&shared, 3, 3).unwrap(), shared[0]);
+        let fixed = ["udp://127.0.0.1:7500".to_owned()];
+        assert!(body_url(&fixed, 3, 1).is_err(), "three bodies cannot share one fixed port");
+        assert!(body_url(&fixed, 1, 1).is_ok());
+        let many: Vec<String> = (1..=3).map(|k| format!("udp://127.0.0.1:{}", 7500 + k)).collect();
+        assert_eq!(body_url(&many, 3, 3).unwrap(), "udp://127.0.0.1:7503");
+        assert!(body_url(&many[..2], 3, 1).is_err());
+    }
+
+    #[test]
+    fn centralized_is_refused_in_distributed_mode() {
+        assert_eq!(parse_distributed_controller("BLE"), Ok(Controller::Ble));
+        assert_eq!(parse_distributed_controller("forcefield"), Ok(Controller::ForceField));
+        assert!(parse_distributed_controller("centralized").unwrap_err().contains("not available"));
+        assert!(parse_distributed_controller("oracle").is_err());
+    }
+}
