@@ -260,6 +260,7 @@ pub fn serve(args: &ServeArgs) -> Result<(), Fail> {
     out.flush()?;
 
     let mut meter = Meter::new(&prios, robots);
+    // The brains are in the robot processes: the server does not count switches.
     let drives = vec![0u32; robots];
     let mut commands = vec![Command::default(); robots];
     let ticks = (args.duration / DT).round().max(1.0) as u64;

@@ -18,6 +18,7 @@ use std::process::Command;
 use std::time::{Duration, Instant};
 
 use ayllu::BleConfig;
+use common::netns::Netns;
 use common::{ayllu, free_ports, wait_for, Proc, BIN};
 use serde_json::Value as Json;
 
@@ -187,70 +188,9 @@ fn three_processes_on_loopback_settle_and_survive_a_kill() {
     });
 }
 
-/// Three network namespaces on one bridge, 10.77.0.0/24; removed (links, then namespaces)
-/// when dropped, whatever happened in between.
-struct Netns {
-    tag: String,
-    namespaces: Vec<String>,
-    links: Vec<String>,
-}
-
-fn ip(args: &[&str]) -> Result<(), String> {
-    let out = Command::new("ip").args(args).output().map_err(|e| format!("running ip: {e}"))?;
-    if out.status.success() {
-        Ok(())
-    } else {
-        Err(format!("ip {}: {}", args.join(" "), String::from_utf8_lossy(&out.stderr).trim()))
-    }
-}
-
-impl Netns {
-    fn create(n: usize) -> Result<Netns, String> {
-        // Unique per test process; interface names stay within 15 bytes.
-        let tag = format!("ay{}", std::process::id());
-        let mut net = Netns { tag: tag.clone(), namespaces: Vec::new(), links: Vec::new() };
-        let bridge = format!("{tag}br");
-        ip(&["link", "add", &bridge, "type", "bridge"])?;
-        net.links.push(bridge.clone());
-        ip(&["link", "set", &bridge, "up"])?;
-        for i in 1..=n {
-            let ns = format!("{tag}n{i}");
-            ip(&["netns", "add", &ns])?;
-            net.namespaces.push(ns.clone());
-            let (host, inner) = (format!("{tag}h{i}"), format!("{tag}c{i}"));
-            ip(&["link", "add", &host, "type", "veth", "peer", "name", &inner])?;
-            net.links.push(host.clone());
-            ip(&["link", "set", &inner, "netns", &ns])?;
-            ip(&["link", "set", &host, "master", &bridge])?;
-            ip(&["link", "set", &host, "up"])?;
-            ip(&["-n", &ns, "addr", "add", &format!("10.77.0.{i}/24"), "brd", "+", "dev", &inner])?;
-            ip(&["-n", &ns, "link", "set", &inner, "up"])?;
-            ip(&["-n", &ns, "link", "set", "lo", "up"])?;
-        }
-        Ok(net)
-    }
-
-    fn ns(&self, i: usize) -> &str {
-        &self.namespaces[i]
-    }
-}
-
-impl Drop for Netns {
-    fn drop(&mut self) {
-        // Deleting a veth end deletes its peer at once (namespace teardown is asynchronous).
-        for l in self.links.iter().rev() {
-            let _ = ip(&["link", "del", l]);
-        }
-        for ns in &self.namespaces {
-            let _ = ip(&["netns", "del", ns]);
-        }
-        let _ = &self.tag;
-    }
-}
-
 #[test]
 fn three_processes_in_network_namespaces_use_real_subnet_broadcast() {
-    let net = match Netns::create(3) {
+    let net = match Netns::create("ay", 77, 3) {
         Ok(net) => net,
         Err(reason) => {
             eprintln!("SKIPPED: network namespaces unavailable: {reason}");
@@ -261,15 +201,15 @@ fn three_processes_in_network_namespaces_use_real_subnet_broadcast() {
     let nodes: Vec<Proc> = (1..=3)
         .map(|i| {
             let url = format!("udp://10.77.0.{i}:7400?broadcast=10.77.0.255:7400");
-            let mut cmd = Command::new("ip");
-            cmd.args(["netns", "exec", net.ns(i - 1), BIN]).args(node_args(i as u32, &url));
+            let mut cmd = net.command(i - 1, BIN);
+            cmd.args(node_args(i as u32, &url));
             Proc::spawn(&format!("n{i}"), cmd)
         })
         .collect();
     // The CLI finds the team by broadcast too: from n2's namespace, no peer given.
     let in_ns2 = |args: &[&str]| {
-        let mut cmd = Command::new("ip");
-        cmd.args(["netns", "exec", net.ns(1), BIN]).args(args);
+        let mut cmd = net.command(1, BIN);
+        cmd.args(args);
         common::run(cmd, Duration::from_secs(10))
     };
     let broadcast_url = "udp://0.0.0.0:0?broadcast=10.77.0.255:7400";

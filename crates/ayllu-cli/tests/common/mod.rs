@@ -1,10 +1,13 @@
 //! Shared by the multi-process tests: the built `ayllu` binary as child processes, their JSON
-//! status lines as they arrive, and cleanup that always happens.
+//! status lines as they arrive, network namespaces for real broadcast ([`netns`]), and cleanup
+//! that always happens.
 //!
 //! Promises: every child is SIGKILLed and reaped when its guard drops (also when a test
 //! panics); every wait has a limit; nothing here sleeps longer than a poll interval.
 
 #![allow(dead_code)]
+
+pub mod netns;
 
 use std::io::{BufRead, BufReader, Read};
 use std::process::{Child, Command, Stdio};
