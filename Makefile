@@ -2,7 +2,7 @@
 # CI (.ci/run) runs `make lint` and `make test`.
 CARGO ?= cargo
 
-.PHONY: demo test lint bench bench-net fuzz fmt
+.PHONY: demo test lint bench bench-net bench-sim fuzz fmt
 
 ## Run the main demo: W-CMOMMT in the simulator (the paper's setting, a sweep, a robot killed
 ## halfway) for BLE and every baseline; prints the tables and writes ayllu-report/index.html.
@@ -40,6 +40,10 @@ bench:
 ## Network benchmarks (loopback UDP), each beside a raw-UDP baseline from the same run.
 bench-net:
 	$(CARGO) bench -p ayllu --bench network
+
+## Simulation speed against real time (10, 100, 1000 robots, BLE and Random), one thread.
+bench-sim:
+	$(CARGO) bench -p ayllu-sim --bench speed
 
 ## Fuzz every decoder target for SECONDS each (needs a nightly toolchain; installs cargo-fuzz).
 SECONDS ?= 60

@@ -143,13 +143,25 @@ pub(crate) struct Edge {
 }
 
 /// What the node knows of one incoming connection (sender, connection id): the newest sequence
-/// number applied (N1), and the port its last message was applied to as (behavior slot,
-/// behavior id, port), so that the next message needs no name lookups. The names each message
-/// carries are still compared with that port's, since a sender may reuse a connection id.
-#[derive(Copy, Clone)]
+/// number applied (N1), and the port its last message was applied to, so that the next message
+/// needs no name lookups. The names each message carries are still checked against that port,
+/// since a sender may reuse a connection id.
 struct Incoming {
     newest: u64,
-    target: Option<(u32, u64, u16)>,
+    target: Option<Resolved>,
+}
+
+/// A port an incoming connection resolved to, and the very name strings (`Arc`s) the message
+/// carried: a message carrying the same `Arc`s (the sender's connection shares them among its
+/// messages, e.g. in-process transports) names the same port, so it skips comparing strings.
+/// Holding the `Arc`s keeps their addresses from being reused for other names.
+struct Resolved {
+    b: u32,
+    /// The behavior's id: a behavior removed and re-created in the same slot gets another.
+    id: u64,
+    p: u16,
+    behavior: Arc<str>,
+    port: Arc<str>,
 }
 
 #[derive(Copy, Clone)]
@@ -190,8 +202,8 @@ pub struct NodeCore {
     poll_epoch: u64,
     outbox: VecDeque<Outgoing>,
     pub(crate) counters: Counters,
-    /// Keyed by `incoming_key(sender, connection)`.
-    newest_seq: HashMap<u128, Incoming>,
+    /// Keyed by `incoming_key(sender, connection)`; looked up for every message received.
+    newest_seq: HashMap<u128, Incoming, foldhash::fast::RandomState>,
     seq_table_resets: u64,
     requests: Vec<Request>,
     next_request: u64,
@@ -226,7 +238,7 @@ impl NodeCore {
             poll_epoch: 0,
             outbox: VecDeque::new(),
             counters: Counters::default(),
-            newest_seq: HashMap::new(),
+            newest_seq: HashMap::default(),
             seq_table_resets: 0,
             requests: Vec::new(),
             next_request: 1,
@@ -846,12 +858,22 @@ impl NodeCore {
     pub fn receive(&mut self, now: Instant, from: NodeId, message: Message) {
         self.advance(now);
         match message {
-            Message::Port(m) => self.receive_port(from, m),
+            Message::Port(m) => self.receive_port(from, &m),
             Message::Control(c) => self.receive_control(from, c),
         }
     }
 
-    fn receive_port(&mut self, from: NodeId, m: PortMessage) {
+    /// [`NodeCore::receive`] for a message shared by several receivers (a broadcast in a
+    /// simulator): a port message is applied without being copied; a control message is.
+    pub fn receive_shared(&mut self, now: Instant, from: NodeId, message: &Message) {
+        self.advance(now);
+        match message {
+            Message::Port(m) => self.receive_port(from, m),
+            Message::Control(c) => self.receive_control(from, c.clone()),
+        }
+    }
+
+    fn receive_port(&mut self, from: NodeId, m: &PortMessage) {
         let key = incoming_key(from, m.conn);
         // One hash lookup per message from a known connection: this runs for every message.
         let cached = match self.newest_seq.get_mut(&key) {
@@ -861,7 +883,7 @@ impl NodeCore {
                     return;
                 }
                 incoming.newest = m.seq;
-                incoming.target
+                incoming.target.as_ref().map(|r| (r.b, r.id, r.p, same_names(r, m)))
             }
             None => {
                 if self.newest_seq.len() >= SEQ_TABLE_MAX {
@@ -872,13 +894,15 @@ impl NodeCore {
                 None
             }
         };
-        let still_there = |&(b, id, p): &(u32, u64, u16)| {
+        // The cached port still stands if its behavior does (same slot, same id: names never
+        // change while a behavior lives) and the message names it.
+        let still_there = |&(b, id, p, same): &(u32, u64, u16, bool)| {
             self.behavior(b).is_some_and(|beh| {
-                beh.id == id && *beh.name == *m.behavior && beh.class.ports[usize::from(p)].name == *m.port
+                beh.id == id && (same || (*beh.name == *m.behavior && beh.class.ports[usize::from(p)].name == *m.port))
             })
         };
         let (b, p) = match cached.filter(still_there) {
-            Some((b, _, p)) => (b, p),
+            Some((b, _, p, _)) => (b, p),
             None => {
                 let Some(&b) = self.names.get(&*m.behavior) else {
                     self.counters.add(DropCause::UnknownBehavior);
@@ -894,7 +918,8 @@ impl NodeCore {
                     return;
                 };
                 if let Some(incoming) = self.newest_seq.get_mut(&key) {
-                    incoming.target = Some((b, id, port.0));
+                    incoming.target =
+                        Some(Resolved { b, id, p: port.0, behavior: m.behavior.clone(), port: m.port.clone() });
                 }
                 (b, port.0)
             }
@@ -1242,6 +1267,11 @@ pub(crate) fn current(cell: &PortCell, now: Instant) -> &Value {
 /// piece (a tuple is hashed field by field, which costs more on every message received).
 fn incoming_key(from: NodeId, conn: ConnectionId) -> u128 {
     (u128::from(from.0) << 64) | u128::from(conn.0)
+}
+
+/// Whether `m` carries the very name strings `r` was resolved from (pointer comparison).
+fn same_names(r: &Resolved, m: &PortMessage) -> bool {
+    Arc::ptr_eq(&r.behavior, &m.behavior) && Arc::ptr_eq(&r.port, &m.port)
 }
 
 fn queue(pending: &mut VecDeque<(u32, u64, u16)>, proc_: &mut ProcState, b: u32, id: u64, pi: u16) {

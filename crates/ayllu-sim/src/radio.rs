@@ -6,7 +6,9 @@
 //!
 //! A group message is one emission: it counts once in `sent` and reaches every other live
 //! member of the group that the range, the partitions and an independent loss draw per
-//! receiver allow (broadcast over a lossy channel loses per receiver).
+//! receiver allow (broadcast over a lossy channel loses per receiver). It is one frame on the
+//! air: its delay (base + jitter) is drawn once, and every receiver hears it at that moment,
+//! in station order. Jitter thus reorders emissions, not the receivers of one emission.
 
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
@@ -52,12 +54,21 @@ pub struct Station {
     pub alive: bool,
 }
 
-/// A heap entry: small, so that sifting moves 24 bytes, not a whole message (the message
+/// A heap entry: small, so that sifting moves 24 bytes, not a whole message (the emission
 /// waits in `Radio::parked`).
 struct InFlight {
     at: Instant,
     order: u64,
     slot: usize,
+}
+
+/// One emission in flight: who sent it, the message (shared by its receivers, never copied
+/// in flight), and the stations it will reach. Slots are reused with their receiver lists, so
+/// a run in steady state allocates nothing here.
+struct Emission {
+    from: NodeId,
+    message: Option<Message>,
+    to: Vec<usize>,
 }
 
 impl PartialEq for InFlight {
@@ -83,9 +94,12 @@ pub struct Radio {
     rng: fastrand::Rng,
     queue: BinaryHeap<Reverse<InFlight>>,
     order: u64,
-    /// Messages in flight (receiver, sender, message), and the free entries.
-    parked: Vec<Option<(usize, NodeId, Message)>>,
+    /// Emissions in flight, and the free entries.
+    parked: Vec<Emission>,
     free: Vec<usize>,
+    /// Emissions set aside by `take_due`, and how far each has been delivered.
+    due: Vec<usize>,
+    cursor: Vec<usize>,
     /// Members of each group, by station index in increasing order.
     groups: Vec<(Arc<str>, Vec<usize>)>,
     /// Emissions per station, and deliveries lost (by loss draw) / cut (range, partition).
@@ -104,6 +118,8 @@ impl Radio {
             order: 0,
             parked: Vec::new(),
             free: Vec::new(),
+            due: Vec::new(),
+            cursor: Vec::new(),
             groups: Vec::new(),
             sent: vec![0; stations],
             lost: 0,
@@ -151,65 +167,122 @@ impl Radio {
         self.sent[from] += 1;
         let src = stations[from];
         let t = now.as_secs_f64();
+        let slot = self.free.pop().unwrap_or_else(|| {
+            self.parked.push(Emission { from: src.node, message: None, to: Vec::new() });
+            self.parked.len() - 1
+        });
+        // Taken out so that `reaches` can borrow the radio; put back below.
+        let mut to = std::mem::take(&mut self.parked[slot].to);
         match &out.to {
             Destination::Node(id) => {
-                if let Some(to) = stations.iter().position(|s| s.node == *id) {
-                    self.route(now, t, &src, to, &stations[to], out.message);
+                if let Some(i) = stations.iter().position(|s| s.node == *id) {
+                    if self.reaches(t, &src, &stations[i]) {
+                        to.push(i);
+                    }
                 }
             }
             Destination::Group(g) => {
                 // Teams have a handful of groups: a scan beats hashing the name.
-                let Some(gi) = self.groups.iter().position(|(name, _)| name == g) else { return };
-                // Taken out for the loop so `route` can borrow the radio; put back after.
-                let members = std::mem::take(&mut self.groups[gi].1);
-                for &to in &members {
-                    if to != from {
-                        self.route(now, t, &src, to, &stations[to], out.message.clone());
+                if let Some(gi) = self.groups.iter().position(|(name, _)| name == g) {
+                    let members = std::mem::take(&mut self.groups[gi].1);
+                    for &i in &members {
+                        if i != from && self.reaches(t, &src, &stations[i]) {
+                            to.push(i);
+                        }
                     }
+                    self.groups[gi].1 = members;
                 }
-                self.groups[gi].1 = members;
             }
         }
-    }
-
-    fn route(&mut self, now: Instant, t: f64, src: &Station, to: usize, dst: &Station, message: Message) {
-        if !dst.alive || !self.connected(t, src, dst) {
-            self.cut += 1;
-            return;
-        }
-        if self.config.loss > 0.0 && self.rng.f64() < self.config.loss {
-            self.lost += 1;
+        if to.is_empty() {
+            self.parked[slot].to = to;
+            self.free.push(slot);
             return;
         }
         let delay = self.config.delay + self.config.jitter * self.rng.f64();
         let at = now + Duration::from_nanos((delay * 1e9) as u64);
         self.order += 1;
-        let entry = Some((to, src.node, message));
-        let slot = match self.free.pop() {
-            Some(slot) => {
-                self.parked[slot] = entry;
-                slot
-            }
-            None => {
-                self.parked.push(entry);
-                self.parked.len() - 1
-            }
-        };
+        self.parked[slot] = Emission { from: src.node, message: Some(out.message), to };
         self.queue.push(Reverse(InFlight { at, order: self.order, slot }));
     }
 
-    /// Hand every message due at or before `now` to `deliver(station, from, message)`.
-    pub fn deliver(&mut self, now: Instant, mut deliver: impl FnMut(usize, NodeId, Message)) {
+    /// Whether a message from `src` reaches `dst` (alive, connected, not lost), counting why not.
+    fn reaches(&mut self, t: f64, src: &Station, dst: &Station) -> bool {
+        if !dst.alive || !self.connected(t, src, dst) {
+            self.cut += 1;
+            return false;
+        }
+        if self.config.loss > 0.0 && self.rng.f64() < self.config.loss {
+            self.lost += 1;
+            return false;
+        }
+        true
+    }
+
+    /// Hand every message due at or before `now` to `deliver(station, from, message)`: station
+    /// by station, and each station's messages by emission in (time, send) order. Receivers are
+    /// independent nodes, so only the order at each receiver matters.
+    pub fn deliver_shared(&mut self, now: Instant, mut deliver: impl FnMut(usize, NodeId, &Message)) {
+        self.take_due(now);
+        loop {
+            let next = self.due.iter().zip(&self.cursor).filter_map(|(&e, &c)| self.parked[e].to.get(c)).min();
+            let Some(&station) = next else { break };
+            self.deliver_due(station, |from, message| deliver(station, from, message));
+        }
+        self.release_due();
+    }
+
+    /// Set aside the emissions due at or before `now`, for [`Radio::deliver_due`]. Emissions
+    /// sent meanwhile wait for a later call, whatever their delay.
+    pub fn take_due(&mut self, now: Instant) {
+        self.release_due();
         while self.queue.peek().is_some_and(|Reverse(m)| m.at <= now) {
             let Reverse(m) = self.queue.pop().expect("peeked");
-            let (to, from, message) = self.parked[m.slot].take().expect("parked while queued");
-            self.free.push(m.slot);
-            self.delivered += 1;
-            deliver(to, from, message);
+            self.due.push(m.slot);
+        }
+        self.cursor.clear();
+        self.cursor.resize(self.due.len(), 0);
+    }
+
+    /// Hand station `station` its messages among those set aside by [`Radio::take_due`], by
+    /// emission in (time, send) order. Call for stations in increasing order (a station
+    /// skipped is skipped for good): a simulator can then deliver to, sense and run each robot
+    /// in one visit, its node staying in cache — with a hundred nodes or more, most of a
+    /// delivery's cost is fetching the receiving node from memory.
+    pub fn deliver_due(&mut self, station: usize, mut deliver: impl FnMut(NodeId, &Message)) {
+        for (&e, c) in self.due.iter().zip(&mut self.cursor) {
+            let e = &self.parked[e];
+            while e.to.get(*c).is_some_and(|&s| s < station) {
+                *c += 1;
+            }
+            if e.to.get(*c) == Some(&station) {
+                *c += 1;
+                deliver(e.from, e.message.as_ref().expect("parked while due"));
+            }
         }
     }
 
+    /// Free the emissions set aside by [`Radio::take_due`]: every receiver of theirs counts as
+    /// delivered (a receiver that died meanwhile is the simulator's to skip).
+    pub fn release_due(&mut self) {
+        for &slot in &self.due {
+            let e = &mut self.parked[slot];
+            self.delivered += e.to.len() as u64;
+            e.to.clear();
+            e.message = None;
+            self.free.push(slot);
+        }
+        self.due.clear();
+        self.cursor.clear();
+    }
+
+    /// [`Radio::deliver_shared`], each receiver getting its own copy of the message.
+    pub fn deliver(&mut self, now: Instant, mut deliver: impl FnMut(usize, NodeId, Message)) {
+        self.deliver_shared(now, |to, from, message| deliver(to, from, message.clone()));
+    }
+
+    /// Deliveries waiting (one per receiver of each emission in flight).
     pub fn in_flight(&self) -> usize {
-        self.queue.len()
+        self.queue.iter().map(|Reverse(m)| self.parked[m.slot].to.len()).sum()
     }
 }

@@ -6,11 +6,13 @@
 //! randomness from seeded streams). The trace hash is SHA-256 over every frame's exact state
 //! (f64 bits), so any divergence shows.
 //!
-//! One tick (`dt`, 50 ms = the observers' 20 Hz): kills due; radio deliveries due; every
-//! `sense_every` ticks a camera frame and sonar sweep into each body; the oracle (Centralized
-//! only); every live node polls at the tick's time and its outgoing messages enter the radio;
-//! motors read; the world moves; metrics account the tick; every `frame_dt` a frame is hashed
-//! (and recorded if asked).
+//! One tick (`dt`, 50 ms = the observers' 20 Hz): kills due; the radio's deliveries due are set
+//! aside; then robot by robot (one visit each, so its node stays in cache): its deliveries,
+//! every `sense_every` ticks a camera frame and sonar sweep into its body, the oracle's word
+//! (Centralized only), its node polls at the tick's time and its outgoing messages enter the
+//! radio, its motors are read; the world moves; metrics account the tick; every `frame_dt` a
+//! frame is hashed (and recorded if asked). Robots meet only through the world and the radio,
+//! so this equals doing each stage for every robot in turn.
 
 use ayllu_core::{Duration, Error, Instant, NodeCore, NodeId, Outgoing, PortRef};
 use serde::{Deserialize, Serialize};
@@ -240,23 +242,15 @@ impl Sim {
         let now = self.now();
         let t = now.as_secs_f64();
         self.apply_kills(t);
-        let robots = &mut self.robots;
-        let alive: Vec<bool> = self.world.robots.iter().map(|r| r.alive).collect();
-        self.radio.deliver(now, |to, from, msg| {
-            if alive[to] {
-                robots[to].core.receive(now, from, msg);
-            }
-        });
-        if self.tick.is_multiple_of(u64::from(self.scenario.sense_every.max(1))) {
+        // Messages due now are set aside before anyone sends, so that what is sent this tick
+        // arrives at a later tick whatever the delay (as if every robot ran at once).
+        self.radio.take_due(now);
+        let sense = self.tick.is_multiple_of(u64::from(self.scenario.sense_every.max(1)));
+        if sense {
             self.world.index();
-            for (i, r) in self.robots.iter_mut().enumerate() {
-                if self.world.robots[i].alive {
-                    r.body.sense(&mut r.core, now, &mut self.world, i)?;
-                }
-            }
         }
         if self.scenario.controller == Controller::Centralized {
-            self.oracle(now)?;
+            self.plan();
         }
         self.stations.clear();
         self.stations.extend(self.world.robots.iter().enumerate().map(|(i, r)| Station {
@@ -265,9 +259,27 @@ impl Sim {
             y: r.pose.y,
             alive: r.alive,
         }));
+        // One visit per robot: its messages, its senses, its node's poll. Robots interact only
+        // through the world (which moves after the loop) and the radio (whose deliveries were
+        // set aside above), so this is the same as doing each step for all robots in turn —
+        // but a robot's node is fetched from memory once a tick instead of three times.
         for i in 0..self.robots.len() {
-            if !self.world.robots[i].alive {
+            let alive = self.world.robots[i].alive;
+            let r = &mut self.robots[i];
+            // A broadcast reaches its receivers as one shared message: nothing copied.
+            self.radio.deliver_due(i, |from, msg| {
+                if alive {
+                    r.core.receive_shared(now, from, msg);
+                }
+            });
+            if !alive {
                 continue;
+            }
+            if sense {
+                r.body.sense(&mut r.core, now, &mut self.world, i)?;
+            }
+            if self.scenario.controller == Controller::Centralized {
+                self.steer(now, i)?;
             }
             let r = &mut self.robots[i];
             r.core.poll(now);
@@ -280,6 +292,7 @@ impl Sim {
             self.commands[i] = r.body.command(&r.core);
             self.drives[i] = r.brain.drive(&r.core);
         }
+        self.radio.release_due();
         self.world.step(self.scenario.dt, &self.commands);
         let (observed, weighted) = self.meter.observe(t, self.scenario.dt, &self.world, &self.drives);
         if self.tick.is_multiple_of(self.frame_every) {
@@ -327,9 +340,9 @@ impl Sim {
 
     /// The omniscient planner: every second, give each target in priority order the nearest
     /// free live robot (keeping the current holder unless another free robot is less than
-    /// half as far — hysteresis so that it does not thrash); every tick, tell each assigned
-    /// robot the exact bearing of its target.
-    fn oracle(&mut self, now: Instant) -> Result<(), Error> {
+    /// half as far — hysteresis so that it does not thrash); every tick, [`Sim::steer`] tells
+    /// each assigned robot the exact bearing of its target.
+    fn plan(&mut self) {
         let w = &self.world;
         if self.tick % 20 == 1 {
             let mut free: Vec<bool> = w.robots.iter().map(|r| r.alive).collect();
@@ -349,18 +362,19 @@ impl Sim {
             self.oracle_messages += next.iter().filter(|a| a.is_some()).count() as u64;
             self.assignment = next;
         }
-        for (i, r) in self.robots.iter_mut().enumerate() {
-            let (Some(j), Brain::Oracle { angle, assigned }) = (self.assignment[i], &r.brain) else { continue };
-            if !w.robots[i].alive {
-                continue;
-            }
-            let p = w.robots[i].pose;
-            let t = &w.targets[j];
-            let bearing = wrap((t.y - p.y).atan2(t.x - p.x) - p.theta);
-            let (angle, assigned): (PortRef, PortRef) = (*angle, *assigned);
-            r.core.write(now, angle, -bearing)?;
-            r.core.write(now, assigned, j as i64 + 1)?;
-        }
+    }
+
+    /// The oracle's word to live robot `i` this tick (see [`Sim::plan`]).
+    fn steer(&mut self, now: Instant, i: usize) -> Result<(), Error> {
+        let w = &self.world;
+        let r = &mut self.robots[i];
+        let (Some(j), Brain::Oracle { angle, assigned }) = (self.assignment[i], &r.brain) else { return Ok(()) };
+        let p = w.robots[i].pose;
+        let t = &w.targets[j];
+        let bearing = wrap((t.y - p.y).atan2(t.x - p.x) - p.theta);
+        let (angle, assigned): (PortRef, PortRef) = (*angle, *assigned);
+        r.core.write(now, angle, -bearing)?;
+        r.core.write(now, assigned, j as i64 + 1)?;
         Ok(())
     }
 

@@ -141,13 +141,25 @@ pub struct World {
     view: Vec<(usize, f64, f64)>,
     /// (sin, cos) of each sonar beam's offset from the heading.
     beams: Vec<(f64, f64)>,
+    /// Scratch of `sonar`: circles (x, y, radius) within its reach.
+    circles: Vec<(f64, f64, f64)>,
+    /// Scratch of `resolve_contacts`: robots near the one being resolved.
+    near: Vec<usize>,
 }
 
 /// A standard normal draw (Box-Muller), from a stream that only this module uses.
 fn gauss(rng: &mut fastrand::Rng) -> f64 {
+    gauss_pair(rng).0
+}
+
+/// Two independent standard normal draws: both outputs of one Box-Muller transform (one
+/// logarithm, one square root and one sin_cos for two draws).
+fn gauss_pair(rng: &mut fastrand::Rng) -> (f64, f64) {
     let u = rng.f64().max(f64::MIN_POSITIVE);
     let v = rng.f64();
-    (-2.0 * u.ln()).sqrt() * (TAU * v).cos()
+    let r = (-2.0 * u.ln()).sqrt();
+    let (s, c) = (TAU * v).sin_cos();
+    (r * c, r * s)
 }
 
 /// Euclidean length; `f64::hypot` guards against overflow we cannot have here, at several
@@ -217,7 +229,18 @@ impl World {
             })
             .collect();
         let grid = Grid::new(config.arena, config.sonar_range.max(config.robot_radius * 4.0));
-        World { config, robots, targets, motion_rng, noise_rng, grid, view: Vec::new(), beams: Vec::new() }
+        World {
+            config,
+            robots,
+            targets,
+            motion_rng,
+            noise_rng,
+            grid,
+            view: Vec::new(),
+            beams: Vec::new(),
+            circles: Vec::new(),
+            near: Vec::new(),
+        }
     }
 
     /// Advance by `dt` seconds: targets move, live robots follow `commands` (clamped to the
@@ -291,10 +314,13 @@ impl World {
         let tr = self.config.target_radius;
         let [w, h] = self.config.arena;
         self.grid.fill_robots(&self.robots);
+        let mut near = std::mem::take(&mut self.near);
         for i in 0..self.robots.len() {
+            near.clear();
             let (x, y) = (self.robots[i].pose.x, self.robots[i].pose.y);
             let mut push = (0.0, 0.0);
-            for &j in self.grid.near(x, y) {
+            self.grid.near(x, y, |j| near.push(j));
+            for &j in &near {
                 if j <= i {
                     continue;
                 }
@@ -330,6 +356,7 @@ impl World {
             p.x = p.x.clamp(rr, w - rr);
             p.y = p.y.clamp(rr, h - rr);
         }
+        self.near = near;
     }
 
     /// Noise-free: targets robot `i` sees, with their true distance (for metrics and the
@@ -361,8 +388,9 @@ impl World {
             if self.noise_rng.f64() < c.miss_rate {
                 continue;
             }
-            let angle = -(b + c.bearing_noise * gauss(&mut self.noise_rng));
-            let height = c.focal * c.target_height / d.max(0.05) * (1.0 + c.height_noise * gauss(&mut self.noise_rng));
+            let (nb, nh) = gauss_pair(&mut self.noise_rng);
+            let angle = -(b + c.bearing_noise * nb);
+            let height = c.focal * c.target_height / d.max(0.05) * (1.0 + c.height_noise * nh);
             out.push(Sighting { target: j, angle, height: height.max(0.0) });
         }
         self.view = seen;
@@ -370,7 +398,8 @@ impl World {
 
     /// One sonar sweep of robot `i` into `out` (one range per beam, from the robot's rim,
     /// capped at the sonar range), with noise. Sees walls, other robots (dead ones too) and
-    /// targets. Call [`World::index`] once after the robots moved, before the sweeps.
+    /// targets; echoes from beyond the range are not heard. Call [`World::index`] once after
+    /// the robots moved, before the sweeps.
     pub fn sonar(&mut self, i: usize, out: &mut [f64]) {
         let c = &self.config;
         let p = self.robots[i].pose;
@@ -379,8 +408,27 @@ impl World {
         if self.beams.len() != beams {
             self.beams = (0..beams).map(|k| (k as f64 * TAU / beams as f64).sin_cos()).collect();
         }
+        // The circles a beam can hit within range, once per sweep rather than once per beam.
+        let reach = c.sonar_range + c.robot_radius;
+        let mut circles = std::mem::take(&mut self.circles);
+        circles.clear();
+        let mut consider = |x: f64, y: f64, r: f64| {
+            let (dx, dy) = (x - p.x, y - p.y);
+            if dx * dx + dy * dy <= (reach + r) * (reach + r) {
+                circles.push((x, y, r));
+            }
+        };
+        self.grid.near(p.x, p.y, |j| {
+            if j != i {
+                let o = &self.robots[j].pose;
+                consider(o.x, o.y, c.robot_radius);
+            }
+        });
+        for t in &self.targets {
+            consider(t.x, t.y, c.target_radius);
+        }
         let (s0, c0) = p.theta.sin_cos();
-        let near = self.grid.near(p.x, p.y);
+        let mut noise = (0.0, 0.0);
         for (k, slot) in out.iter_mut().enumerate() {
             // Beam direction = heading rotated by the beam's fixed offset (one sin_cos a sweep).
             let (sk, ck) = self.beams[k];
@@ -397,23 +445,22 @@ impl World {
             } else if dy < -1e-12 {
                 best = best.min(-p.y / dy);
             }
-            for &j in near {
-                if j == i {
-                    continue;
-                }
-                let o = &self.robots[j].pose;
-                if let Some(t) = ray_circle(p.x, p.y, dx, dy, o.x, o.y, c.robot_radius) {
+            for &(x, y, r) in &circles {
+                if let Some(t) = ray_circle(p.x, p.y, dx, dy, x, y, r) {
                     best = best.min(t);
                 }
             }
-            for t in &self.targets {
-                if let Some(d) = ray_circle(p.x, p.y, dx, dy, t.x, t.y, c.target_radius) {
-                    best = best.min(d);
-                }
-            }
-            let r = best - c.robot_radius + c.sonar_noise * gauss(&mut self.noise_rng);
+            // Noise comes in pairs (Box-Muller): even beams draw, odd beams use the second.
+            let n = if k % 2 == 0 {
+                noise = gauss_pair(&mut self.noise_rng);
+                noise.0
+            } else {
+                noise.1
+            };
+            let r = best - c.robot_radius + c.sonar_noise * n;
             *slot = r.clamp(0.0, c.sonar_range);
         }
+        self.circles = circles;
     }
 
     /// Rebuild the spatial index after robots moved (the sonar uses it).
@@ -429,14 +476,13 @@ struct Grid {
     cols: usize,
     rows: usize,
     cells: Vec<Vec<usize>>,
-    scratch: Vec<usize>,
 }
 
 impl Grid {
     fn new(arena: [f64; 2], cell: f64) -> Grid {
         let cols = ((arena[0] / cell).ceil() as usize).max(1);
         let rows = ((arena[1] / cell).ceil() as usize).max(1);
-        Grid { cell, cols, rows, cells: vec![Vec::new(); cols * rows], scratch: Vec::new() }
+        Grid { cell, cols, rows, cells: vec![Vec::new(); cols * rows] }
     }
 
     fn cell_of(&self, x: f64, y: f64) -> (usize, usize) {
@@ -455,17 +501,16 @@ impl Grid {
         }
     }
 
-    /// Robots in the 3 x 3 cells around (x, y), in increasing index order (determinism does
-    /// not depend on it, but reproducible iteration makes debugging easier).
-    fn near(&mut self, x: f64, y: f64) -> &[usize] {
+    /// Robots in the 3 x 3 cells around (x, y), cell by cell (row-major), each cell in
+    /// increasing index order: a fixed order, so results are reproducible.
+    fn near(&self, x: f64, y: f64, mut f: impl FnMut(usize)) {
         let (c, r) = self.cell_of(x, y);
-        self.scratch.clear();
         for row in r.saturating_sub(1)..=(r + 1).min(self.rows - 1) {
             for col in c.saturating_sub(1)..=(c + 1).min(self.cols - 1) {
-                self.scratch.extend_from_slice(&self.cells[row * self.cols + col]);
+                for &j in &self.cells[row * self.cols + col] {
+                    f(j);
+                }
             }
         }
-        self.scratch.sort_unstable();
-        &self.scratch
     }
 }

@@ -1,0 +1,120 @@
+//! Simulation speed against real time: how many simulated seconds one core runs per wall
+//! second for teams of 10, 100 and 1000 robots on the CMOMMT task (5 targets, so five
+//! observer layers per robot, 20 Hz ticks), with the BLE controller and, for comparison, the
+//! Random one (wander only, no radio).
+//!
+//! Run with `make bench-sim` (i.e. `cargo bench -p ayllu-sim --bench speed`, about 40 s once
+//! compiled). Single thread: one `Sim` stepped in a loop. Each size first runs a
+//! short warm-up (BLE claims start, the radio queue fills), then a timed stretch of simulated
+//! time chosen so the whole benchmark stays within a couple of minutes. Printed per size:
+//! simulated and wall seconds, speed-up against real time, cost per robot per simulated second,
+//! radio deliveries per robot per second, and cost per robot relative to the 10-robot run of
+//! the same controller (1.0 = perfectly linear in team size). Each size runs three times and
+//! the median wall time is kept. Figures, not verdicts: nothing here fails.
+//!
+//! `cargo bench -p ayllu-sim --bench speed -- 100 ble` runs one size and/or one controller.
+
+use std::time::Instant as WallClock;
+
+use ayllu_sim::controller::Controller;
+use ayllu_sim::scenario::{Scenario, Sim};
+
+const SEED: u64 = 1;
+const TARGETS: usize = 5;
+
+/// (robots, warm-up s, timed s): a few wall seconds each on the reference machine.
+const SIZES: [(usize, f64, f64); 3] = [(10, 5.0, 6000.0), (100, 5.0, 1200.0), (1000, 2.0, 30.0)];
+/// Each size runs this many times (the same seed: the same work); the median wall time
+/// counts, so that a burst of load from elsewhere on the machine does not decide a figure.
+const RUNS: usize = 3;
+
+// The runtime's benchmarks' machine line, shared rather than copied.
+#[path = "../../ayllu/benches/machine/mod.rs"]
+mod machine;
+use machine::machine;
+
+struct Figures {
+    robots: usize,
+    sim_s: f64,
+    wall_s: f64,
+    deliveries_per_s: f64,
+}
+
+impl Figures {
+    fn speedup(&self) -> f64 {
+        self.sim_s / self.wall_s
+    }
+
+    /// Wall microseconds per robot per simulated second.
+    fn cost(&self) -> f64 {
+        self.wall_s * 1e6 / self.robots as f64 / self.sim_s
+    }
+}
+
+/// Warm up, then time `timed` simulated seconds. Radio deliveries are the whole run's
+/// (warm-up included) per simulated second.
+fn measure(controller: Controller, robots: usize, warmup: f64, timed: f64) -> Figures {
+    let scenario = Scenario::sized(controller, robots, TARGETS, SEED).duration(warmup + timed);
+    let mut sim = Sim::new(&scenario).expect("the scenario builds");
+    while sim.now().as_secs_f64() < warmup - 1e-9 {
+        sim.step().expect("a tick runs");
+    }
+    let start_sim = sim.now().as_secs_f64();
+    let start = WallClock::now();
+    while !sim.done() {
+        sim.step().expect("a tick runs");
+    }
+    let wall_s = start.elapsed().as_secs_f64();
+    let sim_s = sim.now().as_secs_f64() - start_sim;
+    let total_s = sim.now().as_secs_f64();
+    let delivered = sim.finish().radio.delivered;
+    Figures { robots, sim_s, wall_s, deliveries_per_s: delivered as f64 / total_s }
+}
+
+fn main() {
+    // `cargo bench` passes `--bench`; the filters are the other arguments.
+    let args: Vec<String> = std::env::args().skip(1).filter(|a| !a.starts_with("--")).collect();
+    let only_size: Option<usize> = args.iter().find_map(|a| a.parse().ok());
+    let only_ctl: Option<Controller> = args.iter().find_map(|a| Controller::parse(a));
+    println!("Simulation speed, one thread: CMOMMT, {TARGETS} targets (5 observer layers), 20 Hz ticks, seed {SEED}");
+    println!("machine: {}", machine());
+    println!();
+    println!(
+        "{:<7} {:>6} {:>9} {:>8} {:>11} {:>17} {:>16} {:>12}",
+        "ctl", "robots", "sim s", "wall s", "x real", "µs/robot/sim s", "deliv/robot/s", "cost vs 10"
+    );
+    for controller in [Controller::Ble, Controller::Random] {
+        if only_ctl.is_some_and(|c| c != controller) {
+            continue;
+        }
+        let mut base: Option<f64> = None;
+        for (robots, warmup, timed) in SIZES {
+            if only_size.is_some_and(|s| s != robots) {
+                continue;
+            }
+            let mut runs: Vec<Figures> = (0..RUNS).map(|_| measure(controller, robots, warmup, timed)).collect();
+            runs.sort_by(|a, b| a.wall_s.total_cmp(&b.wall_s));
+            let f = runs.swap_remove(RUNS / 2);
+            if robots == 10 {
+                base = Some(f.cost());
+            }
+            let ratio = base.map_or_else(|| "-".to_owned(), |b| format!("{:.2}", f.cost() / b));
+            println!(
+                "{:<7} {:>6} {:>9.1} {:>8.2} {:>10.0}x {:>17.2} {:>16.1} {:>12}",
+                controller.name(),
+                robots,
+                f.sim_s,
+                f.wall_s,
+                f.speedup(),
+                f.cost(),
+                f.deliveries_per_s / robots as f64,
+                ratio,
+            );
+        }
+    }
+    println!();
+    println!("goal: 100 robots x 5 observer layers (BLE) at 20 Hz >= 1000x real time on one core,");
+    println!("      cost per robot about constant (cost vs 10 near 1) as the team grows.");
+    println!("reference (not measured here): a popular Python 2-D robot simulator runs about 8x real");
+    println!("      time at 100 robots.");
+}
