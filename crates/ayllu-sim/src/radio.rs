@@ -275,14 +275,4 @@ impl Radio {
         self.due.clear();
         self.cursor.clear();
     }
-
-    /// [`Radio::deliver_shared`], each receiver getting its own copy of the message.
-    pub fn deliver(&mut self, now: Instant, mut deliver: impl FnMut(usize, NodeId, Message)) {
-        self.deliver_shared(now, |to, from, message| deliver(to, from, message.clone()));
-    }
-
-    /// Deliveries waiting (one per receiver of each emission in flight).
-    pub fn in_flight(&self) -> usize {
-        self.queue.iter().map(|Reverse(m)| self.parked[m.slot].to.len()).sum()
-    }
 }

@@ -14,7 +14,7 @@
 //! frame is hashed (and recorded if asked). Robots meet only through the world and the radio,
 //! so this equals doing each stage for every robot in turn.
 
-use ayllu_core::{Duration, Error, Instant, NodeCore, NodeId, Outgoing, PortRef};
+use ayllu_core::{Duration, Error, Instant, NodeCore, NodeId, PortRef};
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
@@ -152,7 +152,6 @@ pub struct Sim {
     commands: Vec<Command>,
     drives: Vec<u32>,
     stations: Vec<Station>,
-    outgoing: Vec<Outgoing>,
     hash: Sha256,
     coverage: CoverageSeries,
     frames: Vec<Frame>,
@@ -199,7 +198,6 @@ impl Sim {
             commands: vec![Command::default(); n],
             drives: vec![0; n],
             stations: Vec::with_capacity(n),
-            outgoing: Vec::new(),
             hash: Sha256::new(),
             coverage: CoverageSeries::default(),
             frames: Vec::new(),
@@ -284,9 +282,6 @@ impl Sim {
             let r = &mut self.robots[i];
             r.core.poll(now);
             while let Some(out) = r.core.pop_outgoing() {
-                self.outgoing.push(out);
-            }
-            for out in self.outgoing.drain(..) {
                 self.radio.send(now, i, out, &self.stations);
             }
             self.commands[i] = r.body.command(&r.core);

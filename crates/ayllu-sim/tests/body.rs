@@ -6,18 +6,10 @@ use ayllu::stdlib::{base_class, sonar_class, vision_class, BASE, SONAR, VEL, VIS
 use ayllu_core::{Duration, Instant, NodeCore, NodeId};
 use ayllu_sim::body::Body;
 use ayllu_sim::controller::{build, Controller, ControllerConfig};
-use ayllu_sim::world::{Motion, Pose, World, WorldConfig};
+use ayllu_sim::world::{Pose, WorldConfig};
 
-fn quiet_world(robot: Pose, target: (f64, f64)) -> World {
-    let mut c = WorldConfig::lab(&[1.0]);
-    c.miss_rate = 0.0;
-    c.targets[0].motion = Motion::Static;
-    let mut w = World::new(c, 1, 1);
-    w.robots[0].pose = robot;
-    w.targets[0].x = target.0;
-    w.targets[0].y = target.1;
-    w
-}
+mod common;
+use common::quiet;
 
 #[test]
 fn a_robot_driver_built_from_the_stdlib_classes_is_a_body() {
@@ -41,7 +33,7 @@ fn a_robot_driver_built_from_the_stdlib_classes_is_a_body() {
 
 #[test]
 fn only_seen_targets_are_written_and_unseen_ones_go_stale() {
-    let mut w = quiet_world(Pose { x: 2.0, y: 2.0, theta: 0.0 }, (4.0, 2.0));
+    let mut w = quiet(Pose { x: 2.0, y: 2.0, theta: 0.0 }, (4.0, 2.0));
     let mut core = NodeCore::new(NodeId(1));
     let mut body = Body::install(&mut core, 1, &w.config).unwrap();
     let angle = core.port(VISION, "Target1Angle").unwrap();
@@ -64,7 +56,7 @@ fn only_seen_targets_are_written_and_unseen_ones_go_stale() {
 #[test]
 fn the_observer_and_safe_velocity_bring_the_robot_to_its_target() {
     // Target off to the left; BLE controller alone (no peers: it claims after one cycle).
-    let mut w = quiet_world(Pose { x: 1.5, y: 2.0, theta: 0.0 }, (5.0, 3.5));
+    let mut w = quiet(Pose { x: 1.5, y: 2.0, theta: 0.0 }, (5.0, 3.5));
     let mut core = NodeCore::new(NodeId(1));
     let mut body = Body::install(&mut core, 1, &w.config).unwrap();
     let brain = build(&mut core, Controller::Ble, &[1.0], &ControllerConfig::default()).unwrap();

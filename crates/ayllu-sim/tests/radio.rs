@@ -29,7 +29,7 @@ fn radio(config: RadioConfig, n: usize) -> Radio {
 
 fn drain(r: &mut Radio, at: Instant) -> Vec<(usize, u32)> {
     let mut got = Vec::new();
-    r.deliver(at, |to, from, _| got.push((to, from.0)));
+    r.deliver_shared(at, |to, from, _| got.push((to, from.0)));
     got
 }
 
@@ -117,7 +117,7 @@ fn jitter_reorders_the_same_way_for_the_same_seed() {
             r.send(T0 + Duration::from_millis(k), 0, numbered(Destination::Node(NodeId(2)), k), &st);
         }
         let mut got = Vec::new();
-        r.deliver(T0 + Duration::from_secs(1), |_, _, m| {
+        r.deliver_shared(T0 + Duration::from_secs(1), |_, _, m| {
             if let Message::Control(c) = m {
                 got.push(c.id)
             }

@@ -3,22 +3,10 @@
 
 use std::f64::consts::PI;
 
-use ayllu_sim::world::{Command, Motion, Pose, Sighting, World, WorldConfig};
+mod common;
 
-/// One robot, one static target, no noise: geometry checks are exact.
-fn quiet(robot: Pose, target: (f64, f64)) -> World {
-    let mut c = WorldConfig::lab(&[1.0]);
-    c.bearing_noise = 0.0;
-    c.height_noise = 0.0;
-    c.sonar_noise = 0.0;
-    c.miss_rate = 0.0;
-    c.targets[0].motion = Motion::Static;
-    let mut w = World::new(c, 1, 1);
-    w.robots[0].pose = robot;
-    w.targets[0].x = target.0;
-    w.targets[0].y = target.1;
-    w
-}
+use ayllu_sim::world::{Command, Motion, Pose, Sighting, World, WorldConfig};
+use common::quiet;
 
 fn run(w: &mut World, cmd: Command, seconds: f64) {
     for _ in 0..(seconds / 0.05).round() as usize {
