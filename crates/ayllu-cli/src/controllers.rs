@@ -22,7 +22,7 @@ use ayllu::{BehaviorClass, ConnectionKind, Endpoint, MonotonicClock, Node, PortS
 use serde_json::{json, Map, Value as Json};
 
 use crate::fail::Fail;
-use crate::text::{counted, value_json};
+use crate::text::{counted, round3, value_json};
 use crate::{signals, Controller, NodeArgs};
 
 /// The BLE group of the cross-subsumption layers.
@@ -43,11 +43,6 @@ fn driving_layer(rotate: f64, layers: u32) -> Option<u32> {
         return Some(0);
     }
     (1..=layers).find(|&n| (rotate + bearing(n)).abs() < 1e-9)
-}
-
-/// Seconds, rounded to the millisecond for people reading the lines.
-fn secs(t: f64) -> f64 {
-    (t * 1000.0).round() / 1000.0
 }
 
 /// RELAY / FRELAY: `In` triggers a copy to `Out`; `Out` feeds `Aux` by a local connection, so
@@ -89,7 +84,7 @@ fn relay_json(node: &Node, behavior: &str) -> Json {
 
 fn status(node: &Node, args: &NodeArgs) -> Json {
     let peers: Vec<u32> = node.peers().iter().map(|p| p.node.0).collect();
-    let t = secs(node.now().as_secs_f64());
+    let t = round3(node.now().as_secs_f64());
     match args.controller {
         Controller::CrossSubsumption => {
             let rotate = node.read(BASE, "Rotate").ok().and_then(|v| v.as_float()).unwrap_or(0.0);

@@ -40,6 +40,7 @@ use clap::Args;
 use serde_json::{json, Value as Json};
 
 use crate::fail::Fail;
+use crate::text::round3;
 use crate::{parse_node, positive_secs, signals};
 
 /// The body of robot K is node `BODY_BASE + K`.
@@ -47,8 +48,6 @@ pub const BODY_BASE: u32 = 1000;
 /// Robots are numbered 1..=N below the bodies' ids.
 const MAX_ROBOTS: u64 = BODY_BASE as u64 - 1;
 /// The world's tick and its camera/sonar divider (the in-process defaults).
-const DT: f64 = 0.05;
-const SENSE_EVERY: u64 = 2;
 /// A body whose `BASE` has not been written for this long stops (the controller is gone).
 const WATCHDOG: ayllu::Duration = ayllu::Duration::from_secs(1);
 /// If the server falls this far behind the real clock, it stops trying to catch up.
@@ -120,11 +119,6 @@ fn parse_distributed_controller(s: &str) -> Result<Controller, String> {
         Some(c) => Ok(c),
         None => Err(format!("`{s}` is not a controller (ble, local, random, forcefield)")),
     }
-}
-
-/// Seconds, rounded to the millisecond; positions to the millimetre.
-fn round3(x: f64) -> f64 {
-    (x * 1000.0).round() / 1000.0
 }
 
 fn body_id(robot: u32) -> NodeId {
@@ -218,9 +212,10 @@ pub fn serve(args: &ServeArgs) -> Result<(), Fail> {
     let robots = args.robots as usize;
     let targets = args.targets as usize;
     // The in-process world for these sizes, targets numbered by decreasing priority (OBSn
-    // follows TargetN), exactly as `scenario::Sim` sets it up.
-    let mut config = Scenario::sized(Controller::Random, robots, targets, args.seed).world;
-    config.targets.sort_by(|a, b| b.priority.total_cmp(&a.priority));
+    // follows TargetN), with the in-process tick and sensing rate, as `scenario::Sim` runs it.
+    let scenario = Scenario::sized(Controller::Random, robots, targets, args.seed);
+    let (dt, sense_every) = (scenario.dt, u64::from(scenario.sense_every.max(1)));
+    let config = scenario.world.by_priority();
     let prios: Vec<f64> = config.targets.iter().map(|t| t.priority).collect();
     let mut bodies = Vec::with_capacity(robots);
     for k in 1..=robots {
@@ -263,14 +258,14 @@ pub fn serve(args: &ServeArgs) -> Result<(), Fail> {
     // The brains are in the robot processes: the server does not count switches.
     let drives = vec![0u32; robots];
     let mut commands = vec![Command::default(); robots];
-    let ticks = (args.duration / DT).round().max(1.0) as u64;
-    let status_every = ((args.status_ms as f64 / 1000.0 / DT).round() as u64).max(1);
+    let ticks = (args.duration / dt).round().max(1.0) as u64;
+    let status_every = ((args.status_ms as f64 / 1000.0 / dt).round() as u64).max(1);
     let (mut weighted_time, mut resyncs) = (0.0, 0u64);
     let mut anchor = StdInstant::now();
     let mut anchor_tick = 0u64;
     let mut tick = 0u64;
     while tick < ticks && !signals::stopped() {
-        let due = anchor + StdDuration::from_secs_f64((tick + 1 - anchor_tick) as f64 * DT);
+        let due = anchor + StdDuration::from_secs_f64((tick + 1 - anchor_tick) as f64 * dt);
         let now = StdInstant::now();
         if due > now {
             std::thread::sleep(due - now);
@@ -281,8 +276,8 @@ pub fn serve(args: &ServeArgs) -> Result<(), Fail> {
             resyncs += 1;
         }
         tick += 1;
-        let t = tick as f64 * DT;
-        let sense = tick.is_multiple_of(SENSE_EVERY);
+        let t = tick as f64 * dt;
+        let sense = tick.is_multiple_of(sense_every);
         if sense {
             world.index();
         }
@@ -295,9 +290,9 @@ pub fn serve(args: &ServeArgs) -> Result<(), Fail> {
             b.node.step();
             commands[i] = b.command();
         }
-        world.step(DT, &commands);
-        let (observed, weighted) = meter.observe(t, DT, &world, &drives);
-        weighted_time += DT * weighted;
+        world.step(dt, &commands);
+        let (observed, weighted) = meter.observe(t, dt, &world, &drives);
+        weighted_time += dt * weighted;
         if tick.is_multiple_of(status_every) {
             let robots: Vec<Json> = world
                 .robots
@@ -327,7 +322,7 @@ pub fn serve(args: &ServeArgs) -> Result<(), Fail> {
             out.flush()?;
         }
     }
-    let t = tick as f64 * DT;
+    let t = tick as f64 * dt;
     let metrics = meter.finish(t, robots, 0);
     let done = json!({
         "done": true,

@@ -187,6 +187,12 @@ pub fn node_report_text(r: &NodeReport, peer: Option<&PeerInfo>) -> String {
     out
 }
 
+/// Seconds rounded to the millisecond (positions to the millimetre), for people reading
+/// status lines.
+pub fn round3(x: f64) -> f64 {
+    (x * 1000.0).round() / 1000.0
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

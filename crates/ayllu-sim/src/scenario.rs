@@ -169,8 +169,7 @@ pub fn node_id(i: usize) -> NodeId {
 impl Sim {
     pub fn new(scenario: &Scenario) -> Result<Sim, Error> {
         let mut scenario = scenario.clone();
-        // Target n must be the n-th most important: OBSn follows TargetN.
-        scenario.world.targets.sort_by(|a, b| b.priority.total_cmp(&a.priority));
+        scenario.world = scenario.world.by_priority();
         let prios: Vec<f64> = scenario.world.targets.iter().map(|t| t.priority).collect();
         let dt = Duration::try_from_secs_f64(scenario.dt)?;
         let world = World::new(scenario.world.clone(), scenario.robots, scenario.seed);

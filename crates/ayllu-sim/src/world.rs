@@ -61,6 +61,13 @@ pub struct WorldConfig {
 }
 
 impl WorldConfig {
+    /// The same world with its targets in decreasing priority (stable): target n is then the
+    /// n-th most important, as the observer chain `OBSn` over `TargetN` requires.
+    pub fn by_priority(mut self) -> WorldConfig {
+        self.targets.sort_by(|a, b| b.priority.total_cmp(&a.priority));
+        self
+    }
+
     /// The paper's lab, scaled to a Pioneer team: an 8 m x 8 m room, a 60° camera seeing 5 m,
     /// targets observed within 2 m, targets slower than robots.
     pub fn lab(priorities: &[f64]) -> WorldConfig {
