@@ -15,12 +15,11 @@ TARGET_DIR ?= $(or $(CARGO_TARGET_DIR),target)
 
 ## Run every test: Rust (unit, rule, property, golden vectors, examples, processes over real
 ## sockets, the report page in headless Chromium), AylluLite C and Python (golden vectors,
-## node logic over loopback). Installs Debian's chromium first if it is missing.
+## node logic over loopback). Installs Debian's chromium, pytest and ruff first if missing.
 test:
-	scripts/install-chromium
+	PYTHON=$(PYTHON) scripts/install-test-tools
 	$(CARGO) test --workspace
 	$(MAKE) -C lite/c test
-	$(PYTHON) -m pytest --version >/dev/null 2>&1 || $(PYTHON) -m pip install --quiet pytest
 	$(PYTHON) -m pytest lite/python/tests -q
 	$(CARGO) build -p ayllu-cli
 	$(PYTHON) spec/conformance --ayllu $(TARGET_DIR)/debug/ayllu
@@ -29,7 +28,7 @@ test:
 lint:
 	$(CARGO) fmt --all -- --check
 	$(CARGO) clippy --workspace --all-targets -- -D warnings
-	$(PYTHON) -m ruff --version >/dev/null 2>&1 || $(PYTHON) -m pip install --quiet ruff
+	PYTHON=$(PYTHON) scripts/install-test-tools
 	cd lite/python && $(PYTHON) -m ruff check . && $(PYTHON) -m ruff format --check .
 	$(PYTHON) -m ruff check spec/conformance && $(PYTHON) -m ruff format --check spec/conformance
 

@@ -1,5 +1,7 @@
 //! `ayllu node`: one real node process hosting a standard controller, reporting its state as
 //! one JSON line per status period on stdout — what the multi-process tests start and read.
+//! The first line, printed once the socket is bound, says where the node listens
+//! (`{"listening":"127.0.0.1:45125","node":1}`), so a node bound to port 0 can be found.
 //!
 //! * `cross-subsumption`: the stdlib controller of the paper's Fig. 2
 //!   ([`ayllu::stdlib::cross_subsumption`], BLE group `Peers`). Its VISION ports are fed at
@@ -22,7 +24,7 @@ use ayllu::{BehaviorClass, ConnectionKind, Endpoint, MonotonicClock, Node, PortS
 use serde_json::{json, Map, Value as Json};
 
 use crate::fail::Fail;
-use crate::text::{counted, round3, value_json};
+use crate::text::{counted, listening_json, round3, value_json};
 use crate::{signals, Controller, NodeArgs};
 
 /// The BLE group of the cross-subsumption layers.
@@ -154,6 +156,8 @@ fn run_loop(node: &mut Node, args: &NodeArgs) -> Result<(), Fail> {
     let mut next_vision = start;
     let mut next_status = start + status_period;
     let mut out = std::io::stdout().lock();
+    writeln!(out, "{}", listening_json(node))?;
+    out.flush()?;
     loop {
         let now = StdInstant::now();
         if signals::stopped() || end.is_some_and(|e| now >= e) {

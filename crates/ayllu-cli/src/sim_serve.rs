@@ -19,7 +19,8 @@
 //!   VISION/SONAR/BASE are local behaviors of the same classes, fed and read over the network;
 //! * a body whose motor commands stop arriving stops the robot ([`WATCHDOG`]), as a Pioneer's
 //!   firmware does;
-//! * stdout carries only JSON lines (one per `--status-ms`); both commands stop cleanly on
+//! * stdout carries only JSON lines (a robot's first says where it listens, then one per
+//!   `--status-ms`); both commands stop cleanly on
 //!   Ctrl-C / SIGTERM (the server still prints its final metrics line).
 //!
 //! Not measured by the server: switches/min and messages per robot (the brains and the radio are
@@ -40,7 +41,7 @@ use clap::Args;
 use serde_json::{json, Value as Json};
 
 use crate::fail::Fail;
-use crate::text::round3;
+use crate::text::{listening_json, round3};
 use crate::{parse_node, positive_secs, signals};
 
 /// The body of robot K is node `BODY_BASE + K`.
@@ -366,6 +367,8 @@ pub fn robot(args: &RobotArgs) -> Result<(), Fail> {
     let period = StdDuration::from_millis(args.status_ms);
     let mut next_status = start + period;
     let mut out = std::io::stdout().lock();
+    writeln!(out, "{}", listening_json(&node))?;
+    out.flush()?;
     loop {
         let now = StdInstant::now();
         if signals::stopped() || end.is_some_and(|e| now >= e) {

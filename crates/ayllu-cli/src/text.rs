@@ -7,8 +7,15 @@
 
 use std::fmt::Write as _;
 
-use ayllu::{Counters, NodeReport, PeerInfo, PortReport, Trigger, Value, ValueType};
+use ayllu::{Counters, Node, NodeReport, PeerInfo, PortReport, Trigger, Value, ValueType};
 use serde_json::{json, Map, Value as Json};
+
+/// The first line a long-running command (`node`, `sim robot`) prints, as soon as its socket
+/// is bound: `{"listening":"127.0.0.1:45125","node":1}`. A node started on port 0 tells here
+/// which port it got, so scripts and tests never pick a port they do not hold.
+pub fn listening_json(node: &Node) -> Json {
+    json!({ "listening": node.address(), "node": node.id().0 })
+}
 
 /// Parse `text` as a value of type `ty`. The error says what was expected.
 pub fn parse_value(ty: ValueType, text: &str) -> Result<Value, String> {

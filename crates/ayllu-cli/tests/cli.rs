@@ -12,7 +12,7 @@ mod common;
 use std::process::Command;
 use std::time::Duration;
 
-use common::{ayllu, free_ports, wait_for, Proc, Run, BIN};
+use common::{ayllu, wait_for, Proc, Run, BIN};
 use serde_json::{json, Value as Json};
 
 /// Every CLI run must finish within this (its own --timeout is far shorter).
@@ -26,13 +26,12 @@ struct Relay {
 
 impl Relay {
     fn start() -> Relay {
-        let port = free_ports(1)[0];
         let mut cmd = Command::new(BIN);
         cmd.args(["node", "--id", "1", "--controller", "relay", "--status-ms", "100", "--for", "60"])
-            .args(["--udp", &format!("udp://127.0.0.1:{port}")]);
+            .args(["--udp", "udp://127.0.0.1:0"]);
         let mut proc = Proc::spawn("relay", cmd);
-        proc.wait_ready(Duration::from_secs(5));
-        Relay { _proc: proc, url: format!("udp://127.0.0.1:0?peer=127.0.0.1:{port}") }
+        let addr = proc.wait_ready();
+        Relay { _proc: proc, url: format!("udp://127.0.0.1:0?peer={addr}") }
     }
 
     /// `ayllu ARGS... --udp URL`.

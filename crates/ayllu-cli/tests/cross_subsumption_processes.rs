@@ -7,25 +7,58 @@
 //! * settled, each node is driven by its highest unclaimed layer (n1: 1, n2: 2, n3: 3) and
 //!   every target has exactly one claimer (T1 n1, T2 n2, T3 n3, T4 n3), steadily;
 //! * after n1's process is SIGKILLed, n2 is driven by layer 1 within the inhibit period plus
-//!   one BLE cycle. Process scheduling adds delay the in-process test does not have, so the
-//!   verdict allows a generous margin (1.5 s) and prints the measured time.
+//!   one BLE cycle, and not before n1's last lease ran out (inhibit period less the cycles
+//!   since its last renewal).
+//!   Process scheduling adds delay the in-process test does not have, so every limit is
+//!   derived from the configured periods with room for a busy machine (see [`Bounds`]), never
+//!   from how fast this machine was; the measured times are printed.
 //!
 //! The namespace variant needs root and `ip`; without them it prints `SKIPPED: ...` and passes.
 
 mod common;
 
-use std::process::Command;
 use std::time::{Duration, Instant};
 
 use ayllu::BleConfig;
 use common::netns::Netns;
-use common::{ayllu, free_ports, wait_for, Proc, BIN};
+use common::{ayllu, start_on_loopback, wait_for, Proc, BIN};
 use serde_json::Value as Json;
 
 const SIGHT: [&str; 3] = ["1:0.9,2:0.5", "1:0.6,2:0.8,3:0.4", "3:0.7,4:0.5"];
 const CLAIM_HZ: f64 = 1.0;
-/// Margin for process scheduling on top of the protocol's bound.
-const MARGIN: Duration = Duration::from_millis(1500);
+/// Each node's status period (`--status-ms`).
+const STATUS: Duration = Duration::from_millis(100);
+
+/// The limits of the checks, all derived from the claim rate and the inhibit period BLE
+/// derives from it (1 Hz: cycle 1 s, inhibit 2.25 s).
+struct Bounds {
+    /// One BLE cycle.
+    cycle: Duration,
+    /// The protocol's take-over bound: the dead node's last lease (`inhibit`) plus the cycle in
+    /// which the next claimer claims.
+    takeover: Duration,
+    /// The take-over may not come before this: the dead node renewed its lease at most one
+    /// cycle before it died (two, if a busy machine made it miss one renewal), and the lease
+    /// lasts `inhibit`.
+    lease_floor: Duration,
+    /// Room on top of the take-over bound for scheduling and for reading status lines: one
+    /// whole bound more (a node would have to be starved of the CPU for a whole lease to miss
+    /// it, which a busy 2-core machine does not do) plus one status period.
+    margin: Duration,
+    /// Starting from nothing, the team agrees within this: HELLOs both ways, then each layer
+    /// claimed in turn; 20 cycles (measured: 1-2 s).
+    settle: Duration,
+}
+
+impl Bounds {
+    fn new() -> Bounds {
+        let inhibit = BleConfig::new("Peers", "Rotate", CLAIM_HZ).unwrap().inhibit_period;
+        let cycle = Duration::from_nanos(ayllu::Duration::try_from_hz(CLAIM_HZ).unwrap().as_nanos());
+        let inhibit = Duration::from_nanos(inhibit.as_nanos());
+        let takeover = inhibit + cycle;
+        Bounds { cycle, takeover, lease_floor: inhibit - cycle * 2, margin: takeover + STATUS, settle: cycle * 20 }
+    }
+}
 
 /// `ayllu node` arguments for node `id` (1-based) of the paper's team.
 fn node_args(id: u32, url: &str) -> Vec<String> {
@@ -44,7 +77,7 @@ fn node_args(id: u32, url: &str) -> Vec<String> {
         "--sight",
         SIGHT[id as usize - 1],
         "--status-ms",
-        "100",
+        &STATUS.as_millis().to_string(),
         "--for",
         "40",
     ]
@@ -88,15 +121,16 @@ fn state_is(nodes: &[&Proc], drives: &[(u64, u64)], claimers: &[u64; 4]) -> Resu
 /// Start, settle, check, kill n1, check the take-over. `nodes` are n1, n2, n3 in order;
 /// `why_n2` asks the CLI to explain n2's OBS1.Rotate (held off by n1's claim).
 fn settle_and_kill(label: &str, mut nodes: Vec<Proc>, why_n2: impl Fn() -> common::Run) {
+    let bounds = Bounds::new();
     let started = Instant::now();
     for n in &mut nodes {
-        n.wait_ready(Duration::from_secs(5));
+        n.wait_ready();
     }
     let settled_drives = [(1, 1), (2, 2), (3, 3)];
     let settled_claims = [1, 2, 3, 3];
-    // Settled: the whole expected state at once, within 12 s (measured: about 1-2 s).
+    // Settled: the whole expected state at once.
     let mut last = String::new();
-    let ok = wait_for(Duration::from_secs(12), Duration::from_millis(50), || {
+    let ok = wait_for(bounds.settle, Duration::from_millis(50), || {
         let refs: Vec<&Proc> = nodes.iter().collect();
         match state_is(&refs, &settled_drives, &settled_claims) {
             Ok(()) => Some(()),
@@ -106,11 +140,13 @@ fn settle_and_kill(label: &str, mut nodes: Vec<Proc>, why_n2: impl Fn() -> commo
             }
         }
     });
-    assert!(ok.is_some(), "{label}: never settled: {last}\n{}", diagnostics(&nodes));
+    assert!(ok.is_some(), "{label}: never settled within {:?}: {last}\n{}", bounds.settle, diagnostics(&nodes));
     let settle_time = started.elapsed();
-    // ... and stays so (claims are leases renewed every second; nothing may flap).
-    for _ in 0..15 {
-        std::thread::sleep(Duration::from_millis(100));
+    // ... and stays so for a cycle and a half (claims are leases renewed every cycle; nothing
+    // may flap).
+    let hold_until = Instant::now() + bounds.cycle * 3 / 2;
+    while Instant::now() < hold_until {
+        std::thread::sleep(STATUS);
         let refs: Vec<&Proc> = nodes.iter().collect();
         if let Err(e) = state_is(&refs, &settled_drives, &settled_claims) {
             panic!("{label}: settled state did not hold: {e}\n{}", diagnostics(&nodes));
@@ -127,29 +163,34 @@ fn settle_and_kill(label: &str, mut nodes: Vec<Proc>, why_n2: impl Fn() -> commo
     );
 
     // Kill n1: its claims are leases and lapse; n2 sees target 1 and takes over.
-    let inhibit = BleConfig::new("Peers", "Rotate", CLAIM_HZ).unwrap().inhibit_period;
-    let cycle = ayllu::Duration::try_from_hz(CLAIM_HZ).unwrap();
-    let bound = Duration::from_nanos((inhibit + cycle).as_nanos());
     let killed_at = Instant::now();
     nodes[0].kill();
-    let took = wait_for(bound + MARGIN + Duration::from_secs(3), Duration::from_millis(20), || {
+    let took = wait_for(bounds.takeover + bounds.margin * 2, Duration::from_millis(20), || {
         nodes[1].lines().into_iter().find(|(t, j)| *t > killed_at && drive(j) == 1).map(|(t, _)| t - killed_at)
     });
     let took = took.unwrap_or_else(|| panic!("{label}: n2 never took over target 1\n{}", diagnostics(&nodes)));
     eprintln!(
         "{label}: settled {:.2}s after start; n2 driven by layer 1 {:.3}s after n1 was killed \
-         (bound: inhibit {inhibit} + cycle {cycle} = {bound:?}, asserted with {MARGIN:?} margin)",
+         (protocol bound {:?}, lease floor {:?}, asserted with {:?} margin)",
         settle_time.as_secs_f64(),
-        took.as_secs_f64()
+        took.as_secs_f64(),
+        bounds.takeover,
+        bounds.lease_floor,
+        bounds.margin,
     );
-    assert!(took <= bound + MARGIN, "{label}: took {took:?}, bound {bound:?} + margin {MARGIN:?}");
-    // The lease held while it was valid: n1's last claim was renewed at most one cycle before
-    // the kill, so its inhibition lasts at least `inhibit - cycle` after it.
-    assert!(took >= Duration::from_millis(500), "{label}: took over after only {took:?}: the lease did not hold");
+    assert!(
+        took <= bounds.takeover + bounds.margin,
+        "{label}: took {took:?}, bound {:?} + margin {:?}",
+        bounds.takeover,
+        bounds.margin
+    );
+    // The lease held while it was valid. Delays only make `took` longer, so this floor needs
+    // no margin.
+    assert!(took >= bounds.lease_floor, "{label}: took over after only {took:?}: the lease did not hold");
 
     // Settled again without n1: n2 claims T1 and T2 and is driven by layer 1, n3 unchanged.
     let mut last = String::new();
-    let ok = wait_for(Duration::from_secs(6), Duration::from_millis(50), || {
+    let ok = wait_for(bounds.takeover + bounds.margin, Duration::from_millis(50), || {
         match state_is(&[&nodes[1], &nodes[2]], &[(2, 1), (3, 3)], &[2, 2, 3, 3]) {
             Ok(()) => Some(()),
             Err(e) => {
@@ -172,17 +213,8 @@ fn diagnostics(nodes: &[Proc]) -> String {
 
 #[test]
 fn three_processes_on_loopback_settle_and_survive_a_kill() {
-    let ports = free_ports(3);
-    let peers: Vec<String> = ports.iter().map(|p| format!("peer=127.0.0.1:{p}")).collect();
-    let url = |i: usize| format!("udp://127.0.0.1:{}?{}", ports[i], peers.join("&"));
-    let nodes: Vec<Proc> = (0..3)
-        .map(|i| {
-            let mut cmd = Command::new(BIN);
-            cmd.args(node_args(i as u32 + 1, &url(i)));
-            Proc::spawn(&format!("n{}", i + 1), cmd)
-        })
-        .collect();
-    let cli_url = format!("udp://127.0.0.1:0?peer=127.0.0.1:{}", ports[1]);
+    let (nodes, addrs) = start_on_loopback(3, |k| format!("n{}", k + 1), |k, url| node_args(k as u32 + 1, url));
+    let cli_url = format!("udp://127.0.0.1:0?peer={}", addrs[1]);
     settle_and_kill("loopback", nodes, || {
         ayllu(&["why", "2", "OBS1.Rotate", "--json", "--udp", &cli_url], Duration::from_secs(10))
     });

@@ -26,7 +26,7 @@ use std::time::{Duration, Instant};
 use ayllu_sim::controller::Controller;
 use ayllu_sim::scenario::{run, Scenario};
 use common::netns::Netns;
-use common::{free_ports, wait_for, Proc, BIN};
+use common::{start_on_loopback, wait_for, Proc, BIN};
 use serde_json::Value as Json;
 
 const ROBOTS: usize = 3;
@@ -208,19 +208,14 @@ fn a_served_world_and_three_robot_processes_on_loopback() {
     // Warm the in-process references first (a few seconds in a debug build), so they do not
     // compete with the real-time processes for the CPU.
     references();
-    let ports = free_ports(ROBOTS);
-    let peers: Vec<String> = ports.iter().map(|p| format!("peer=127.0.0.1:{p}")).collect();
-    // Each body greets its own controller; the controllers know each other (group by unicast).
-    let bodies: Vec<String> = ports.iter().map(|p| format!("udp://127.0.0.1:0?peer=127.0.0.1:{p}")).collect();
-    let mut procs = Vec::new();
+    // The controllers first, each on a port of its own choosing, each told the earlier ones'
+    // addresses (group by unicast); then the server, each body greeting its own controller.
+    let (robots, addrs) = start_on_loopback(ROBOTS, |k| format!("robot{}", k + 1), |k, url| robot_args(k + 1, url));
+    let bodies: Vec<String> = addrs.iter().map(|a| format!("udp://127.0.0.1:0?peer={a}")).collect();
     let mut cmd = Command::new(BIN);
     cmd.args(serve_args(&bodies));
-    procs.push(Proc::spawn("server", cmd));
-    for (k, port) in (1..=ROBOTS).zip(&ports) {
-        let mut cmd = Command::new(BIN);
-        cmd.args(robot_args(k, &format!("udp://127.0.0.1:{port}?{}", peers.join("&"))));
-        procs.push(Proc::spawn(&format!("robot{k}"), cmd));
-    }
+    let mut procs = vec![Proc::spawn("server", cmd)];
+    procs.extend(robots);
     check_team("loopback", &procs);
 }
 

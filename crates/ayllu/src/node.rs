@@ -120,6 +120,11 @@ impl Node {
     pub fn peers(&self) -> Vec<crate::transport::PeerInfo> {
         self.transport.peers()
     }
+    /// Where peers reach this node (see [`Transport::address`]): after binding `udp://...:0`,
+    /// the port the system chose.
+    pub fn address(&self) -> Option<String> {
+        self.transport.address()
+    }
 
     pub fn define(&mut self, class: BehaviorClass) -> Result<(), Error> {
         Ok(self.core.define(class)?)

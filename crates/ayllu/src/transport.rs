@@ -53,6 +53,12 @@ pub trait Transport: Send {
     fn peers(&self) -> Vec<PeerInfo> {
         Vec::new()
     }
+    /// Where peers reach this node, as a peer's URL would name it (`127.0.0.1:45125` for
+    /// `udp://`), once bound: a node bound to port 0 learns its real port here. `None` for
+    /// transports without addresses (`mem://`).
+    fn address(&self) -> Option<String> {
+        None
+    }
 }
 
 /// A peer as a transport knows it.

@@ -168,6 +168,7 @@ impl<S: DatagramSocket> UdpTransport<S> {
         })
     }
 
+    /// The address the socket is bound to (the real port when the URL asked for port 0).
     pub fn local_addr(&self) -> Option<SocketAddr> {
         self.socket.local_addr().ok()
     }
@@ -516,5 +517,8 @@ impl<S: DatagramSocket> Transport for UdpTransport<S> {
     }
     fn peers(&self) -> Vec<PeerInfo> {
         self.peer_list()
+    }
+    fn address(&self) -> Option<String> {
+        self.local_addr().map(|a| a.to_string())
     }
 }

@@ -10,7 +10,7 @@
 
 use std::net::SocketAddr;
 
-use ayllu::datagram::DatagramBus;
+use ayllu::datagram::{DatagramBus, DatagramSocket, OsSocket};
 use ayllu::faults::{FaultConfig, FaultySocket};
 use ayllu::stdlib::{cross_subsumption, BASE, VISION, WANDER_TURN};
 use ayllu::{BleConfig, Duration, Instant, Lockstep, Node, NodeId, UdpConfig, UdpTransport};
@@ -55,8 +55,14 @@ fn team(name: &str, nodes: u32) -> Lockstep {
 fn team_over(net: Net, name: &str, nodes: u32) -> Lockstep {
     let mut team = Lockstep::new(name);
     let bus = DatagramBus::new();
-    let loopback_ports: Vec<u16> =
-        (0..nodes).map(|_| std::net::UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port()).collect();
+    // Loopback sockets are bound to port 0 first and kept: the nodes use the very sockets whose
+    // ports the peers are told, so nothing else on the machine can take a port in between.
+    let mut loopback: Vec<OsSocket> = match net {
+        Net::UdpLoopback => (0..nodes).map(|_| OsSocket::bind("127.0.0.1:0".parse().unwrap()).unwrap()).collect(),
+        _ => Vec::new(),
+    };
+    let loopback_addrs: Vec<SocketAddr> = loopback.iter().map(|s| s.local_addr().unwrap()).collect();
+    loopback.reverse();
     for id in 1..=nodes {
         let i = match &net {
             Net::Mem => team.add(NodeId(id)).unwrap(),
@@ -79,11 +85,14 @@ fn team_over(net: Net, name: &str, nodes: u32) -> Lockstep {
                 team.add_node(node)
             }
             Net::UdpLoopback => {
-                let port = loopback_ports[id as usize - 1];
-                let mut config = UdpConfig::new(format!("127.0.0.1:{port}").parse().unwrap());
-                config.peers = loopback_ports.iter().map(|p| format!("127.0.0.1:{p}").parse().unwrap()).collect();
+                let socket = loopback.pop().expect("one socket per node");
+                let mut config = UdpConfig::new(socket.local_addr().unwrap());
+                config.peers = loopback_addrs.clone();
                 config.hello_interval = Duration::from_millis(200);
-                team.add_node(Node::new(team.clock().clone(), UdpTransport::bind(NodeId(id), config).unwrap()))
+                team.add_node(Node::new(
+                    team.clock().clone(),
+                    UdpTransport::with_socket(NodeId(id), config, socket).unwrap(),
+                ))
             }
         };
         let groups = cross_subsumption(team.node(i).core_mut(), LAYERS, "Peers", CLAIM_HZ).unwrap();

@@ -3,7 +3,10 @@
 //! that always happens.
 //!
 //! Promises: every child is SIGKILLed and reaped when its guard drops (also when a test
-//! panics); every wait has a limit; nothing here sleeps longer than a poll interval.
+//! panics); every wait has a limit; nothing here sleeps longer than a poll interval. No test
+//! picks a port: a node binds port 0 and [`Proc::wait_ready`] returns the address it reports
+//! on its first line (`{"listening":ADDR}`), so nothing else on the machine can take it in
+//! between (docs/testing.md).
 
 #![allow(dead_code)]
 
@@ -28,6 +31,8 @@ pub struct Proc {
     pub name: String,
     child: Child,
     lines: Arc<Mutex<Vec<(Instant, Json)>>>,
+    /// The address from the `{"listening":ADDR}` line (kept out of `lines`).
+    listening: Arc<Mutex<Option<String>>>,
     stderr: Arc<Mutex<String>>,
     killed: bool,
 }
@@ -42,15 +47,19 @@ impl Proc {
             .spawn()
             .unwrap_or_else(|e| panic!("starting {name}: {e}"));
         let lines: Arc<Mutex<Vec<(Instant, Json)>>> = Arc::default();
+        let listening: Arc<Mutex<Option<String>>> = Arc::default();
         let stderr: Arc<Mutex<String>> = Arc::default();
         let out = child.stdout.take().expect("piped stdout");
-        let sink = lines.clone();
+        let (sink, addr_sink) = (lines.clone(), listening.clone());
         std::thread::spawn(move || {
             for line in BufReader::new(out).lines() {
                 let Ok(line) = line else { break };
                 let read_at = Instant::now();
                 if let Ok(j) = serde_json::from_str::<Json>(&line) {
-                    lock(&sink).push((read_at, j));
+                    match j["listening"].as_str() {
+                        Some(addr) => *lock(&addr_sink) = Some(addr.to_owned()),
+                        None => lock(&sink).push((read_at, j)),
+                    }
                 }
             }
         });
@@ -65,7 +74,7 @@ impl Proc {
                 lock(&sink).push_str(&String::from_utf8_lossy(&buf[..n]));
             }
         });
-        Proc { name: name.to_owned(), child, lines, stderr, killed: false }
+        Proc { name: name.to_owned(), child, lines, listening, stderr, killed: false }
     }
 
     pub fn lines(&self) -> Vec<(Instant, Json)> {
@@ -80,14 +89,18 @@ impl Proc {
         lock(&self.stderr).clone()
     }
 
-    /// Wait until a status line has been printed (the node is up), or panic after `limit`.
-    pub fn wait_ready(&mut self, limit: Duration) {
-        let end = Instant::now() + limit;
-        while self.latest().is_none() {
-            if let Ok(Some(status)) = self.child.try_wait() {
-                panic!("{} exited with {status} before printing a status line: {}", self.name, self.stderr());
+    /// Wait until the node says where it listens (its socket is bound) and return that
+    /// address, or panic after [`START_LIMIT`].
+    pub fn wait_ready(&mut self) -> String {
+        let end = Instant::now() + START_LIMIT;
+        loop {
+            if let Some(addr) = lock(&self.listening).clone() {
+                return addr;
             }
-            assert!(Instant::now() < end, "{} printed no status line within {limit:?}: {}", self.name, self.stderr());
+            if let Ok(Some(status)) = self.child.try_wait() {
+                panic!("{} exited with {status} before saying where it listens: {}", self.name, self.stderr());
+            }
+            assert!(Instant::now() < end, "{} did not start within {START_LIMIT:?}: {}", self.name, self.stderr());
             std::thread::sleep(Duration::from_millis(20));
         }
     }
@@ -182,12 +195,32 @@ pub fn ayllu(args: &[&str], limit: Duration) -> Run {
     run(cmd, limit)
 }
 
-/// `n` UDP ports on 127.0.0.1 that were free a moment ago (all held at once, so distinct).
-pub fn free_ports(n: usize) -> Vec<u16> {
-    let sockets: Vec<std::net::UdpSocket> =
-        (0..n).map(|_| std::net::UdpSocket::bind("127.0.0.1:0").expect("binding an ephemeral port")).collect();
-    sockets.iter().map(|s| s.local_addr().expect("bound").port()).collect()
+/// Start `ayllu ARGS...` as nodes on loopback one after another, node k bound to port 0 and
+/// told the addresses the earlier ones reported (`peer=` in its URL): the earlier ones learn
+/// it from its HELLO, so the whole team knows each other. `args(k, url)` gives node k's
+/// arguments (0-based) for its `--udp` URL. Returns the processes and their addresses.
+pub fn start_on_loopback(
+    n: usize,
+    name: impl Fn(usize) -> String,
+    args: impl Fn(usize, &str) -> Vec<String>,
+) -> (Vec<Proc>, Vec<String>) {
+    let mut procs = Vec::new();
+    let mut addrs: Vec<String> = Vec::new();
+    for k in 0..n {
+        let peers: Vec<String> = addrs.iter().map(|a| format!("peer={a}")).collect();
+        let url = format!("udp://127.0.0.1:0?{}", peers.join("&"));
+        let mut cmd = Command::new(BIN);
+        cmd.args(args(k, url.trim_end_matches('?')));
+        let mut proc = Proc::spawn(&name(k), cmd);
+        addrs.push(proc.wait_ready());
+        procs.push(proc);
+    }
+    (procs, addrs)
 }
+
+/// How long a child may take to start and bind (a debug binary on a machine busy with other
+/// builds and test suites; measured: well under a second when idle).
+pub const START_LIMIT: Duration = Duration::from_secs(30);
 
 /// Poll `check` every `every` until it returns `Some`, or `None` after `limit`.
 pub fn wait_for<T>(limit: Duration, every: Duration, mut check: impl FnMut() -> Option<T>) -> Option<T> {
