@@ -24,10 +24,11 @@ test:
 	$(CARGO) build -p ayllu-cli
 	$(PYTHON) spec/conformance --ayllu $(TARGET_DIR)/debug/ayllu
 
-## Formatting and lints, warnings as errors.
+## Formatting, lints and API docs, warnings as errors.
 lint:
 	$(CARGO) fmt --all -- --check
 	$(CARGO) clippy --workspace --all-targets -- -D warnings
+	RUSTDOCFLAGS=-Dwarnings $(CARGO) doc --workspace --no-deps --quiet
 	PYTHON=$(PYTHON) scripts/install-test-tools
 	cd lite/python && $(PYTHON) -m ruff check . && $(PYTHON) -m ruff format --check .
 	$(PYTHON) -m ruff check spec/conformance && $(PYTHON) -m ruff format --check spec/conformance

@@ -55,7 +55,7 @@ pub fn run(seconds: u64) -> String {
     for ms in (0..seconds * 1000).step_by(10) {
         let t = ms as f64 / 1000.0;
         if ms == kill_at {
-            team.kill(0);
+            drop(team.kill(NodeId(1)));
             let _ = writeln!(out, "{t:6.2} | robot 1 stops (its claims are leases: they lapse)");
         }
         if ms.is_multiple_of(100) {

@@ -412,6 +412,7 @@ mod tests {
             counters: Counters::default(),
             incoming: vec![],
             outgoing: vec![],
+            triggers: vec![],
         }
     }
 

@@ -163,7 +163,11 @@ pub fn node_report_text(r: &NodeReport, peer: Option<&PeerInfo>) -> String {
                     format!("on {}", b.monostables.get(usize::from(m.0)).map_or("?", |(n, _)| n.as_str()))
                 }
             };
-            let _ = writeln!(out, "    process {} ({trigger}): {} runs, {} overruns", p.name, p.runs, p.overruns);
+            let _ = write!(out, "    process {} ({trigger}): {} runs, {} overruns", p.name, p.runs, p.overruns);
+            if p.retriggered > 0 {
+                let _ = write!(out, ", triggers itself (held back {} times)", p.retriggered);
+            }
+            let _ = writeln!(out);
         }
     }
     let _ = writeln!(out, "connections:");

@@ -114,6 +114,13 @@ impl BehaviorClass {
         if name.is_empty() {
             return Err(Error::EmptyName { what });
         }
+        if [LOCAL, INHIBIT, BEST].contains(&name) {
+            return Err(Error::ReservedName {
+                name: format!("{}.{name}", self.name),
+                reason:
+                    "every behavior already has the BLE ports Local, Inhibit and Best (rule S11); choose another name",
+            });
+        }
         let taken = self.ports.iter().any(|p| p.name == name)
             || self.slots.iter().any(|s| s.name == name)
             || self.monos.iter().any(|m| m == name);
@@ -235,7 +242,9 @@ pub(crate) fn validate_process(
         return Err(Error::DuplicateName { what: "process", name: format!("{behavior}.{}", spec.name) });
     }
     match spec.trigger {
-        Trigger::Periodic(p) if p.is_zero() => Err(Error::InvalidRate { hz: f64::INFINITY }),
+        Trigger::Periodic(p) if p.is_zero() => {
+            Err(Error::ZeroProcessPeriod { process: format!("{behavior}.{}", spec.name) })
+        }
         Trigger::OnWrite(Port(i)) if usize::from(i) >= n_ports => {
             Err(Error::UnknownPort { behavior: behavior.to_owned(), port: format!("#{i}") })
         }

@@ -69,6 +69,10 @@ pub enum Error {
     InvalidRate {
         hz: f64,
     },
+    /// A periodic process declared with a period of zero.
+    ZeroProcessPeriod {
+        process: String,
+    },
     /// A declared window or lifespan of zero would empty the port at the instant it is written.
     ZeroWindow {
         port: String,
@@ -76,6 +80,16 @@ pub enum Error {
     /// A window only makes sense for aggregating ports (Max, Min, Sum, Priority).
     WindowOnNormalPort {
         port: String,
+    },
+    /// A vector Sum port takes its shape from its default, which must not be empty.
+    VectorShape {
+        port: String,
+    },
+    /// The name belongs to a register every behavior has (the BLE ports `Local`, `Inhibit`,
+    /// `Best`).
+    ReservedName {
+        name: String,
+        reason: &'static str,
     },
     /// `(group, behavior, port)` cannot be a connection's source: ask each node of the group
     /// to connect its own port instead (as the paper's Fig. 2 does).
@@ -134,11 +148,19 @@ impl fmt::Display for Error {
             }
             Error::InvalidDuration { seconds } => write!(f, "{seconds} s is not a usable duration"),
             Error::InvalidRate { hz } => write!(f, "rate of {hz} Hz is invalid; rates must be finite and above zero"),
+            Error::ZeroProcessPeriod { process } => {
+                write!(f, "process `{process}`: a periodic process needs a period above zero")
+            }
             Error::ZeroWindow { port } => write!(f, "port `{port}`: window and lifespan must be above zero"),
             Error::WindowOnNormalPort { port } => write!(
                 f,
                 "port `{port}`: only aggregating ports (Max, Min, Sum, Priority) have a window; use a lifespan for freshness"
             ),
+            Error::VectorShape { port } => write!(
+                f,
+                "port `{port}`: a vector Sum takes its shape from its default; declare it with a default of the right length (e.g. [0, 0, 0])"
+            ),
+            Error::ReservedName { name, reason } => write!(f, "`{name}` is a reserved name: {reason}"),
             Error::GroupSource => f.write_str(
                 "a broadcast group cannot be a connection's source; let each node connect its own port",
             ),

@@ -12,7 +12,7 @@ use crate::behavior::Trigger;
 use crate::connection::ConnectionInfo;
 use crate::counters::{Counters, DropCause};
 use crate::error::Error;
-use crate::node::{current, NodeCore, Target};
+use crate::node::{current, NodeCore, ProcState, Target};
 use crate::port::PortKind;
 use crate::time::{Duration, Instant};
 use crate::value::{Value, ValueType};
@@ -58,6 +58,10 @@ pub struct PortReport {
     pub incoming: Vec<ConnectionInfo>,
     /// Connections out of this port (local, to nodes, to groups).
     pub outgoing: Vec<ConnectionInfo>,
+    /// The processes this port triggers when it accepts a value, with their statistics (a
+    /// process that triggers itself shows `retriggered`).
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub triggers: Vec<ProcessReport>,
 }
 
 /// A process's schedule and statistics.
@@ -69,6 +73,10 @@ pub struct ProcessReport {
     pub runs: u64,
     /// Periodic activations skipped because the process was late.
     pub overruns: u64,
+    /// Times a triggered process was triggered again in the poll in which it had already run
+    /// (it triggers itself) and was held back by `RETRIGGER_INTERVAL` (D7.3).
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub retriggered: u64,
     pub next_due: Option<Instant>,
 }
 
@@ -114,8 +122,14 @@ pub struct NodeReport {
 impl NodeCore {
     /// Why `behavior.port` holds what it holds and passes what it passes.
     pub fn why(&self, behavior: &str, port: &str) -> Result<PortReport, Error> {
+        self.why_at(self.now(), behavior, port)
+    }
+
+    /// [`NodeCore::why`] as of `now` (never before the node's own time): windows and
+    /// lifespans that ended by `now` count as ended (D8.2).
+    pub fn why_at(&self, now: Instant, behavior: &str, port: &str) -> Result<PortReport, Error> {
         let r = self.port(behavior, port)?;
-        let now = self.now();
+        let now = now.max(self.now());
         let me = self.id();
         let beh = self.behavior(r.b).expect("resolved");
         let ps = &beh.ports[usize::from(r.port.0)];
@@ -142,7 +156,8 @@ impl NodeCore {
             .filter_map(|e| self.conns[e.conn as usize].as_ref())
             .filter_map(|c| all.iter().find(|i| i.id.0 == c.id).cloned())
             .collect();
-        let empty = ps.cell.kind().is_aggregating() && (ps.cell.empty || now >= ps.cell.window_end);
+        let empty = ps.cell.is_empty(now);
+        let triggers = ps.triggers.iter().map(|&pi| process_report(&beh.processes[usize::from(pi)])).collect();
         Ok(PortReport {
             node: me,
             now,
@@ -163,6 +178,7 @@ impl NodeCore {
             counters: ps.counters.clone(),
             incoming,
             outgoing,
+            triggers,
         })
     }
 
@@ -198,17 +214,7 @@ impl NodeCore {
                     .zip(&beh.monos)
                     .map(|(n, m)| (n.clone(), now < m.end))
                     .collect(),
-                processes: beh
-                    .processes
-                    .iter()
-                    .map(|p| ProcessReport {
-                        name: p.spec.name.clone(),
-                        trigger: p.spec.trigger,
-                        runs: p.runs,
-                        overruns: p.overruns,
-                        next_due: matches!(p.spec.trigger, Trigger::Periodic(_)).then_some(p.next_due),
-                    })
-                    .collect(),
+                processes: beh.processes.iter().map(process_report).collect(),
             })
             .collect();
         behaviors.sort_by(|a, b| a.name.cmp(&b.name));
@@ -228,6 +234,17 @@ impl NodeCore {
     pub fn connection(&self, id: crate::address::ConnectionId) -> Option<ConnectionInfo> {
         self.conn_index(id)?;
         self.connection_infos().into_iter().find(|c| c.id == id)
+    }
+}
+
+fn process_report(p: &ProcState) -> ProcessReport {
+    ProcessReport {
+        name: p.spec.name.clone(),
+        trigger: p.spec.trigger,
+        runs: p.runs,
+        overruns: p.overruns,
+        retriggered: p.retriggers,
+        next_due: matches!(p.spec.trigger, Trigger::Periodic(_)).then_some(p.next_due),
     }
 }
 
@@ -276,6 +293,13 @@ impl fmt::Display for PortReport {
         }
         for c in &self.outgoing {
             writeln!(f, "  out       {} {} -> {}", c.id, c.kind, c.destination)?;
+        }
+        for p in &self.triggers {
+            write!(f, "  triggers  process {}: {} runs", p.name, p.runs)?;
+            if p.retriggered > 0 {
+                write!(f, ", TRIGGERS ITSELF: held back {} times (runs at most once per ms)", p.retriggered)?;
+            }
+            writeln!(f)?;
         }
         for (d, n) in self.counters.nonzero() {
             writeln!(f, "  counted   {d}: {n}")?;

@@ -62,7 +62,7 @@ pub use counters::{Counters, DropCause};
 pub use error::Error;
 pub use introspect::{BehaviorReport, NodeReport, PortReport, ProcessReport, RegisterReport, WindowReport};
 pub use message::{ControlBody, ControlMessage, Destination, Message, Outgoing, PortMessage, ReplyBody};
-pub use node::{BehaviorRef, NodeCore, PortRef, RequestId, RequestStatus};
+pub use node::{BehaviorRef, NodeCore, PortRef, RequestId, RequestStatus, RETRIGGER_INTERVAL};
 pub use port::{PortCell, PortKind, PortSpec};
 pub use process::Ctx;
 pub use time::{Duration, Instant};

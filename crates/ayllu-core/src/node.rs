@@ -97,7 +97,15 @@ pub(crate) struct ProcState {
     pub(crate) overruns: u64,
     pub(crate) pending: bool,
     pub(crate) ran_in_poll: u64,
+    /// Times it was triggered again in a poll in which it had already run (by its own write
+    /// or a cycle of processes) and was held back by [`RETRIGGER_INTERVAL`] (D7.3).
+    pub(crate) retriggers: u64,
 }
+
+/// A triggered process that is triggered again in the poll in which it already ran (it
+/// triggers itself, directly or through a cycle of processes) runs again no sooner than this:
+/// such a loop runs at most 1000 times a second instead of spinning a core (D7.3).
+pub const RETRIGGER_INTERVAL: Duration = Duration::from_millis(1);
 
 pub(crate) struct Behavior {
     pub(crate) id: u64,
@@ -199,6 +207,8 @@ pub struct NodeCore {
     stack: Vec<Frame>,
     pending: VecDeque<(u32, u64, u16)>,
     deferred: Vec<(u32, u64, u16)>,
+    /// When the processes in `deferred` may run (`Instant::MAX` while there are none).
+    deferred_due: Instant,
     poll_epoch: u64,
     outbox: VecDeque<Outgoing>,
     pub(crate) counters: Counters,
@@ -235,6 +245,7 @@ impl NodeCore {
             stack: Vec::with_capacity(64),
             pending: VecDeque::with_capacity(64),
             deferred: Vec::new(),
+            deferred_due: Instant::MAX,
             poll_epoch: 0,
             outbox: VecDeque::new(),
             counters: Counters::default(),
@@ -330,6 +341,7 @@ impl NodeCore {
                 overruns: 0,
                 pending: false,
                 ran_in_poll: 0,
+                retriggers: 0,
             });
         }
         let behavior = Behavior {
@@ -394,7 +406,15 @@ impl NodeCore {
         let ix = u16::try_from(beh.processes.len())
             .map_err(|_| Error::TooManyRegisters { behavior: behavior.to_owned() })?;
         attach_trigger(&mut beh.ports, &mut beh.monos, spec.trigger, ix);
-        beh.processes.push(ProcState { spec, next_due: now, runs: 0, overruns: 0, pending: false, ran_in_poll: 0 });
+        beh.processes.push(ProcState {
+            spec,
+            next_due: now,
+            runs: 0,
+            overruns: 0,
+            pending: false,
+            ran_in_poll: 0,
+            retriggers: 0,
+        });
         Ok(())
     }
 
@@ -549,10 +569,34 @@ impl NodeCore {
         }
         if let Target::Local { b, p } = conn.dst {
             if let Some(beh) = self.behavior_mut(b) {
-                beh.ports[usize::from(p)].windows.forget_holder(Source::connection(me, id));
+                let port = &mut beh.ports[usize::from(p)];
+                let gone = Source::connection(me, id);
+                port.windows.forget_holder(gone);
+                // What the connection supplied to an aggregating port is no longer offered.
+                port.cell.release_from(|s| s == gone);
             }
         }
         Ok(())
+    }
+
+    /// Node `node` is gone (its transport has not heard from it for its liveness period, N6):
+    /// every aggregating port it holds releases its value, so the next value is judged against
+    /// what is still supplied, not against a dead robot's claim (D3.7). Its windows lapse by
+    /// themselves at the end of their periods. Returns how many ports were released.
+    pub fn node_lost(&mut self, now: Instant, node: NodeId) -> usize {
+        self.advance(now);
+        if node == self.id {
+            return 0;
+        }
+        let mut released = 0;
+        for beh in self.behaviors.iter_mut().flatten() {
+            for port in &mut beh.ports {
+                if port.cell.release_from(|s| s.node == node) {
+                    released += 1;
+                }
+            }
+        }
+        released
     }
 
     /// Join a broadcast group: messages sent to `(group, behavior, port)` by others reach us.
@@ -803,6 +847,15 @@ impl NodeCore {
             self.counters.add(DropCause::UnknownPort);
             return false;
         };
+        // An override's value must be one the port could take (type, NaN, shape): a message
+        // refused as invalid opens no window (D6.7). The blocking kinds carry no value to check.
+        if matches!(kind, ConnectionKind::OverrideIn(_) | ConnectionKind::OverrideOut(_)) {
+            if let Err(cause) = port.cell.check(value) {
+                port.counters.add(cause);
+                self.counters.add(cause);
+                return false;
+            }
+        }
         // A special connection's window always takes effect when its message arrives; only
         // the write of `m` itself is subject to the blocks in force (docs/semantics.md, D6.2).
         match kind {
@@ -1021,6 +1074,10 @@ impl NodeCore {
         self.advance(now);
         let now = self.now;
         self.poll_epoch += 1;
+        if now >= self.deferred_due {
+            self.pending.extend(self.deferred.drain(..));
+            self.deferred_due = Instant::MAX;
+        }
         // Monostable falling edges.
         for b in 0..self.behaviors.len() as u32 {
             let Some(beh) = self.behaviors[b as usize].as_mut() else { continue };
@@ -1060,7 +1117,9 @@ impl NodeCore {
                 pi += 1;
             }
         }
-        self.pending.extend(self.deferred.drain(..));
+        if !self.deferred.is_empty() && self.deferred_due == Instant::MAX {
+            self.deferred_due = now + RETRIGGER_INTERVAL;
+        }
         self.flush_requests();
         self.poll_at()
     }
@@ -1073,6 +1132,15 @@ impl NodeCore {
             };
             let proc_ = &mut beh.processes[usize::from(pi)];
             if proc_.ran_in_poll == epoch {
+                proc_.retriggers += 1;
+                if proc_.retriggers == 1 {
+                    let warning = format!(
+                        "process {}.{} triggers itself (by its own write or through a cycle of processes); \
+                         it now runs at most once per {RETRIGGER_INTERVAL}",
+                        beh.name, proc_.spec.name
+                    );
+                    self.warnings.push(warning);
+                }
                 self.deferred.push((b, id, pi));
                 continue;
             }
@@ -1099,6 +1167,9 @@ impl NodeCore {
         }
         let mut at: Option<Instant> = None;
         let mut consider = |t: Instant| at = Some(at.map_or(t, |a| a.min(t)));
+        if !self.deferred.is_empty() {
+            consider(self.deferred_due);
+        }
         for beh in self.behaviors.iter().flatten() {
             for p in &beh.processes {
                 if matches!(p.spec.trigger, Trigger::Periodic(_)) {
@@ -1122,20 +1193,37 @@ impl NodeCore {
     // ----- registers from outside ----------------------------------------------------------
 
     /// The port's value, or its default while empty (aggregating ports) — see `get` for
-    /// freshness.
+    /// freshness. Answers at the latest time the node was told ([`NodeCore::now`]); use
+    /// [`NodeCore::read_at`] to ask about a later instant without polling (D8.2).
     pub fn read(&self, port: PortRef) -> Result<Value, Error> {
-        let now = self.now;
+        self.read_at(self.now, port)
+    }
+
+    /// [`NodeCore::read`] as of `now` (never before the node's own time: time does not go
+    /// backwards). Windows and lifespans that ended by `now` count as ended.
+    pub fn read_at(&self, now: Instant, port: PortRef) -> Result<Value, Error> {
+        let now = now.max(self.now);
         self.resolve(port).map(|ps| current(&ps.cell, now).clone())
     }
 
     /// The port's value if fresh (rule S4), else `None`.
     pub fn get(&self, port: PortRef) -> Result<Option<Value>, Error> {
-        let now = self.now;
+        self.get_at(self.now, port)
+    }
+
+    /// [`NodeCore::get`] as of `now` (see [`NodeCore::read_at`]).
+    pub fn get_at(&self, now: Instant, port: PortRef) -> Result<Option<Value>, Error> {
+        let now = now.max(self.now);
         self.resolve(port).map(|ps| ps.cell.get(now).cloned())
     }
 
     pub fn fresh(&self, port: PortRef) -> Result<bool, Error> {
-        let now = self.now;
+        self.fresh_at(self.now, port)
+    }
+
+    /// [`NodeCore::fresh`] as of `now` (see [`NodeCore::read_at`]).
+    pub fn fresh_at(&self, now: Instant, port: PortRef) -> Result<bool, Error> {
+        let now = now.max(self.now);
         self.resolve(port).map(|ps| ps.cell.fresh(now))
     }
 
@@ -1143,6 +1231,20 @@ impl NodeCore {
     /// tell which subsumption layer is driving without allocating a report.
     pub fn last_accepted(&self, port: PortRef) -> Result<Option<Instant>, Error> {
         self.resolve(port).map(|ps| ps.cell.last_accepted)
+    }
+
+    /// Whether monostable `mono` of `behavior` is high (rule S2), as of `now` (see
+    /// [`NodeCore::read_at`]): true until the end its triggers set, whether or not a poll has
+    /// seen the fall yet.
+    pub fn monostable_at(&self, now: Instant, behavior: &str, mono: &str) -> Result<bool, Error> {
+        let now = now.max(self.now);
+        let b = self.behavior_index(behavior)?;
+        let beh = self.behavior(b).expect("indexed behavior exists");
+        let m = beh
+            .class
+            .mono_handle(mono)
+            .ok_or_else(|| Error::UnknownPort { behavior: behavior.to_owned(), port: mono.to_owned() })?;
+        Ok(now < beh.monos[usize::from(m.0)].end)
     }
 
     /// Empty an aggregating port (a Normal port returns to its default).
@@ -1254,9 +1356,9 @@ impl NodeCore {
     }
 }
 
-/// The readable value of a cell at `now`: its value, or its default once its window closed.
+/// The readable value of a cell at `now`: its value, or its default once it released it.
 pub(crate) fn current(cell: &PortCell, now: Instant) -> &Value {
-    if cell.kind.is_aggregating() && (cell.empty || now >= cell.window_end) {
+    if cell.is_empty(now) {
         &cell.default
     } else {
         &cell.value

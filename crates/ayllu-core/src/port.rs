@@ -118,6 +118,9 @@ impl PortSpec {
         if self.window.is_some() && !self.kind.is_aggregating() {
             return Err(Error::WindowOnNormalPort { port: self.name.clone() });
         }
+        if self.kind == PortKind::Sum && self.default.as_vector().is_some_and(<[f64]>::is_empty) {
+            return Err(Error::VectorShape { port: self.name.clone() });
+        }
         Ok(())
     }
 }
@@ -161,11 +164,39 @@ impl PortCell {
         self.default.ty()
     }
 
-    /// Lazily close an aggregating window that has ended: the port empties (rule S3).
+    /// When the value an aggregating port holds is released (D3.2, D3.7): at the end of its
+    /// window (for a Priority port the window is its holder's lease, renewed by every accepted
+    /// write) or when it goes stale (lifespan), whichever comes first. `Instant::MAX`: never.
+    pub(crate) fn release_at(&self) -> Instant {
+        match (self.lifespan, self.last_accepted) {
+            (Some(l), Some(t)) => self.window_end.min(t + l),
+            _ => self.window_end,
+        }
+    }
+
+    /// Whether an aggregating port holds nothing at `now` (empty, or released and not yet
+    /// written again). Normal ports are never empty.
+    pub fn is_empty(&self, now: Instant) -> bool {
+        self.kind.is_aggregating() && (self.empty || now >= self.release_at())
+    }
+
+    /// Lazily release what an aggregating port holds once its window ended or it went stale:
+    /// the port empties, and the next value is judged against nothing (rules S3, D3.7).
     pub(crate) fn expire(&mut self, now: Instant) {
-        if !self.empty && self.kind.is_aggregating() && now >= self.window_end {
+        if !self.empty && self.is_empty(now) {
             self.reset();
         }
+    }
+
+    /// Release the value if `gone` supplied it (its connection was removed or its node is
+    /// gone): an aggregating port empties; a Normal port keeps its value (it holds no one's
+    /// claim). Returns whether it released.
+    pub(crate) fn release_from(&mut self, gone: impl Fn(Source) -> bool) -> bool {
+        if self.kind.is_aggregating() && !self.empty && self.supplier.is_some_and(gone) {
+            self.reset();
+            return true;
+        }
+        false
     }
 
     /// Empty an aggregating port; a Normal port returns to its default.
@@ -186,12 +217,35 @@ impl PortCell {
     /// its aggregating window (if any) is still open, and its lifespan (if any) has not run out.
     pub fn fresh(&self, now: Instant) -> bool {
         let Some(t) = self.last_accepted else { return false };
-        if self.kind.is_aggregating() && (self.empty || now >= self.window_end) {
-            return false;
+        if self.kind.is_aggregating() {
+            return !self.is_empty(now);
         }
         match self.lifespan {
             Some(l) => now < t + l,
             None => true,
+        }
+    }
+
+    /// Whether `m` can be offered to this port at all: its type, and for ordered and summing
+    /// ports a number (not NaN) of the declared shape. A value that fails here is refused
+    /// whatever the port holds; one that passes may still be absorbed by the merge.
+    pub fn check(&self, m: &Value) -> Result<(), DropCause> {
+        if m.ty() != self.ty() {
+            return Err(DropCause::TypeMismatch);
+        }
+        match self.kind {
+            PortKind::Max | PortKind::Min if m.is_nan() => Err(DropCause::NotANumber),
+            PortKind::Sum => {
+                if m.is_nan() || m.as_vector().is_some_and(|v| v.iter().any(|x| x.is_nan())) {
+                    return Err(DropCause::NotANumber);
+                }
+                // A vector Sum's shape is its declared default's (D3.5).
+                match (m.as_vector(), self.default.as_vector()) {
+                    (Some(v), Some(d)) if v.len() != d.len() => Err(DropCause::ShapeMismatch),
+                    _ => Ok(()),
+                }
+            }
+            _ => Ok(()),
         }
     }
 
@@ -221,9 +275,7 @@ impl PortCell {
 
     #[inline(never)]
     fn merge_any(&mut self, now: Instant, m: &Value, from: Source, priority: i32) -> Result<(), DropCause> {
-        if m.ty() != self.ty() {
-            return Err(DropCause::TypeMismatch);
-        }
+        self.check(m)?;
         self.expire(now);
         match self.kind {
             PortKind::Normal => {
@@ -231,9 +283,6 @@ impl PortCell {
                 self.supplier = Some(from);
             }
             PortKind::Max | PortKind::Min => {
-                if m.is_nan() {
-                    return Err(DropCause::NotANumber);
-                }
                 if self.empty {
                     self.open(now, m, from);
                 } else {
@@ -253,10 +302,6 @@ impl PortCell {
                 }
             }
             PortKind::Sum => {
-                // A NaN element poisons the sum for the whole window, even as its first value.
-                if m.is_nan() || m.as_vector().is_some_and(|v| v.iter().any(|x| x.is_nan())) {
-                    return Err(DropCause::NotANumber);
-                }
                 if self.empty {
                     self.open(now, m, from);
                 } else {
@@ -271,6 +316,10 @@ impl PortCell {
                         }
                         _ => return Err(DropCause::TypeMismatch),
                     };
+                    // +inf and -inf make NaN: refused, so that a Sum is never poisoned (D3.6).
+                    if sum.is_nan() || sum.as_vector().is_some_and(|v| v.iter().any(|x| x.is_nan())) {
+                        return Err(DropCause::NotANumber);
+                    }
                     self.value = sum;
                     self.supplier = Some(from);
                 }
@@ -289,6 +338,12 @@ impl PortCell {
                     self.supplier = Some(from);
                 }
                 self.supplier_priority = priority;
+                // A Priority port's window is its holder's lease: every accepted write renews
+                // it, so a holder that keeps writing is never displaced by a lower priority at
+                // a window boundary (D3.7).
+                if let Some(w) = self.window {
+                    self.window_end = now + w;
+                }
             }
         }
         self.last_accepted = Some(now);

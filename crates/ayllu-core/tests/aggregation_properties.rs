@@ -219,7 +219,8 @@ proptest! {
     ) {
         // S3: a window opens at the first accepted write into an empty port and empties the port
         // `window` later — later writes inside it do not extend it; a write after it opens a new
-        // one. Model: track the open window and what it holds.
+        // one. D3.7: a Priority port's window is its holder's lease instead, renewed by each of
+        // the holder's writes. Model: track the open window, its end and its holder.
         const W: u64 = 100;
         let mut n = NodeCore::new(SELF);
         let mut c = BehaviorClass::new("C");
@@ -229,14 +230,20 @@ proptest! {
         let p = n.port("B", "P").unwrap();
         let mut t = 0u64;
         let mut open: Option<u64> = None;
+        let mut end = 0u64;
+        let mut holder: Option<Source> = None;
         let mut seq: HashMap<Source, u64> = HashMap::new();
         for (dt, v, s) in &steps {
             t += dt;
-            if open.is_some_and(|o| t >= o + W) {
+            if open.is_some() && t >= end {
                 open = None;
             }
             if open.is_none() {
                 open = Some(t);
+                end = t + W;
+                holder = Some(*s);
+            } else if kind == PortKind::Priority && holder == Some(*s) {
+                end = t + W;
             }
             let k = seq.entry(*s).or_default();
             *k += 1;
@@ -246,7 +253,6 @@ proptest! {
             }));
             prop_assert!(n.fresh(p).unwrap(), "a write always leaves the port holding a value");
         }
-        let end = open.unwrap() + W;
         let check = t + wait;
         n.poll(Instant::from_millis(check));
         let r = n.why("B", "P").unwrap();

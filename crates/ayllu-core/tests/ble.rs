@@ -126,9 +126,15 @@ fn every_class_has_the_implicit_ble_ports() {
     assert_eq!(n.why("A", "Best").unwrap().kind, PortKind::Max);
     assert!(n.why("A", "Best").unwrap().empty);
     assert_eq!(n.port("A", "Local").unwrap().port(), Port::LOCAL);
-    // The names are taken.
+    // The names are reserved, and the error says so and why (S11), for every register kind.
     let mut c = BehaviorClass::new("C");
-    assert!(matches!(c.port(PortSpec::new("Local", 0.0)), Err(Error::DuplicateName { .. })));
+    for name in ["Local", "Inhibit", "Best"] {
+        let err = c.port(PortSpec::new(name, 0.0)).unwrap_err();
+        assert!(matches!(err, Error::ReservedName { .. }), "{err:?}");
+        assert!(err.to_string().contains("BLE"), "{err}");
+        assert!(matches!(c.slot(name, 0i64), Err(Error::ReservedName { .. })));
+        assert!(matches!(c.monostable(name), Err(Error::ReservedName { .. })));
+    }
 }
 
 #[test]

@@ -385,3 +385,14 @@ fn every_error_has_a_message() {
     uniq.dedup();
     assert_eq!(uniq.len(), msgs.len());
 }
+
+#[test]
+fn a_periodic_process_with_a_zero_period_is_refused_with_a_clear_error() {
+    // S7: the error names the process and says what is wrong (it used to say "rate of inf Hz").
+    let mut c = BehaviorClass::new("C");
+    let err = c.process("Tick", Trigger::Periodic(Duration::ZERO), |_| {}).unwrap_err();
+    assert!(matches!(err, Error::ZeroProcessPeriod { .. }), "{err:?}");
+    let text = err.to_string();
+    assert!(text.contains("C.Tick") && text.contains("period above zero"), "{text}");
+    assert!(!text.contains("inf"), "{text}");
+}

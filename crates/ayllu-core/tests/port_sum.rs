@@ -82,11 +82,44 @@ fn vector_of_another_length_is_a_shape_mismatch() {
     // The behavior's own mis-shaped write is an error, and is not stored.
     assert!(r.own(ms(4), vec![1.0, 2.0, 3.0]).is_err());
     assert_eq!(r.read(), Value::vector(&[1.0, 1.0]));
-    // The first value of an empty port fixes the shape of this window's sum.
+    // D3.5: the shape is the declaration's (the default's length), not the first value's: an
+    // empty port refuses another length too, so one mis-shaped sender cannot set the shape of
+    // a window for everyone else.
     r.node.reset(r.agg).unwrap();
     r.send(0, ms(5), vec![1.0, 2.0, 3.0]);
-    r.send(0, ms(6), vec![1.0, 1.0, 1.0]);
-    assert_eq!(r.read(), Value::vector(&[2.0, 3.0, 4.0]));
+    assert!(r.report().empty);
+    assert_eq!(r.dropped(DropCause::ShapeMismatch), 4, "two sent, one own write, and this one");
+    r.send(0, ms(6), vec![1.0, 2.0]);
+    assert_eq!(r.read(), Value::vector(&[1.0, 2.0]));
+}
+
+#[test]
+fn a_vector_sum_must_declare_its_shape() {
+    // D3.5: a vector Sum's shape comes from its default, so an empty default is refused.
+    let mut c = BehaviorClass::new("C");
+    let err = c.port(PortSpec::new("V", Value::vector(&[])).sum()).unwrap_err();
+    assert!(err.to_string().contains("shape"), "{err}");
+    assert!(c.port(PortSpec::new("V", Value::vector(&[0.0; 3])).sum()).is_ok());
+}
+
+#[test]
+fn infinities_of_opposite_sign_cannot_poison_the_sum() {
+    // D3.6: +inf then -inf would make NaN: the second is refused (NotANumber), counted, and the
+    // sum keeps +inf; for vectors too, element by element.
+    let mut r = FanIn::new(PortSpec::new("In", 0.0).sum(), 2);
+    r.send(0, ms(1), f64::INFINITY);
+    r.send(1, ms(2), f64::NEG_INFINITY);
+    assert_eq!(r.read(), Value::Float(f64::INFINITY));
+    assert_eq!(r.dropped(DropCause::NotANumber), 1);
+    assert!(r.own(ms(3), f64::NEG_INFINITY).is_err(), "the behavior's own write is refused too");
+    r.send(1, ms(4), 1.0);
+    assert_eq!(r.read(), Value::Float(f64::INFINITY), "finite values still add");
+
+    let mut r = FanIn::new(PortSpec::new("In", Value::vector(&[0.0, 0.0])).sum(), 2);
+    r.send(0, ms(1), vec![1.0, f64::INFINITY]);
+    r.send(1, ms(2), vec![1.0, f64::NEG_INFINITY]);
+    assert_eq!(r.read(), Value::vector(&[1.0, f64::INFINITY]));
+    assert_eq!(r.dropped(DropCause::NotANumber), 1);
 }
 
 #[test]

@@ -177,9 +177,10 @@ fn triggered_processes_run_to_completion_one_at_a_time() {
 }
 
 #[test]
-fn a_self_retriggering_process_runs_once_per_poll() {
-    // S7: a process whose write re-triggers itself cannot spin: it runs once per poll, and
-    // poll/poll_at report that it is due again now.
+fn a_self_retriggering_process_runs_once_per_poll_and_at_most_once_per_interval() {
+    // S7, D7.3: a process whose write re-triggers itself cannot spin: it runs once per poll;
+    // then it is held back until RETRIGGER_INTERVAL later (poll_at says when), counted as
+    // `retriggered` in the report and in `why` of its trigger port, and warned about once.
     let mut c = BehaviorClass::new("C");
     let count = c.port(PortSpec::new("Count", 0i64)).unwrap();
     c.on_write("Again", count, move |ctx| {
@@ -191,13 +192,47 @@ fn a_self_retriggering_process_runs_once_per_poll() {
     n.define(c).unwrap();
     n.create("C", "B").unwrap();
     n.write_named(ms(0), "B", "Count", 0i64).unwrap();
+    let step = RETRIGGER_INTERVAL;
+    let mut t = ms(0);
     for k in 1..=5u64 {
-        let t = ms(k);
-        assert_eq!(n.poll(t), Some(t), "poll {k} must report it is due again now");
-        assert_eq!(n.poll_at(), Some(t));
+        let due = n.poll(t);
+        assert_eq!(due, Some(t + step), "poll {k}: due again one interval later");
+        assert_eq!(n.poll_at(), Some(t + step));
         assert_eq!(runs(&n, "B", "Again"), k);
         assert_eq!(n.read(n.port("B", "Count").unwrap()).unwrap(), Value::Int(k as i64));
+        // Polling before the interval ends runs nothing.
+        n.poll(t + Duration::from_nanos(step.as_nanos() / 2));
+        assert_eq!(runs(&n, "B", "Again"), k, "held back until {:?}", t + step);
+        t += step;
     }
+    let p = n.report().behaviors[0].processes.iter().find(|p| p.name == "Again").unwrap().clone();
+    assert_eq!(p.retriggered, 5);
+    let why = n.why("B", "Count").unwrap();
+    assert_eq!(why.triggers.len(), 1);
+    assert_eq!((why.triggers[0].name.as_str(), why.triggers[0].retriggered), ("Again", 5));
+    assert!(why.to_string().contains("TRIGGERS ITSELF"), "{why}");
+    let warnings: Vec<&String> = n.warnings().iter().filter(|w| w.contains("B.Again")).collect();
+    assert_eq!(warnings.len(), 1, "warned once: {:?}", n.warnings());
+}
+
+#[test]
+fn a_process_triggered_once_per_poll_is_not_held_back() {
+    // D7.3: a trigger from outside (a write between polls) runs at the next poll, however
+    // often it comes; only a re-trigger within the poll in which the process ran is held back.
+    let mut c = BehaviorClass::new("C");
+    let input = c.port(PortSpec::new("In", 0i64)).unwrap();
+    c.on_write("Count", input, |_| {}).unwrap();
+    let mut n = NodeCore::new(NodeId(1));
+    n.define(c).unwrap();
+    n.create("C", "B").unwrap();
+    for k in 1..=5u64 {
+        let t = Instant::from_nanos(k * 1000);
+        n.write_named(t, "B", "In", k as i64).unwrap();
+        n.poll(t);
+        assert_eq!(runs(&n, "B", "Count"), k);
+    }
+    assert_eq!(n.report().behaviors[0].processes[0].retriggered, 0);
+    assert!(n.warnings().is_empty());
 }
 
 #[test]

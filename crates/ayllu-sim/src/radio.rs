@@ -1,6 +1,6 @@
 //! The radio medium between simulated robots: what the core's outgoing messages meet on their
 //! way to other robots' nodes — loss, delay with jitter, a range limit and scheduled
-//! partitions. Sans-IO and seeded: [`Radio::send`] and [`Radio::deliver`] take the time, and
+//! partitions. Sans-IO and seeded: [`Radio::send`] and [`Radio::deliver_shared`] take the time, and
 //! the loss and jitter draws come from the radio's own stream, so the same seed loses the same
 //! messages.
 //!

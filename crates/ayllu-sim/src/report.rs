@@ -1,6 +1,6 @@
 //! The report folder of `ayllu sim cmommt`: what a person opens after a study.
 //!
-//! [`write`] fills one folder with:
+//! [`write()`] fills one folder with:
 //! * `index.html`: one self-contained page (inline CSS and JS, no network): the command, a canvas
 //!   replay of [`Report::recording`], the tables, and the plots inlined as SVG markup. Once it has
 //!   drawn the first replay frame it sets `data-status="drawn"` on `<body>`; every script error

@@ -4,7 +4,7 @@
 //!
 //! Promises: the writer only ever holds a complete, valid datagram — a message that cannot be
 //! encoded, or does not fit, leaves it exactly as it was and says why ([`EncodeError`]); what it
-//! produces is accepted by [`crate::decode`] and decodes to the messages pushed; it never
+//! produces is accepted by [`crate::decode()`] and decodes to the messages pushed; it never
 //! exceeds the limit it was given (clamped to what receivers accept).
 
 use core::fmt;

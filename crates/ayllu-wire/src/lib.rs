@@ -8,10 +8,10 @@
 //! ## What it promises
 //! * Message types stay separate from their encoding: the core's [`PortMessage`] and
 //!   [`ControlBody`] travel inside a [`WireMessage`]; nothing here changes `ayllu-core`.
-//! * [`decode`] never panics, whatever the bytes; it allocates at most a constant factor of the
+//! * [`decode()`] never panics, whatever the bytes; it allocates at most a constant factor of the
 //!   datagram's size and runs in time linear in it. A datagram that is not applied is refused
 //!   whole with exactly one [`DropReason`] (N4).
-//! * The encoder ([`DatagramWriter`]) only produces what [`decode`] accepts, and the two
+//! * The encoder ([`DatagramWriter`]) only produces what [`decode()`] accepts, and the two
 //!   round-trip: decoding an encoded datagram gives back the same messages.
 //! * Authentication (N5) is HMAC-SHA256 truncated to 16 bytes, checked in constant time before
 //!   any message is read; [`ReplayWindow`] is the per-sender sequence window applied after.

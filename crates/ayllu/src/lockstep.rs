@@ -3,29 +3,43 @@
 //! This is how tests, examples and the simulator run a team deterministically: time moves
 //! only by [`Lockstep::advance`], and every node steps once per tick in the order the nodes
 //! were added. A message sent in one tick is received in the next step of its receiver.
+//! Each team has an in-process network of its own ([`Lockstep::network`]): two teams never
+//! share one, whatever their names, so tests running in parallel in one process cannot collide.
 
 use ayllu_core::{Duration, Instant, NodeId};
 
 use crate::clock::ManualClock;
 use crate::error::Error;
+use crate::mem::MemNetwork;
 use crate::node::Node;
 
 /// A deterministic team on virtual time.
 pub struct Lockstep {
+    name: String,
     clock: ManualClock,
     nodes: Vec<Node>,
-    url: String,
+    network: MemNetwork,
 }
 
 impl Lockstep {
-    /// A team whose nodes will share the in-process network `mem://name`.
+    /// A team with an in-process network of its own; `name` is for messages only.
     pub fn new(name: &str) -> Lockstep {
-        Lockstep { clock: ManualClock::new(), nodes: Vec::new(), url: format!("mem://{name}") }
+        Lockstep { name: name.to_owned(), clock: ManualClock::new(), nodes: Vec::new(), network: MemNetwork::new() }
     }
 
-    /// Add a node with id `id`; returns its index.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// The team's in-process network, to attach nodes built elsewhere
+    /// (`Node::new(team.clock().clone(), team.network().attach(id)?)`).
+    pub fn network(&self) -> &MemNetwork {
+        &self.network
+    }
+
+    /// Add a node with id `id` on the team's network; returns its index.
     pub fn add(&mut self, id: NodeId) -> Result<usize, Error> {
-        let node = Node::open_with_clock(id, &self.url, self.clock.clone())?;
+        let node = Node::new(self.clock.clone(), self.network.attach(id)?);
         self.nodes.push(node);
         Ok(self.nodes.len() - 1)
     }
@@ -47,12 +61,20 @@ impl Lockstep {
     pub fn nodes(&self) -> &[Node] {
         &self.nodes
     }
+    /// The node at index `i` (the order they were added; indices shift when a node is
+    /// killed, so prefer [`Lockstep::node_by_id`] after a kill).
     pub fn node(&mut self, i: usize) -> &mut Node {
         &mut self.nodes[i]
     }
-    /// Remove a node (as if its robot died); its transport detaches.
-    pub fn kill(&mut self, i: usize) -> Node {
-        self.nodes.remove(i)
+    /// The node with id `id`, if it is in the team.
+    pub fn node_by_id(&mut self, id: NodeId) -> Option<&mut Node> {
+        self.nodes.iter_mut().find(|n| n.id() == id)
+    }
+    /// Remove node `id` (as if its robot died): it steps no more and its transport detaches
+    /// when the returned node is dropped. `None` if no such node is in the team.
+    pub fn kill(&mut self, id: NodeId) -> Option<Node> {
+        let i = self.nodes.iter().position(|n| n.id() == id)?;
+        Some(self.nodes.remove(i))
     }
 
     /// Step every node once at the current time.

@@ -3,10 +3,14 @@
 //! Delivery is immediate, lossless and in order, so tests and the deterministic examples
 //! built on it are reproducible: a message sent during one node's step is received at the
 //! receiver's next step. Groups deliver to members in node-id order, never to the sender.
+//! A node whose transport is dropped is reported lost to the others at their next step
+//! (the in-process counterpart of N6 liveness).
 //! The network is shared behind a mutex, so nodes may also run on separate threads.
 //!
 //! Nodes attach to a [`MemNetwork`] made by hand or found by name (`mem://team` in every
-//! node of the program reaches the same network).
+//! node of the program reaches the same network, so two parts of one program that pick the
+//! same name share it; a network made with [`MemNetwork::new`], as [`crate::Lockstep`] does,
+//! is private to whoever holds it).
 
 use std::collections::{BTreeMap, BTreeSet, HashMap, VecDeque};
 use std::sync::{Arc, Condvar, Mutex, OnceLock};
@@ -21,6 +25,9 @@ type Inbox = Arc<(Mutex<VecDeque<(NodeId, Message)>>, Condvar)>;
 #[derive(Default)]
 struct Hub {
     inboxes: BTreeMap<NodeId, Inbox>,
+    /// Per attached node, the nodes that detached since it last asked: in one program a
+    /// detached node is gone for certain, so peers release what it held at once (D3.7).
+    lost: BTreeMap<NodeId, Vec<NodeId>>,
     groups: BTreeMap<String, BTreeSet<NodeId>>,
     /// Messages addressed to a node that is not attached.
     undeliverable: u64,
@@ -58,6 +65,7 @@ impl MemNetwork {
         }
         let inbox: Inbox = Arc::default();
         hub.inboxes.insert(id, inbox.clone());
+        hub.lost.insert(id, Vec::new());
         Ok(MemTransport { id, network: self.clone(), inbox })
     }
 
@@ -129,14 +137,28 @@ impl Transport for MemTransport {
             g.remove(&self.id);
         }
     }
+    fn take_lost_peers(&mut self, out: &mut Vec<NodeId>) {
+        if let Some(lost) = lock(&self.network.hub).lost.get_mut(&self.id) {
+            out.append(lost);
+        }
+    }
 }
+
+/// How many departures a node that never steps may have waiting (older ones are dropped).
+const LOST_MAX: usize = 1024;
 
 impl Drop for MemTransport {
     fn drop(&mut self) {
         let mut hub = lock(&self.network.hub);
         hub.inboxes.remove(&self.id);
+        hub.lost.remove(&self.id);
         for g in hub.groups.values_mut() {
             g.remove(&self.id);
+        }
+        for lost in hub.lost.values_mut() {
+            if lost.len() < LOST_MAX {
+                lost.push(self.id);
+            }
         }
     }
 }

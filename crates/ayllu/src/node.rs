@@ -36,6 +36,8 @@ pub struct Node {
     joined_generation: u64,
     counters_generation: u64,
     transport_due: Option<Instant>,
+    /// Scratch list of the peers the transport lost this turn.
+    lost: Vec<NodeId>,
 }
 
 impl Node {
@@ -75,6 +77,7 @@ impl Node {
             joined_generation: 0,
             counters_generation: 0,
             transport_due: None,
+            lost: Vec::new(),
         }
     }
 
@@ -135,13 +138,25 @@ impl Node {
     pub fn remove(&mut self, name: &str) -> Result<(), Error> {
         Ok(self.core.remove(name)?)
     }
+    /// Connect with the default options (priority 0); see [`Node::connect_with`].
     pub fn connect(
         &mut self,
         source: &Endpoint,
         destination: &Endpoint,
         kind: ConnectionKind,
     ) -> Result<ConnectionId, Error> {
-        Ok(self.core.connect(source, destination, kind, ConnectOptions::default())?)
+        self.connect_with(source, destination, kind, ConnectOptions::default())
+    }
+    /// Connect `source` (a port of this node) to `destination` with `options` (the
+    /// connection's priority, for Priority ports, D3.3).
+    pub fn connect_with(
+        &mut self,
+        source: &Endpoint,
+        destination: &Endpoint,
+        kind: ConnectionKind,
+        options: ConnectOptions,
+    ) -> Result<ConnectionId, Error> {
+        Ok(self.core.connect(source, destination, kind, options)?)
     }
     pub fn disconnect(&mut self, id: ConnectionId) -> Result<(), Error> {
         Ok(self.core.disconnect(id)?)
@@ -166,11 +181,27 @@ impl Node {
         let now = self.clock.now();
         Ok(self.core.write_named(now, behavior, port, value)?)
     }
+    /// The port's value now (its default while an aggregating port is empty). Reads answer
+    /// at the clock's present, not at the last step's: a window or lifespan that ended since
+    /// counts as ended (D8.2).
     pub fn read(&self, behavior: &str, port: &str) -> Result<Value, Error> {
-        Ok(self.core.read(self.core.port(behavior, port)?)?)
+        Ok(self.core.read_at(self.clock.now(), self.core.port(behavior, port)?)?)
     }
+    /// The port's value if it is fresh now (rule S4), else `None`.
+    pub fn get(&self, behavior: &str, port: &str) -> Result<Option<Value>, Error> {
+        Ok(self.core.get_at(self.clock.now(), self.core.port(behavior, port)?)?)
+    }
+    /// Whether the port holds a value that is not stale now (rule S4).
+    pub fn fresh(&self, behavior: &str, port: &str) -> Result<bool, Error> {
+        Ok(self.core.fresh_at(self.clock.now(), self.core.port(behavior, port)?)?)
+    }
+    /// Whether monostable `mono` of `behavior` is high now (rule S2).
+    pub fn monostable(&self, behavior: &str, mono: &str) -> Result<bool, Error> {
+        Ok(self.core.monostable_at(self.clock.now(), behavior, mono)?)
+    }
+    /// Why the port holds what it holds and passes what it passes, now.
     pub fn why(&self, behavior: &str, port: &str) -> Result<PortReport, Error> {
-        Ok(self.core.why(behavior, port)?)
+        Ok(self.core.why_at(self.clock.now(), behavior, port)?)
     }
 
     /// One turn: send what the program wrote since the last turn, receive everything waiting,
@@ -188,6 +219,13 @@ impl Node {
         while let Some((from, message)) = self.transport.recv() {
             self.stats.received += 1;
             self.core.receive(now, from, message);
+        }
+        // Peers the transport gave up on: what they held on our ports is released (D3.7).
+        // After receiving, so that a dead node's last message still queued cannot take back
+        // what its departure released.
+        self.transport.take_lost_peers(&mut self.lost);
+        for node in self.lost.drain(..) {
+            self.core.node_lost(now, node);
         }
         let next = self.core.poll(now);
         self.send_outgoing();

@@ -53,6 +53,12 @@ pub trait Transport: Send {
     fn peers(&self) -> Vec<PeerInfo> {
         Vec::new()
     }
+    /// Move the peers forgotten since the last call (silent for their liveness period, N6)
+    /// into `out`. The node then releases what they held (D3.7). Transports without liveness
+    /// report none.
+    fn take_lost_peers(&mut self, out: &mut Vec<NodeId>) {
+        let _ = out;
+    }
     /// Where peers reach this node, as a peer's URL would name it (`127.0.0.1:45125` for
     /// `udp://`), once bound: a node bound to port 0 learns its real port here. `None` for
     /// transports without addresses (`mem://`).

@@ -84,6 +84,8 @@ pub struct UdpTransport<S: DatagramSocket = OsSocket> {
     /// No peer expires before this (a lower bound: hearing from a peer only delays its expiry).
     next_expiry: Instant,
     peers: BTreeMap<NodeId, Peer>,
+    /// Peers forgotten since the node last asked ([`Transport::take_lost_peers`]).
+    lost: Vec<NodeId>,
     joined: Vec<String>,
     batches: Vec<(SocketAddr, DatagramWriter)>,
     inbox: VecDeque<(NodeId, Message)>,
@@ -152,6 +154,7 @@ impl<S: DatagramSocket> UdpTransport<S> {
             next_hello: Instant::ZERO,
             next_expiry: Instant::MAX,
             peers: BTreeMap::new(),
+            lost: Vec::new(),
             joined: Vec::new(),
             batches: Vec::new(),
             inbox: VecDeque::new(),
@@ -486,7 +489,15 @@ impl<S: DatagramSocket> Transport for UdpTransport<S> {
         // The peer table is walked only when a peer may have expired, not every loop turn.
         if now >= self.next_expiry {
             let before = self.peers.len();
-            self.peers.retain(|_, p| now < expiry(p));
+            // Kept until the node takes them (bounded, in case nobody does).
+            let lost = &mut self.lost;
+            self.peers.retain(|id, p| {
+                let alive = now < expiry(p);
+                if !alive && lost.len() < MAX_PEERS {
+                    lost.push(*id);
+                }
+                alive
+            });
             for _ in self.peers.len()..before {
                 self.count("peer_expired");
             }
@@ -520,5 +531,8 @@ impl<S: DatagramSocket> Transport for UdpTransport<S> {
     }
     fn address(&self) -> Option<String> {
         self.local_addr().map(|a| a.to_string())
+    }
+    fn take_lost_peers(&mut self, out: &mut Vec<NodeId>) {
+        out.append(&mut self.lost);
     }
 }

@@ -262,7 +262,7 @@ fn frees_on_kill(net: Net, name: &str) {
     let inhibit = BleConfig::new("Peers", "Rotate", CLAIM_HZ).unwrap().inhibit_period;
     let cycle = Duration::try_from_hz(CLAIM_HZ).unwrap();
     let killed_at: Instant = team.now();
-    drop(team.kill(0));
+    drop(team.kill(NodeId(1)).expect("node 1 is in the team"));
     let mut freed_at: Option<Instant> = None;
     run(&mut team, &sight, inhibit + cycle + Duration::from_secs(2), |t| {
         let rotate = t.nodes()[0].read(BASE, "Rotate").unwrap().as_float().unwrap();

@@ -281,7 +281,7 @@ fn n6_silent_peers_are_forgotten_and_s10_groups_route_by_announcement() {
     assert_eq!(team.nodes()[1].read("R", "In").unwrap(), Value::Int(8));
     assert_eq!(team.nodes()[2].read("R", "In").unwrap(), Value::Int(0), "node 3 did not join the group");
     assert_eq!(team.nodes()[0].peers().len(), 2);
-    drop(team.kill(2));
+    drop(team.kill(NodeId(3)).expect("node 3 is in the team"));
     team.advance(Duration::from_millis(400), TICK);
     let peers: Vec<u32> = team.nodes()[0].peers().iter().map(|p| p.node.0).collect();
     assert_eq!(peers, vec![2], "N6: the silent node is forgotten after three hello periods");
