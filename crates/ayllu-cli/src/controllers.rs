@@ -158,6 +158,8 @@ fn run_loop(node: &mut Node, args: &NodeArgs) -> Result<(), Fail> {
     let mut out = std::io::stdout().lock();
     writeln!(out, "{}", listening_json(node))?;
     out.flush()?;
+    // Warnings already printed (set-up warnings were printed by `run`).
+    let mut warned = node.core().warnings().len();
     loop {
         let now = StdInstant::now();
         if signals::stopped() || end.is_some_and(|e| now >= e) {
@@ -168,6 +170,12 @@ fn run_loop(node: &mut Node, args: &NodeArgs) -> Result<(), Fail> {
             next_vision = (next_vision + VISION_PERIOD).max(now);
         }
         if now >= next_status {
+            // Warnings that appeared since (another node with our id, a self-triggering
+            // process, ...) go to stderr as they come, not only into reports.
+            for w in &node.core().warnings()[warned..] {
+                eprintln!("ayllu: warning: {w}");
+            }
+            warned = node.core().warnings().len();
             // A reader that went away (closed pipe) ends the node: nobody is watching.
             writeln!(out, "{}", status(node, args))?;
             out.flush()?;

@@ -107,6 +107,9 @@ pub(crate) struct ProcState {
 /// such a loop runs at most 1000 times a second instead of spinning a core (D7.3).
 pub const RETRIGGER_INTERVAL: Duration = Duration::from_millis(1);
 
+/// Warnings kept in a node's report, at most (see [`NodeCore::warn`]).
+pub const MAX_WARNINGS: usize = 64;
+
 pub(crate) struct Behavior {
     pub(crate) id: u64,
     pub(crate) name: Arc<str>,
@@ -1326,6 +1329,15 @@ impl NodeCore {
     /// every loop turn (no allocation when only the numbers changed).
     pub fn transport_counters_mut(&mut self) -> &mut Vec<(String, u64)> {
         &mut self.transport_counters
+    }
+
+    /// Add a warning to the node's report (the runtime reports the network's here, e.g. a
+    /// second node using this node's id). At most [`MAX_WARNINGS`] are kept; later ones are
+    /// dropped so a flood cannot grow memory.
+    pub fn warn(&mut self, warning: String) {
+        if self.warnings.len() < MAX_WARNINGS {
+            self.warnings.push(warning);
+        }
     }
 
     /// Warnings the node has raised (e.g. a BLE inhibition too short for its claim rate).

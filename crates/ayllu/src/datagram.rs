@@ -22,8 +22,11 @@ pub trait DatagramSocket: Send {
     fn join_multicast(&mut self, group: Ipv4Addr) -> io::Result<()>;
 }
 
-/// A real UDP socket: non-blocking, broadcast allowed, address reusable (so several nodes on
-/// one host can share a broadcast or multicast port).
+/// A real UDP socket: non-blocking, broadcast allowed. The main socket is *exclusive*: binding
+/// an address another socket holds fails (`AddrInUse`) instead of silently sharing it, since a
+/// second node on a node's address would take its unicast traffic (a lingering process after a
+/// robot restart). Only the receive-only sockets for broadcast and multicast addresses are
+/// shared (`SO_REUSEADDR`), so several nodes on one host can all hear their team's broadcasts.
 ///
 /// A socket bound to a unicast address (`10.0.0.1:7400`) does not receive datagrams sent to a
 /// broadcast or multicast address (the kernel matches the destination against the bound
@@ -200,10 +203,12 @@ fn nothing_waiting(e: &io::Error) -> bool {
     matches!(e.kind(), io::ErrorKind::WouldBlock | io::ErrorKind::ConnectionRefused)
 }
 
-fn os_socket(addr: SocketAddr) -> io::Result<UdpSocket> {
+/// A non-blocking UDP socket bound to `addr`; `shared` lets other sockets bind it too (for
+/// broadcast and multicast addresses only).
+fn os_socket(addr: SocketAddr, shared: bool) -> io::Result<UdpSocket> {
     use socket2::{Domain, Protocol, Socket, Type};
     let socket = Socket::new(Domain::for_address(addr), Type::DGRAM, Some(Protocol::UDP))?;
-    socket.set_reuse_address(true)?;
+    socket.set_reuse_address(shared)?;
     socket.set_broadcast(true)?;
     socket.set_nonblocking(true)?;
     // Bigger buffers absorb bursts of batched datagrams without loss.
@@ -218,7 +223,7 @@ fn os_socket(addr: SocketAddr) -> io::Result<UdpSocket> {
 
 impl OsSocket {
     pub fn bind(addr: SocketAddr) -> io::Result<OsSocket> {
-        Ok(OsSocket { socket: os_socket(addr)?, extra: Vec::new(), ahead: ReadAhead::new() })
+        Ok(OsSocket { socket: os_socket(addr, false)?, extra: Vec::new(), ahead: ReadAhead::new() })
     }
 
     /// Also receive datagrams sent to `addr` (a broadcast or multicast address), unless the
@@ -231,7 +236,7 @@ impl OsSocket {
         if self.extra.iter().any(|s| s.local_addr().ok() == Some(addr)) {
             return Ok(());
         }
-        self.extra.push(os_socket(addr)?);
+        self.extra.push(os_socket(addr, true)?);
         Ok(())
     }
 }

@@ -23,7 +23,7 @@ pub use error::Error as RuntimeError;
 pub use lockstep::Lockstep;
 pub use mem::{MemNetwork, MemTransport};
 pub use node::{Node, NodeStats};
-pub use transport::{PeerInfo, Transport};
+pub use transport::{PeerInfo, Sent, Transport};
 pub use udp::UdpTransport;
 pub use udp_config::UdpConfig;
 

@@ -18,7 +18,7 @@ use std::sync::{Arc, Condvar, Mutex, OnceLock};
 use ayllu_core::{Destination, Message, NodeId, Outgoing};
 
 use crate::error::Error;
-use crate::transport::Transport;
+use crate::transport::{Sent, Transport};
 
 type Inbox = Arc<(Mutex<VecDeque<(NodeId, Message)>>, Condvar)>;
 
@@ -75,15 +75,21 @@ impl MemNetwork {
         (hub.delivered, hub.undeliverable)
     }
 
-    fn deliver(&self, from: NodeId, out: Outgoing) {
+    /// Deliver at once; a message to a node that is not attached is dropped (in one program
+    /// there is nobody to wait for: a node attaches before it can be written to).
+    fn deliver(&self, from: NodeId, out: Outgoing) -> Sent {
         let mut hub = lock(&self.hub);
         match out.to {
             Destination::Node(to) => match hub.inboxes.get(&to).cloned() {
                 Some(inbox) => {
                     push(&inbox, from, out.message);
                     hub.delivered += 1;
+                    Sent::Now
                 }
-                None => hub.undeliverable += 1,
+                None => {
+                    hub.undeliverable += 1;
+                    Sent::Dropped
+                }
             },
             Destination::Group(group) => {
                 let members: Vec<NodeId> =
@@ -94,6 +100,8 @@ impl MemNetwork {
                         hub.delivered += 1;
                     }
                 }
+                // A group with no other member now is not an error: nobody is listening.
+                Sent::Now
             }
         }
     }
@@ -116,8 +124,8 @@ impl Transport for MemTransport {
     fn local(&self) -> NodeId {
         self.id
     }
-    fn send(&mut self, out: Outgoing) {
-        self.network.deliver(self.id, out);
+    fn send(&mut self, out: Outgoing) -> Sent {
+        self.network.deliver(self.id, out)
     }
     fn recv(&mut self) -> Option<(NodeId, Message)> {
         lock(&self.inbox.0).pop_front()

@@ -15,13 +15,21 @@ use ayllu_core::{
 
 use crate::clock::{Clock, MonotonicClock};
 use crate::error::Error;
-use crate::transport::{self, Transport};
+use crate::transport::{self, Sent, Transport};
 
 /// Traffic figures of one node.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct NodeStats {
+    /// Loop turns ([`Node::step`] calls).
     pub steps: u64,
+    /// Messages that left (handed to the network; best effort from there, N1).
     pub sent: u64,
+    /// Messages held for a node not heard from yet ([`Sent::Held`]): they leave when it
+    /// greets, or are dropped after a bounded time (see the transport's counters).
+    pub held: u64,
+    /// Messages that could not be sent (no route, destination gone, unencodable).
+    pub dropped: u64,
+    /// Messages received and applied to the core.
     pub received: u64,
 }
 
@@ -38,6 +46,8 @@ pub struct Node {
     transport_due: Option<Instant>,
     /// Scratch list of the peers the transport lost this turn.
     lost: Vec<NodeId>,
+    /// Scratch list of the transport's new warnings.
+    new_warnings: Vec<String>,
 }
 
 impl Node {
@@ -78,6 +88,7 @@ impl Node {
             counters_generation: 0,
             transport_due: None,
             lost: Vec::new(),
+            new_warnings: Vec::new(),
         }
     }
 
@@ -227,6 +238,10 @@ impl Node {
         for node in self.lost.drain(..) {
             self.core.node_lost(now, node);
         }
+        self.transport.take_warnings(&mut self.new_warnings);
+        for w in self.new_warnings.drain(..) {
+            self.core.warn(w);
+        }
         let next = self.core.poll(now);
         self.send_outgoing();
         if self.transport.counters_generation() != self.counters_generation {
@@ -243,8 +258,11 @@ impl Node {
     /// Hand the transport everything the core wants sent, and end the batch (N3).
     fn send_outgoing(&mut self) {
         while let Some(out) = self.core.pop_outgoing() {
-            self.stats.sent += 1;
-            self.transport.send(out);
+            match self.transport.send(out) {
+                Sent::Now => self.stats.sent += 1,
+                Sent::Held => self.stats.held += 1,
+                Sent::Dropped => self.stats.dropped += 1,
+            }
         }
         self.transport.flush();
     }

@@ -18,8 +18,9 @@ use crate::udp_config::UdpConfig;
 pub trait Transport: Send {
     /// This node's id on the transport.
     fn local(&self) -> NodeId;
-    /// Hand a message over for delivery (best effort).
-    fn send(&mut self, out: Outgoing);
+    /// Hand a message over for delivery (best effort), and say what became of it: a message
+    /// is only reported [`Sent::Now`] when it really leaves (N1 stays best effort after that).
+    fn send(&mut self, out: Outgoing) -> Sent;
     /// The next message that has arrived, if any. Never blocks.
     fn recv(&mut self) -> Option<(NodeId, Message)>;
     /// Block until a message may be available or `timeout` passes.
@@ -59,12 +60,30 @@ pub trait Transport: Send {
     fn take_lost_peers(&mut self, out: &mut Vec<NodeId>) {
         let _ = out;
     }
+    /// Move new warnings about the network (another node using this node's id, ...) into
+    /// `out`; the node adds them to its report's warnings.
+    fn take_warnings(&mut self, out: &mut Vec<String>) {
+        let _ = out;
+    }
     /// Where peers reach this node, as a peer's URL would name it (`127.0.0.1:45125` for
     /// `udp://`), once bound: a node bound to port 0 learns its real port here. `None` for
     /// transports without addresses (`mem://`).
     fn address(&self) -> Option<String> {
         None
     }
+}
+
+/// What became of a message handed to [`Transport::send`].
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum Sent {
+    /// It left, or is in a datagram that leaves at the end of this loop turn.
+    Now,
+    /// Its destination node has not been heard from yet: held until that node greets, for a
+    /// bounded time (`udp://`: three HELLO periods), then dropped and counted.
+    Held,
+    /// It cannot be delivered (no route, destination gone, unencodable); counted by cause in
+    /// the transport's counters.
+    Dropped,
 }
 
 /// A peer as a transport knows it.

@@ -24,7 +24,7 @@ use ayllu_wire::{
 
 use crate::datagram::{DatagramSocket, OsSocket};
 use crate::error::Error;
-use crate::transport::{PeerInfo, Transport};
+use crate::transport::{PeerInfo, Sent, Transport};
 use crate::udp_config::{UdpConfig, MAX_DATAGRAM};
 
 /// Bounds that keep a flood from growing memory (N4).
@@ -34,6 +34,20 @@ const MAX_ASSEMBLIES: usize = 64;
 const SPARE_BUFFERS: usize = 8;
 /// Datagrams read per `recv` refill, so one busy socket cannot starve the node's loop.
 const RECV_BATCH: usize = 256;
+/// Distinct addresses of nodes using our id that are reported (more are only counted).
+const MAX_DUPLICATES: usize = 8;
+/// Messages held for nodes not heard from yet, at most (the oldest goes first when full).
+const MAX_HELD: usize = 256;
+/// A message for a node not heard from yet waits this many of our HELLO periods for it to
+/// greet (a peer greets as soon as it hears our HELLO, so one round trip is the usual wait).
+const HOLD_PERIODS: u64 = 3;
+
+/// A message waiting for its destination node to be heard from.
+struct Held {
+    to: NodeId,
+    until: Instant,
+    message: Message,
+}
 
 /// Counters by cause, in name order. There are a dozen causes, and the traffic ones are
 /// counted for every datagram and message: a short vector searched by pointer first (callers
@@ -86,6 +100,15 @@ pub struct UdpTransport<S: DatagramSocket = OsSocket> {
     peers: BTreeMap<NodeId, Peer>,
     /// Peers forgotten since the node last asked ([`Transport::take_lost_peers`]).
     lost: Vec<NodeId>,
+    /// Messages for nodes not heard from yet (never reported as sent, see [`Sent::Held`]).
+    held: VecDeque<Held>,
+    /// The first datagram sequence number this transport used: datagrams carrying our id and
+    /// a number in `[seq_start, seq)` from our own address are our own, looped back.
+    seq_start: u64,
+    /// Addresses from which another node with our id was heard (reported once each).
+    duplicates: Vec<SocketAddr>,
+    /// Warnings for the node to report ([`Transport::take_warnings`]).
+    warnings: Vec<String>,
     joined: Vec<String>,
     batches: Vec<(SocketAddr, DatagramWriter)>,
     inbox: VecDeque<(NodeId, Message)>,
@@ -110,8 +133,18 @@ pub struct UdpTransport<S: DatagramSocket = OsSocket> {
 impl UdpTransport<OsSocket> {
     /// Bind a real UDP socket as `config` says.
     pub fn bind(id: NodeId, config: UdpConfig) -> Result<Self, Error> {
-        let mut socket = OsSocket::bind(config.bind)
-            .map_err(|e| Error::Io { what: format!("binding UDP socket {}", config.bind), error: e.to_string() })?;
+        let mut socket = OsSocket::bind(config.bind).map_err(|e| {
+            let what = if e.kind() == std::io::ErrorKind::AddrInUse {
+                format!(
+                    "binding UDP socket {}: another process holds this address (an earlier node still \
+                     running?); stop it, or bind port 0 to let the system choose a free one",
+                    config.bind
+                )
+            } else {
+                format!("binding UDP socket {}", config.bind)
+            };
+            Error::Io { what, error: e.to_string() }
+        })?;
         // A socket bound to a unicast address does not hear broadcast or multicast datagrams:
         // listen on the team's broadcast and group addresses too.
         for addr in config.broadcast.iter().chain(config.groups.iter().map(|(_, a)| a)) {
@@ -155,6 +188,10 @@ impl<S: DatagramSocket> UdpTransport<S> {
             next_expiry: Instant::MAX,
             peers: BTreeMap::new(),
             lost: Vec::new(),
+            held: VecDeque::new(),
+            seq_start: boot << 32,
+            duplicates: Vec::new(),
+            warnings: Vec::new(),
             joined: Vec::new(),
             batches: Vec::new(),
             inbox: VecDeque::new(),
@@ -203,6 +240,16 @@ impl<S: DatagramSocket> UdpTransport<S> {
                 }
             }
         }
+    }
+
+    /// Whether a datagram carrying our id came from us: from our own address (or our port on
+    /// a local address, when bound to the unspecified address) and numbered as ours.
+    fn is_own(&self, from: SocketAddr, seq: u64) -> bool {
+        let ours = (self.seq_start..self.seq).contains(&seq);
+        let here = self.socket.local_addr().is_ok_and(|l| {
+            l.port() == from.port() && (l.ip() == from.ip() || l.ip().is_unspecified() || from.ip().is_loopback())
+        });
+        ours && here
     }
 
     fn writer(&mut self) -> DatagramWriter {
@@ -280,8 +327,21 @@ impl<S: DatagramSocket> UdpTransport<S> {
             Err(reason) => return self.count(reason.name()),
         };
         if datagram.sender == self.id {
-            // Our own broadcast, looped back by the network.
-            return self.count("own");
+            if self.is_own(from, datagram.seq) {
+                // Our own broadcast, looped back by the network.
+                return self.count("own");
+            }
+            // Another node uses our id: both of us hear the other, so both report it.
+            self.count("duplicate_id");
+            if !self.duplicates.contains(&from) && self.duplicates.len() < MAX_DUPLICATES {
+                self.duplicates.push(from);
+                self.warnings.push(format!(
+                    "another node with this node's id {} is sending from {from}: node ids must be unique in a team \
+                     (its messages are dropped and counted as duplicate_id)",
+                    self.id.0
+                ));
+            }
+            return;
         }
         let now = self.now;
         let default_interval = self.config.hello_interval;
@@ -321,7 +381,8 @@ impl<S: DatagramSocket> UdpTransport<S> {
                 }
                 WireMessage::UnknownRequest { id, .. } => {
                     let reply = ControlBody::Reply { result: Err("unknown operation".into()) };
-                    self.send_message(&Destination::Node(sender), Message::Control(ControlMessage { id, body: reply }));
+                    let _ = self
+                        .send_message(&Destination::Node(sender), Message::Control(ControlMessage { id, body: reply }));
                 }
                 WireMessage::Reply { id, part, parts, payload } => self.reply_part(sender, id, part, parts, payload),
                 WireMessage::Hello { interval_ms, name, groups } => {
@@ -340,6 +401,9 @@ impl<S: DatagramSocket> UdpTransport<S> {
             }
         }
         self.decoded = messages;
+        if is_new {
+            self.release_held(sender);
+        }
         if is_new || hello {
             // A new peer, or a new HELLO period, may expire before every other peer.
             if let Some(p) = self.peers.get(&sender) {
@@ -375,11 +439,57 @@ impl<S: DatagramSocket> UdpTransport<S> {
         }
     }
 
-    fn send_message(&mut self, to: &Destination, message: Message) {
+    /// Keep `message` for node `to` until it greets, or drop it after [`HOLD_PERIODS`]. Of
+    /// the port messages of one connection only the newest is kept: stale values are
+    /// worthless (N1).
+    fn hold(&mut self, to: NodeId, message: Message) -> Sent {
+        let until = self.now + self.config.hello_interval * HOLD_PERIODS;
+        if let Message::Port(p) = &message {
+            let conn = p.conn;
+            let same = |h: &Held| h.to == to && matches!(&h.message, Message::Port(q) if q.conn == conn);
+            if let Some(h) = self.held.iter_mut().find(|h| same(h)) {
+                *h = Held { to, until, message };
+                self.count("held_superseded");
+                return Sent::Held;
+            }
+        }
+        if self.held.len() >= MAX_HELD {
+            self.held.pop_front();
+            self.count("held_dropped");
+        }
+        self.held.push_back(Held { to, until, message });
+        self.count("held");
+        Sent::Held
+    }
+
+    /// `node` was just heard from: send what was held for it.
+    fn release_held(&mut self, node: NodeId) {
+        if !self.held.iter().any(|h| h.to == node) {
+            return;
+        }
+        let (mine, rest): (VecDeque<Held>, VecDeque<Held>) =
+            std::mem::take(&mut self.held).into_iter().partition(|h| h.to == node);
+        self.held = rest;
+        for h in mine {
+            if self.send_message(&Destination::Node(node), h.message) == Sent::Now {
+                self.count("held_sent");
+            }
+        }
+    }
+
+    fn send_message(&mut self, to: &Destination, message: Message) -> Sent {
         let mut addrs = std::mem::take(&mut self.route_buf);
         self.route(to, &mut addrs);
+        let mut sent = Sent::Now;
         if addrs.is_empty() {
-            self.count("no_route");
+            self.route_buf = addrs;
+            return match to {
+                Destination::Node(n) => self.hold(*n, message),
+                Destination::Group(_) => {
+                    self.count("no_route");
+                    Sent::Dropped
+                }
+            };
         } else if let Message::Port(p) = message {
             // A port message is one wire message, moved rather than copied (the hot path).
             let m = WireMessage::Port(p);
@@ -397,10 +507,14 @@ impl<S: DatagramSocket> UdpTransport<S> {
                     }
                     self.unflushed += 1;
                 }
-                Err(_) => self.count("unencodable"),
+                Err(_) => {
+                    self.count("unencodable");
+                    sent = Sent::Dropped;
+                }
             }
         }
         self.route_buf = addrs;
+        sent
     }
 
     /// The peers heard from recently.
@@ -422,8 +536,8 @@ impl<S: DatagramSocket> Transport for UdpTransport<S> {
     fn local(&self) -> NodeId {
         self.id
     }
-    fn send(&mut self, out: ayllu_core::Outgoing) {
-        self.send_message(&out.to, out.message);
+    fn send(&mut self, out: ayllu_core::Outgoing) -> Sent {
+        self.send_message(&out.to, out.message)
     }
     fn flush(&mut self) {
         if self.unflushed > 0 {
@@ -507,7 +621,16 @@ impl<S: DatagramSocket> Transport for UdpTransport<S> {
             self.announce();
             self.next_hello = now + self.config.hello_interval;
         }
-        Some(self.next_expiry.min(self.next_hello))
+        let mut next = self.next_expiry.min(self.next_hello);
+        if !self.held.is_empty() {
+            let before = self.held.len();
+            self.held.retain(|h| now < h.until);
+            for _ in self.held.len()..before {
+                self.count("held_expired");
+            }
+            next = self.held.iter().map(|h| h.until).fold(next, Instant::min);
+        }
+        Some(next)
     }
     fn counters(&self) -> Vec<(String, u64)> {
         self.counters.0.iter().map(|(k, v)| ((*k).to_owned(), *v)).collect()
@@ -534,5 +657,8 @@ impl<S: DatagramSocket> Transport for UdpTransport<S> {
     }
     fn take_lost_peers(&mut self, out: &mut Vec<NodeId>) {
         out.append(&mut self.lost);
+    }
+    fn take_warnings(&mut self, out: &mut Vec<String>) {
+        out.append(&mut self.warnings);
     }
 }

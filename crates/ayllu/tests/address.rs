@@ -35,3 +35,14 @@ fn a_node_bound_to_port_0_reports_its_port_and_is_reached_there() {
 fn an_in_process_node_has_no_address() {
     assert_eq!(Node::open(NodeId(1), "mem://address-test").unwrap().address(), None);
 }
+
+#[test]
+fn binding_an_address_another_node_holds_fails_with_a_clear_error() {
+    // A lingering node on an address must not silently share it with a new one (which would
+    // take its unicast traffic): the second bind fails and says what to do.
+    let first = Node::open(NodeId(21), "udp://127.0.0.1:0").unwrap();
+    let addr = first.address().unwrap();
+    let err = Node::open(NodeId(22), &format!("udp://{addr}")).err().expect("the address is taken");
+    let text = err.to_string();
+    assert!(text.contains(&addr) && text.contains("another process holds this address"), "{text}");
+}

@@ -360,3 +360,72 @@ fn s10_a_group_with_a_multicast_address_is_delivered_by_multicast() {
     let mut buf = [0u8; 9000];
     assert!(sniffer.as_mut().unwrap().recv_from(&mut buf).unwrap().is_none(), "nothing was broadcast");
 }
+
+#[test]
+fn a_write_before_the_greeting_is_held_until_the_peer_greets_never_reported_sent() {
+    // N6 + issue "first hour": node 1 writes node 2's port before either has heard the other.
+    // The message is held (counted `held`, `NodeStats::held`, not `sent`), and leaves as soon as
+    // node 2 greets (`held_sent`). Only the newest value of a connection is kept (N1).
+    let bus = DatagramBus::new();
+    let mut team = Lockstep::new("udp-held");
+    let a = node(&mut team, &bus, 1, None, TEAM);
+    team.node(a)
+        .connect(&Endpoint::local("R", "Out"), &Endpoint::node(NodeId(2), "R", "In"), ConnectionKind::Normal)
+        .unwrap();
+    team.node(a).write("R", "Out", 1i64).unwrap();
+    team.node(a).write("R", "Out", 2i64).unwrap();
+    team.step();
+    let stats = team.nodes()[a].stats();
+    assert_eq!((stats.sent, stats.held), (0, 2), "nothing can have left: node 2 does not exist yet");
+    assert_eq!(count(&team.nodes()[a], "held"), 1);
+    assert_eq!(count(&team.nodes()[a], "held_superseded"), 1);
+    assert_eq!(count(&team.nodes()[a], "no_route"), 0);
+    // Node 2 comes up; the nodes greet (broadcast HELLO) and the held value arrives.
+    let b = node(&mut team, &bus, 2, None, TEAM);
+    team.advance(Duration::from_millis(250), TICK);
+    assert_eq!(input(&team.nodes()[b]), Value::Int(2), "the newest held value was delivered");
+    assert_eq!(count(&team.nodes()[a], "held_sent"), 1);
+    assert_eq!(team.nodes()[a].stats().sent, 0, "held messages are counted by the transport, not as sent now");
+}
+
+#[test]
+fn a_held_write_to_a_node_that_never_greets_expires_and_is_counted() {
+    let bus = DatagramBus::new();
+    let mut team = Lockstep::new("udp-held-expiry");
+    let a = node(&mut team, &bus, 1, None, TEAM);
+    team.node(a)
+        .connect(&Endpoint::local("R", "Out"), &Endpoint::node(NodeId(9), "R", "In"), ConnectionKind::Normal)
+        .unwrap();
+    team.node(a).write("R", "Out", 1i64).unwrap();
+    // Three HELLO periods of 100 ms.
+    team.advance(Duration::from_millis(290), TICK);
+    assert_eq!(count(&team.nodes()[a], "held_expired"), 0);
+    team.advance(Duration::from_millis(20), TICK);
+    assert_eq!(count(&team.nodes()[a], "held_expired"), 1);
+    let stats = team.nodes()[a].stats();
+    assert_eq!((stats.sent, stats.held), (0, 1));
+}
+
+#[test]
+fn a_second_node_with_the_same_id_is_reported_by_both() {
+    // Node ids are unique in a team: two nodes with id 4 at different addresses each count the
+    // other's datagrams as duplicate_id (dropped) and warn once, naming the other's address.
+    let bus = DatagramBus::new();
+    let mut team = Lockstep::new("udp-duplicate-id");
+    for i in [4u32, 5] {
+        let mut config = UdpConfig::new(addr(i));
+        config.broadcast = Some("10.0.0.255:7400".parse().unwrap());
+        config.hello_interval = Duration::from_millis(100);
+        let transport = UdpTransport::with_socket(NodeId(4), config, bus.bind(addr(i)).unwrap()).unwrap();
+        team.add_node(Node::new(team.clock().clone(), transport));
+    }
+    team.advance(Duration::from_millis(350), TICK);
+    for (i, other) in [(0, addr(5)), (1, addr(4))] {
+        let n = &team.nodes()[i];
+        assert!(count(n, "duplicate_id") >= 3, "{:?}", n.transport_counters());
+        let warnings: Vec<&String> = n.core().warnings().iter().filter(|w| w.contains("id 4")).collect();
+        assert_eq!(warnings.len(), 1, "{:?}", n.core().warnings());
+        assert!(warnings[0].contains(&other.to_string()), "{}", warnings[0]);
+        assert!(n.peers().is_empty(), "a node using our id is not a peer");
+    }
+}
