@@ -20,7 +20,7 @@ test:
 	PYTHON=$(PYTHON) scripts/install-test-tools
 	$(CARGO) test --workspace
 	$(MAKE) -C lite/c test
-	$(PYTHON) -m pytest lite/python/tests -q
+	AYLLU_BIN=$(TARGET_DIR)/debug/ayllu $(PYTHON) -m pytest lite/python/tests -q
 	$(CARGO) build -p ayllu-cli
 	$(PYTHON) spec/conformance --ayllu $(TARGET_DIR)/debug/ayllu
 

@@ -42,6 +42,7 @@ from typing import Any
 __all__ = [
     "AUTH",
     "CONN_KINDS",
+    "DEFAULT_URL",
     "HEADER_LEN",
     "MAC_LEN",
     "MAX_DATAGRAM",
@@ -66,6 +67,7 @@ __all__ = [
     "Value",
     "Vector",
     "decode",
+    "default_url",
     "encode",
     "encode_message",
     "is_nan",
@@ -73,6 +75,7 @@ __all__ = [
     "mac",
     "message_from_json",
     "message_to_json",
+    "parse_url",
     "random_key",
     "value_from_json",
     "value_to_json",
@@ -971,12 +974,15 @@ class LiteNode:
     def __init__(
         self,
         node_id: int,
-        team: int,
+        team: int = 0,
         *,
         key: bytes | None = None,
         bind: Address = ("0.0.0.0", 0),
         peers: Iterable[tuple[int, Address]] = (),
+        bootstrap: Iterable[Address] = (),
         broadcast: Address | None = None,
+        discovery: Address | None = None,
+        ttl: int = 1,
         name: str = "",
         groups: Iterable[str] = (),
         hello_interval_ms: int = 1000,
@@ -1001,6 +1007,22 @@ class LiteNode:
         self.broadcast = broadcast
         if broadcast is not None:
             self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_BROADCAST, 1)
+        #: Addresses greeted without knowing their node id (``peer=`` in a URL).
+        self.bootstrap = tuple(bootstrap)
+        #: The multicast discovery address (HELLOs go there), and the socket that hears it:
+        #: shared with the other programs of this machine (SO_REUSEADDR), as Ayllu nodes do.
+        self.discovery = discovery
+        self._discovery_sock: socket.socket | None = None
+        if discovery is not None:
+            if not 0 <= ttl <= 255:
+                raise ValueError("ttl must be from 0 to 255")
+            self.sock.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_TTL, ttl)
+            d = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+            d.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            d.bind(discovery)
+            group = struct.pack("4s4s", socket.inet_aton(discovery[0]), socket.inet_aton("0.0.0.0"))
+            d.setsockopt(socket.IPPROTO_IP, socket.IP_ADD_MEMBERSHIP, group)
+            self._discovery_sock = d
         base = _boot_base()
         self._seq = base
         self._next_id = base
@@ -1018,6 +1040,17 @@ class LiteNode:
         self._stop = threading.Event()
         #: Drop counters by cause name (N4), plus ``received``, ``sent`` and ``send_failed``.
         self.counters: dict[str, int] = {}
+
+    @classmethod
+    def from_url(cls, node_id: int, url: str | None = None, **kwargs: Any) -> LiteNode:
+        """A lite node configured by a ``udp://`` URL, as every Ayllu program is: ``url``, else
+        the environment variable ``AYLLU_URL``, else :data:`DEFAULT_URL` (discovery on this
+        machine). Understood: the bind address, ``team``, ``key``, ``peer`` (repeatable),
+        ``broadcast``, ``discovery``, ``ttl``, ``hello_ms``, ``name``. Keyword arguments
+        override the URL's settings."""
+        options = parse_url(url if url is not None else default_url())
+        options.update(kwargs)
+        return cls(node_id, **options)
 
     # ----- lifecycle ---------------------------------------------------------------------
 
@@ -1048,6 +1081,8 @@ class LiteNode:
             t.join()
         self._thread = None
         self.sock.close()
+        if self._discovery_sock is not None:
+            self._discovery_sock.close()
 
     def __enter__(self) -> LiteNode:
         return self
@@ -1134,8 +1169,11 @@ class LiteNode:
         """Announce this node now to every configured and known peer and the broadcast address."""
         with self._lock:
             targets = set(self.peers().values())
+            targets.update(self.bootstrap)
             if self.broadcast is not None:
                 targets.add(self.broadcast)
+            if self.discovery is not None:
+                targets.add(self.discovery)
             hello = Hello(self.hello_interval_ms, self.name, self.groups)
             for t in targets:
                 self._send([hello], t)
@@ -1302,14 +1340,15 @@ class LiteNode:
         end = self._clock() + timeout
         while True:
             left = max(0.0, end - self._clock())
+            socks = [self.sock] if self._discovery_sock is None else [self.sock, self._discovery_sock]
             try:
-                ready, _, _ = select.select([self.sock], [], [], left if handled == 0 else 0)
+                ready, _, _ = select.select(socks, [], [], left if handled == 0 else 0)
             except (OSError, ValueError):
                 break  # closed underneath us
             if not ready:
                 break
             try:
-                data, addr = self.sock.recvfrom(MAX_DATAGRAM + 1)
+                data, addr = ready[0].recvfrom(MAX_DATAGRAM + 1)
             except (BlockingIOError, OSError):
                 break
             self.handle_datagram(data, (addr[0], addr[1]))
@@ -1340,6 +1379,7 @@ class LiteNode:
             self._count("received")
             now = self._clock()
             self._expire_peers(now)
+            new_peer = d.sender not in self._heard and d.sender not in self._static_peers
             _, _, interval = self._heard.get(d.sender, (addr, now, 1.0))
             for m in d.messages:
                 if isinstance(m, Hello):
@@ -1362,6 +1402,10 @@ class LiteNode:
                     # A value too large for one datagram: say so rather than stay silent and
                     # make the requester retry 25 times.
                     self._send([Reply(r.id, error="answer too large for one datagram")], addr)
+            if new_peer:
+                # Greet a node heard for the first time at once (as Ayllu nodes do, N6), so a
+                # node that found us by discovery can address us without waiting a period.
+                self._send([Hello(self.hello_interval_ms, self.name, self.groups)], addr)
         for cb, args in calls:
             cb(*args)
         return None
@@ -1443,6 +1487,70 @@ class LiteNode:
         if m.op in (Op.CONNECT, Op.DISCONNECT, Op.WHY):
             return Reply(m.id, error="not supported by an AylluLite node")
         return Reply(m.id, error="unknown operation")
+
+
+#: The environment variable every Ayllu program reads its ``udp://`` URL from.
+URL_ENV = "AYLLU_URL"
+#: The URL when ``AYLLU_URL`` is not set: any address, a port the system chooses, team 0, no
+#: key, discovery by multicast with TTL 0 (this machine only) -- the same default as the Rust
+#: runtime and the ``ayllu`` tool.
+DEFAULT_URL = "udp://0.0.0.0:0?discovery=239.255.65.89:7400&ttl=0"
+
+
+def default_url() -> str:
+    """``AYLLU_URL`` if set and not empty, else :data:`DEFAULT_URL`."""
+    return os.environ.get(URL_ENV, "").strip() or DEFAULT_URL
+
+
+def _address(text: str, what: str) -> Address:
+    host, sep, port = text.rpartition(":")
+    if not sep or not host or not port.isdigit() or int(port) > 65535:
+        raise ValueError(f"{what} `{text}` is not HOST:PORT")
+    return (socket.gethostbyname(host), int(port))
+
+
+def parse_url(url: str) -> dict[str, Any]:
+    """The :class:`LiteNode` keyword arguments a ``udp://`` URL gives (the options of
+    ``crates/ayllu/src/udp_config.rs``). Raises ``ValueError`` naming the bad part."""
+    if not url.startswith("udp://"):
+        raise ValueError(f"`{url}`: expected udp://HOST:PORT?...")
+    rest = url[len("udp://") :]
+    addr, _, query = rest.partition("?")
+    out: dict[str, Any] = {"bind": _address(addr, "bind address"), "bootstrap": []}
+    for pair in filter(None, query.split("&")):
+        k, sep, v = pair.partition("=")
+        if not sep:
+            raise ValueError(f"`{pair}` is not key=value")
+        if k == "team":
+            if not v.isdigit() or int(v) >= 1 << 32:
+                raise ValueError(f"team `{v}` is not a u32")
+            out["team"] = int(v)
+        elif k == "key":
+            if len(v) != 64 or any(c not in "0123456789abcdefABCDEF" for c in v):
+                raise ValueError("key must be 64 hex digits")
+            out["key"] = bytes.fromhex(v)
+        elif k == "peer":
+            out["bootstrap"].append(_address(v, "peer"))
+        elif k == "broadcast":
+            out["broadcast"] = _address(v, "broadcast")
+        elif k == "discovery":
+            a = _address(v, "discovery")
+            if not 224 <= int(a[0].split(".")[0]) <= 239:
+                raise ValueError(f"discovery `{v}` must be a multicast address (224.0.0.0/4)")
+            out["discovery"] = a
+        elif k == "ttl":
+            if not v.isdigit() or int(v) > 255:
+                raise ValueError(f"ttl `{v}` must be a number from 0 to 255")
+            out["ttl"] = int(v)
+        elif k == "hello_ms":
+            if not v.isdigit() or not 0 < int(v) < 1 << 32:
+                raise ValueError("hello_ms must be between 1 and 4294967295")
+            out["hello_interval_ms"] = int(v)
+        elif k == "name":
+            out["name"] = v
+        else:
+            raise ValueError(f"unknown option `{k}`")
+    return out
 
 
 def key_from_hex(text: str) -> bytes:

@@ -30,6 +30,19 @@ pub struct Client {
     timeout: f64,
     /// Whether Ctrl-C ends waits (not while cleaning up after it).
     pub honour_stop: bool,
+    /// The tool's URL and team, for messages.
+    url: String,
+    team: u32,
+}
+
+/// `url` with the value of `key=` hidden, for messages (a key must not end up in logs).
+fn redact_key(url: &str) -> String {
+    let Some((head, query)) = url.split_once('?') else { return url.to_owned() };
+    let parts: Vec<String> = query
+        .split('&')
+        .map(|p| if p.starts_with("key=") { "key=(hidden)".to_owned() } else { p.to_owned() })
+        .collect();
+    format!("{head}?{}", parts.join("&"))
 }
 
 /// The tool's node id unless `--id` is given: high (clear of robots' ids) and different for
@@ -49,6 +62,7 @@ impl Client {
             config.name = "ayllu-cli".to_owned();
         }
         let id = net.id.unwrap_or_else(default_id);
+        let team = config.team;
         let transport = UdpTransport::bind(id, config)?;
         let timeout = net.timeout.unwrap_or(default_timeout);
         Ok(Client {
@@ -56,6 +70,8 @@ impl Client {
             deadline: Some(StdInstant::now() + StdDuration::from_secs_f64(timeout)),
             timeout,
             honour_stop: true,
+            url: redact_key(&net.udp),
+            team,
         })
     }
 
@@ -121,10 +137,48 @@ impl Client {
             format!("heard {}", list.join(", "))
         };
         Fail::error(format!(
-            "unknown node {node}: no HELLO from it within {}s ({heard}); check the node id and --udp \
-             (peer=ADDR:PORT or broadcast=ADDR:PORT, and team/key)",
-            self.timeout
+            "unknown node {node}: no HELLO from it within {}s ({heard}); {}",
+            self.timeout,
+            self.hint()
         ))
+    }
+
+    /// What to check when nodes are not heard: a wrong team or key if the traffic shows one
+    /// (the transport counts such datagrams before dropping them), else where to look.
+    pub fn hint(&self) -> String {
+        let counted =
+            |cause: &str| self.node.transport_counters().iter().find(|(c, _)| c == cause).map_or(0, |(_, n)| *n);
+        let mut found = Vec::new();
+        if counted("wrong_team") > 0 {
+            found.push(format!(
+                "heard {} datagrams of another team: the nodes use a different team= than this tool's {}",
+                counted("wrong_team"),
+                self.team
+            ));
+        }
+        if counted("unexpected_auth") > 0 {
+            found.push(format!(
+                "heard {} authenticated datagrams: the team has a key; give it with key= in --udp or AYLLU_URL",
+                counted("unexpected_auth")
+            ));
+        }
+        if counted("unauthenticated") > 0 {
+            found.push(format!(
+                "heard {} datagrams without a MAC: the nodes have no key, this tool has one",
+                counted("unauthenticated")
+            ));
+        }
+        if counted("bad_mac") > 0 {
+            found.push(format!("heard {} datagrams with a bad MAC: the nodes use another key", counted("bad_mac")));
+        }
+        if !found.is_empty() {
+            return found.join("; ");
+        }
+        format!(
+            "check the node id and the URL (--udp or AYLLU_URL, now `{}`): discovery= only finds nodes that use \
+             the same discovery address (and ttl=1 across machines), else give peer=ADDR:PORT or broadcast=ADDR:PORT",
+            self.url
+        )
     }
 
     /// Send a control request to `node` and wait for its answer. `what` names the request in

@@ -19,7 +19,8 @@ use serde_json::json;
 use crate::client::{Client, SLICE};
 use crate::fail::Fail;
 use crate::text::{
-    node_report_json, node_report_text, parse_value, peer_json, peers_table, port_report_json, value_json,
+    human, node_report_json, node_report_text, other_report_text, parse_value, peer_json, peers_table,
+    port_report_json, value_json,
 };
 use crate::{signals, Kind, Net, PortPath, WriteArgs};
 
@@ -58,15 +59,16 @@ pub fn list_nodes(net: &Net) -> Result<(), Fail> {
     let mut client = Client::open(net, LISTEN)?;
     client.listen();
     let peers = client.peers();
+    if peers.is_empty() {
+        // Hearing nobody is a failure a script must see (exit 1), with what to check.
+        if net.json {
+            emit("[]")?;
+        }
+        return Err(Fail::error(format!("no node heard within {}s; {}", client.timeout(), client.hint())));
+    }
     if net.json {
         let now = client.node.now();
         return emit(&pretty(&json!(peers.iter().map(|p| peer_json(p, now)).collect::<Vec<_>>())));
-    }
-    if peers.is_empty() {
-        eprintln!(
-            "ayllu: no node heard within {}s; check --udp (peer=ADDR:PORT or broadcast=ADDR:PORT, team, key)",
-            client.timeout()
-        );
     }
     emit(&peers_table(&peers))
 }
@@ -80,16 +82,90 @@ pub fn list_node(node: NodeId, net: &Net) -> Result<(), Fail> {
     match client.ask(node, ControlBody::List, &what)? {
         ReplyBody::Node(report) if net.json => emit(&pretty(&node_report_json(&report))),
         ReplyBody::Node(report) => emit(&node_report_text(&report, Some(&peer))),
+        // An AylluLite node's small LIST.
+        ReplyBody::OtherReport(text) if net.json => emit(&text),
+        ReplyBody::OtherReport(text) => emit(&other_report_text(&text, &peer)),
         other => Err(unexpected(&what, &other)),
     }
+}
+
+/// `ayllu disconnect NODE CONN`: remove connection CONN that NODE owns (e.g. one a killed
+/// `echo` left behind).
+pub fn disconnect_command(node: NodeId, conn: ConnectionId, net: &Net) -> Result<(), Fail> {
+    signals::install();
+    let mut client = Client::open(net, DEFAULT_TIMEOUT)?;
+    client.find(node)?;
+    let what = format!("DISCONNECT {node}'s connection {conn}");
+    let request = client.node.core_mut().request_disconnect(node, conn);
+    match client.answer(node, request, &what)? {
+        ReplyBody::Connection(c) if net.json => emit(&json!({"node": node.0, "disconnected": c.0}).to_string()),
+        ReplyBody::Connection(c) => emit(&format!("disconnected {node}'s connection {c}")),
+        other => Err(unexpected(&what, &other)),
+    }
+}
+
+/// An error about an unknown behavior or port, with the nearest names the node has ("did
+/// you mean"), asked with LIST. Other errors pass unchanged.
+fn with_suggestion(client: &mut Client, node: NodeId, path: &PortPath, fail: Fail) -> Fail {
+    let unknown_port = fail.message.contains("has no port named");
+    let unknown_behavior = fail.message.contains("no behavior named");
+    if !unknown_port && !unknown_behavior {
+        return fail;
+    }
+    let Ok(ReplyBody::Node(report)) = client.ask(node, ControlBody::List, &format!("LIST {node}")) else {
+        return fail;
+    };
+    let suggestion = if unknown_behavior {
+        let names: Vec<&str> = report.behaviors.iter().map(|b| b.name.as_str()).collect();
+        nearest(&path.behavior, &names).map(|b| format!("{b}.{}", path.port))
+    } else {
+        report.behaviors.iter().find(|b| b.name == path.behavior).and_then(|b| {
+            let names: Vec<&str> = b.ports.iter().map(|p| p.name.as_str()).collect();
+            nearest(&path.port, &names).map(|p| format!("{}.{p}", path.behavior))
+        })
+    };
+    match suggestion {
+        Some(s) => Fail { message: format!("{}; did you mean `{s}`?", fail.message), code: fail.code },
+        None => fail,
+    }
+}
+
+/// The candidate closest to `name` (case-insensitive edit distance), if close enough to be
+/// a likely typo: at most a third of the name's length, and at least 1 allowed.
+fn nearest<'a>(name: &str, candidates: &[&'a str]) -> Option<&'a str> {
+    let wanted = name.to_lowercase();
+    let allowed = (wanted.chars().count() / 3).max(1);
+    candidates
+        .iter()
+        .map(|c| (edit_distance(&wanted, &c.to_lowercase()), *c))
+        .filter(|(d, _)| *d <= allowed)
+        .min_by_key(|(d, c)| (*d, *c))
+        .map(|(_, c)| c)
+}
+
+/// Levenshtein distance between two short names.
+fn edit_distance(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut diagonal = row[0];
+        row[0] = i + 1;
+        for (j, cb) in b.iter().enumerate() {
+            let above = row[j + 1];
+            row[j + 1] = (above + 1).min(row[j] + 1).min(diagonal + usize::from(ca != *cb));
+            diagonal = above;
+        }
+    }
+    row[b.len()]
 }
 
 fn ask_why(client: &mut Client, node: NodeId, path: &PortPath) -> Result<PortReport, Fail> {
     let what = format!("WHY {node}:{path}");
     let body = ControlBody::Why { behavior: path.behavior.as_str().into(), port: path.port.as_str().into() };
-    match client.ask(node, body, &what)? {
-        ReplyBody::Port(report) => Ok(*report),
-        other => Err(unexpected(&what, &other)),
+    match client.ask(node, body, &what) {
+        Ok(ReplyBody::Port(report)) => Ok(*report),
+        Ok(other) => Err(unexpected(&what, &other)),
+        Err(fail) => Err(with_suggestion(client, node, path, fail)),
     }
 }
 
@@ -97,10 +173,17 @@ fn ask_why(client: &mut Client, node: NodeId, path: &PortPath) -> Result<PortRep
 fn read(client: &mut Client, node: NodeId, path: &PortPath) -> Result<Value, Fail> {
     let what = format!("READ {node}:{path}");
     let body = ControlBody::Read { behavior: path.behavior.as_str().into(), port: path.port.as_str().into() };
-    match client.ask(node, body, &what)? {
-        ReplyBody::Value(v) => Ok(v),
-        other => Err(unexpected(&what, &other)),
+    match client.ask(node, body, &what) {
+        Ok(ReplyBody::Value(v)) => Ok(v),
+        Ok(other) => Err(unexpected(&what, &other)),
+        Err(fail) => Err(with_suggestion(client, node, path, fail)),
     }
+}
+
+/// Whether a node's refusal says it is an AylluLite node, which answers READ and LIST only
+/// (spec/protocol.md).
+fn is_lite_refusal(fail: &Fail) -> bool {
+    fail.message.contains("AylluLite")
 }
 
 /// `ayllu why NODE BEHAVIOR.PORT`.
@@ -165,7 +248,7 @@ pub fn echo(node: NodeId, path: &PortPath, count: Option<u64>, net: &Net) -> Res
                 json!({"t": secs, "node": node.0, "port": path.to_string(), "type": ty.name(), "value": value_json(&v)})
                     .to_string()
             } else {
-                format!("{secs:>9.3}  {v}")
+                format!("{secs:>9.3}  {}", human(&v))
             };
             printed = emit(&line);
             got += 1;
@@ -259,6 +342,35 @@ fn blockers(report: &PortReport, cause: DropCause) -> String {
     }
 }
 
+/// The end of `write` to an AylluLite node, which has no WHY: the value is checked by READ
+/// (a lite port has no windows to check), and the answer says "unconfirmed (lite)" when READ
+/// does not show it. Exit 0 either way: the datagram went out.
+fn write_lite(
+    client: &mut Client,
+    args: &WriteArgs,
+    value: &Value,
+    kind: ConnectionKind,
+    me: Source,
+    ty: ValueType,
+) -> Result<(), Fail> {
+    let (node, path) = (args.node, &args.target);
+    let confirmed = kind.writes() && read(client, node, path).is_ok_and(|v| v == *value);
+    let verdict = if confirmed { "confirmed by READ (lite)" } else { "unconfirmed (lite)" };
+    if args.net.json {
+        return emit(
+            &json!({
+                "node": node.0, "port": path.to_string(), "type": ty.name(), "value": value_json(value),
+                "kind": kind.name(), "source": me.to_string(), "sent": 1, "confirmed": confirmed, "lite": true,
+            })
+            .to_string(),
+        );
+    }
+    emit(&format!(
+        "wrote {} to {node}:{path} along {kind} as {me}: {verdict} ({node} is an AylluLite node: no WHY)",
+        human(value)
+    ))
+}
+
 /// `ayllu write NODE BEHAVIOR.PORT VALUE`.
 pub fn write(args: &WriteArgs) -> Result<(), Fail> {
     let (node, path, net) = (args.node, &args.target, &args.net);
@@ -308,7 +420,13 @@ pub fn write(args: &WriteArgs) -> Result<(), Fail> {
     loop {
         client.node.write("WRITE", "Out", value.clone())?;
         sent += 1;
-        report = ask_why(&mut client, node, path)?;
+        report = match ask_why(&mut client, node, path) {
+            Ok(r) => r,
+            Err(fail) if is_lite_refusal(&fail) => {
+                return write_lite(&mut client, args, &value, kind, me, ty);
+            }
+            Err(fail) => return Err(fail),
+        };
         match judge(&report, kind, me) {
             Verdict::Confirmed => break,
             Verdict::Refused(cause) => {
@@ -369,7 +487,7 @@ pub fn write(args: &WriteArgs) -> Result<(), Fail> {
             .to_string(),
         );
     }
-    let mut line = format!("wrote {value} to {node}:{path} along {kind} as {me}: ");
+    let mut line = format!("wrote {} to {node}:{path} along {kind} as {me}: ", human(&value));
     if confirmed {
         line.push_str("confirmed");
     } else {

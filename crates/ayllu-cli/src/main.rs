@@ -26,7 +26,7 @@ mod text;
 
 use std::process::ExitCode;
 
-use ayllu::{ConnectionKind, NodeId};
+use ayllu::{ConnectionId, ConnectionKind, NodeId};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
 use crate::fail::Fail;
@@ -42,8 +42,9 @@ struct Cli {
 #[derive(Args, Debug, Clone)]
 pub struct Net {
     /// This tool's own udp:// URL: where it binds, its team and key, and how it finds the
-    /// nodes (peer=ADDR:PORT, repeatable, and/or broadcast=ADDR:PORT).
-    #[arg(long, value_name = "URL", default_value = "udp://0.0.0.0:0")]
+    /// nodes (discovery=, peer=ADDR:PORT, broadcast=ADDR:PORT). Default: $AYLLU_URL, else
+    /// discovery on this machine (docs/cli.md).
+    #[arg(long, value_name = "URL", default_value_t = ayllu::default_url())]
     pub udp: String,
     /// Give up after this many seconds (default 5; `list` without NODE listens 1.5).
     #[arg(long, value_name = "SECS", value_parser = positive_secs)]
@@ -113,6 +114,17 @@ enum Command {
         /// Stop after this many values (it is an error if fewer arrive before --timeout).
         #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
         count: Option<u64>,
+        #[command(flatten)]
+        net: Net,
+    },
+    /// Remove a connection a node owns (`list NODE` shows them; e.g. one a killed `echo` left).
+    Disconnect {
+        /// The node: its id (3, n3 or 0x3).
+        #[arg(value_parser = parse_node)]
+        node: NodeId,
+        /// The connection's id on that node (`c4` or `4`).
+        #[arg(value_parser = parse_connection)]
+        connection: ConnectionId,
         #[command(flatten)]
         net: Net,
     },
@@ -187,8 +199,9 @@ pub struct NodeArgs {
     /// This node's id.
     #[arg(long, value_parser = parse_node)]
     pub id: NodeId,
-    /// The node's udp:// URL (bind address, team, key, peer=, broadcast=, hello_ms=, name=).
-    #[arg(long, value_name = "URL")]
+    /// The node's udp:// URL (bind address, team, key, discovery=, peer=, broadcast=,
+    /// hello_ms=, name=). Default: $AYLLU_URL, else discovery on this machine.
+    #[arg(long, value_name = "URL", default_value_t = ayllu::default_url())]
     pub udp: String,
     /// What the node runs.
     #[arg(long, value_enum, default_value_t = Controller::CrossSubsumption)]
@@ -233,6 +246,14 @@ fn parse_node(s: &str) -> Result<NodeId, String> {
     parsed.map(NodeId).map_err(|_| format!("`{s}` is not a node id (a number: 3, n3 or 0x3)"))
 }
 
+fn parse_connection(s: &str) -> Result<ConnectionId, String> {
+    s.strip_prefix('c')
+        .unwrap_or(s)
+        .parse::<u64>()
+        .map(ConnectionId)
+        .map_err(|_| format!("`{s}` is not a connection id (a number: 4 or c4)"))
+}
+
 fn parse_port_path(s: &str) -> Result<PortPath, String> {
     match s.split_once('.') {
         Some((b, p)) if !b.is_empty() && !p.is_empty() => Ok(PortPath { behavior: b.to_owned(), port: p.to_owned() }),
@@ -240,11 +261,18 @@ fn parse_port_path(s: &str) -> Result<PortPath, String> {
     }
 }
 
-/// Seconds (or hertz): finite and above zero.
+/// The largest number of seconds (or hertz) an argument takes: about 31 years, far beyond
+/// any run, and small enough for every duration type (1e300 used to panic).
+const MAX_SECS: f64 = 1e9;
+
+/// Seconds (or hertz): finite, above zero, at most [`MAX_SECS`].
 fn positive_secs(s: &str) -> Result<f64, String> {
     let x: f64 = s.parse().map_err(|_| format!("`{s}` is not a number"))?;
     if !x.is_finite() || x <= 0.0 {
         return Err(format!("must be greater than 0 (got {s})"));
+    }
+    if x > MAX_SECS {
+        return Err(format!("must be at most {MAX_SECS:e} (got {s})"));
     }
     Ok(x)
 }
@@ -270,6 +298,7 @@ fn run(cli: Cli) -> Result<(), Fail> {
         Command::Why { node, target, net } => commands::why(node, &target, &net),
         Command::Echo { node, target, count, net } => commands::echo(node, &target, count, &net),
         Command::Write(args) => commands::write(&args),
+        Command::Disconnect { node, connection, net } => commands::disconnect_command(node, connection, &net),
         Command::Node(args) => controllers::run(&args),
         Command::Sim(SimCommand::Cmommt(args)) => sim_cmommt::run(&args),
         Command::Sim(SimCommand::Serve(args)) => sim_serve::serve(&args),
@@ -329,7 +358,7 @@ mod tests {
     #[test]
     fn periods_must_be_positive() {
         assert_eq!(positive_secs("0.5"), Ok(0.5));
-        for bad in ["0", "-1", "nan", "inf", "x"] {
+        for bad in ["0", "-1", "nan", "inf", "x", "1e300", "1e10"] {
             assert!(positive_secs(bad).is_err(), "{bad}");
         }
     }

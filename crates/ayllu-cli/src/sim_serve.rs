@@ -101,8 +101,9 @@ pub struct RobotArgs {
     #[arg(long, value_name = "HZ", default_value_t = 1.0, value_parser = positive_secs)]
     pub claim_hz: f64,
     /// The controller node's udp:// URL: its address, and how it finds its peers (peer=,
-    /// broadcast=). Its body finds it (the server's URLs name it).
-    #[arg(long, value_name = "URL")]
+    /// broadcast=, discovery=). Its body finds it (the server's URLs name it). Default:
+    /// $AYLLU_URL, else discovery on this machine.
+    #[arg(long, value_name = "URL", default_value_t = ayllu::default_url())]
     pub udp: String,
     /// Stop after this many seconds (default: until Ctrl-C or SIGTERM).
     #[arg(long, value_name = "SECS", value_parser = positive_secs)]
@@ -369,12 +370,22 @@ pub fn robot(args: &RobotArgs) -> Result<(), Fail> {
     let mut out = std::io::stdout().lock();
     writeln!(out, "{}", listening_json(&node))?;
     out.flush()?;
+    let mut was_linked = false;
     loop {
         let now = StdInstant::now();
         if signals::stopped() || end.is_some_and(|e| now >= e) {
             return Ok(());
         }
         if now >= next_status {
+            // A robot whose server went away stops too (its body is forgotten after three
+            // silent HELLO periods), instead of outliving it.
+            let linked = node.peers().iter().any(|p| p.node == body);
+            if linked {
+                was_linked = true;
+            } else if was_linked {
+                eprintln!("ayllu: sim robot {k}: its body ({body}) has gone silent: the server stopped; stopping");
+                return Ok(());
+            }
             writeln!(out, "{}", robot_status(&node, &brain, &vision, body))?;
             out.flush()?;
             next_status = (next_status + period).max(now);

@@ -7,7 +7,9 @@
 
 use std::fmt::Write as _;
 
-use ayllu::{Counters, Node, NodeReport, PeerInfo, PortReport, Trigger, Value, ValueType};
+use ayllu::{
+    Counters, Node, NodeReport, PeerInfo, PortReport, Trigger, Value, ValueType, BEST, BLE_SELECT, INHIBIT, LOCAL,
+};
 use serde_json::{json, Map, Value as Json};
 
 /// The first line a long-running command (`node`, `sim robot`) prints, as soon as its socket
@@ -83,16 +85,18 @@ pub fn counted(counters: &Counters) -> Json {
     Json::Object(counters.nonzero().map(|(d, n)| (d.name().to_owned(), json!(n))).collect())
 }
 
-/// The serde form of a port report plus `counted`.
+/// The serde form of a port report plus `counted`, times in seconds.
 pub fn port_report_json(r: &PortReport) -> Json {
     let mut j = serde_json::to_value(r).unwrap_or(Json::Null);
     if let Json::Object(m) = &mut j {
         m.insert("counted".to_owned(), counted(&r.counters));
     }
+    seconds(&mut j);
     j
 }
 
-/// The serde form of a node report plus `counted` (core) and `transport_counted`.
+/// The serde form of a node report plus `counted` (core) and `transport_counted`, times in
+/// seconds.
 pub fn node_report_json(r: &NodeReport) -> Json {
     let mut j = serde_json::to_value(r).unwrap_or(Json::Null);
     if let Json::Object(m) = &mut j {
@@ -100,7 +104,61 @@ pub fn node_report_json(r: &NodeReport) -> Json {
         let transport: Map<String, Json> = r.transport.iter().map(|(k, v)| (k.clone(), json!(v))).collect();
         m.insert("transport_counted".to_owned(), Json::Object(transport));
     }
+    seconds(&mut j);
     j
+}
+
+/// Replace every time (`Instant` and `Duration` serialize as `{"nanos": N}`) by seconds, a
+/// number people and scripts read directly. (The wire keeps nanoseconds: exact integers.)
+fn seconds(j: &mut Json) {
+    match j {
+        Json::Object(m) => {
+            if m.len() == 1 {
+                if let Some(n) = m.get("nanos").and_then(Json::as_u64) {
+                    *j = json!(n as f64 / 1e9);
+                    return;
+                }
+            }
+            m.values_mut().for_each(seconds);
+        }
+        Json::Array(a) => a.iter_mut().for_each(seconds),
+        _ => {}
+    }
+}
+
+/// A value for people: floats with at most 15 significant digits (so the sum 0.1 + 0.2 shows
+/// as 0.3, not 0.30000000000000004), everything else as the value prints. JSON output keeps
+/// every bit.
+pub fn human(v: &Value) -> String {
+    fn float(x: f64) -> String {
+        if !x.is_finite() {
+            return x.to_string();
+        }
+        let rounded: f64 = format!("{x:.14e}").parse().unwrap_or(x);
+        rounded.to_string()
+    }
+    match v {
+        Value::Float(x) => float(*x),
+        Value::Vector(xs) => format!("[{}]", xs.iter().map(|x| float(*x)).collect::<Vec<_>>().join(", ")),
+        other => other.to_string(),
+    }
+}
+
+/// An AylluLite node's LIST (`{"node","lite":true,"behaviors":[{"name","ports"}]}`) as text;
+/// any other unknown report as its JSON.
+pub fn other_report_text(json_text: &str, peer: &PeerInfo) -> String {
+    let Ok(j) = serde_json::from_str::<Json>(json_text) else { return json_text.to_owned() };
+    if j["lite"] != json!(true) {
+        return json_text.to_owned();
+    }
+    let name = if peer.name.is_empty() { "-" } else { &peer.name };
+    let mut out =
+        format!("{} ({name} at {}): an AylluLite node (it answers READ and LIST)\nbehaviors:\n", peer.node, peer.addr);
+    for b in j["behaviors"].as_array().into_iter().flatten() {
+        let ports: Vec<&str> = b["ports"].as_array().into_iter().flatten().filter_map(Json::as_str).collect();
+        let _ = writeln!(out, "  {}: {}", b["name"].as_str().unwrap_or("?"), ports.join(", "));
+    }
+    out
 }
 
 /// A peer as `list` shows it in JSON.
@@ -136,7 +194,9 @@ pub fn node_report_text(r: &NodeReport, peer: Option<&PeerInfo>) -> String {
     let _ = writeln!(out, "behaviors:");
     for b in &r.behaviors {
         let _ = writeln!(out, "  {} ({})", b.name, b.class);
-        for p in &b.ports {
+        // Every behavior has the BLE ports; show them only where BLE runs (`--json` has all).
+        let ble = b.processes.iter().any(|p| p.name == BLE_SELECT);
+        for p in b.ports.iter().filter(|p| ble || ![LOCAL, INHIBIT, BEST].contains(&p.name.as_str())) {
             let state = if p.fresh { "fresh" } else { "stale" };
             let _ = writeln!(
                 out,
@@ -144,7 +204,7 @@ pub fn node_report_text(r: &NodeReport, peer: Option<&PeerInfo>) -> String {
                 p.name,
                 p.kind.name(),
                 p.ty.name(),
-                p.value.to_string()
+                human(&p.value)
             );
         }
         for (name, v) in &b.slots {

@@ -146,8 +146,8 @@ fn inhibit_stops_what_leaves_the_port_and_why_shows_the_window() {
     let why = relay.why("RELAY.Out");
     let windows = windows_of(&why, "Inhibit");
     assert_eq!(windows.len(), 1, "{why}");
-    let remaining = windows[0]["remaining"]["nanos"].as_u64().unwrap();
-    assert!(remaining > 3_000_000_000 && remaining <= 5_000_000_000, "window of 5 s: {why}");
+    let remaining = windows[0]["remaining"].as_f64().unwrap();
+    assert!(remaining > 3.0 && remaining <= 5.0, "window of 5 s (JSON times are seconds): {why}");
     assert_eq!(why["internal_output_blocked"], "Inhibited");
     assert_eq!(why["connection_output_blocked"], "Inhibited");
 
@@ -307,4 +307,70 @@ fn usage_errors_exit_with_code_2() {
     for sub in ["list", "why", "echo", "write", "node"] {
         assert!(help.stdout.contains(sub), "{help:?}");
     }
+}
+
+#[test]
+fn list_without_a_node_exits_1_when_it_hears_nobody() {
+    // A script must see "found nothing" in the exit code, with what to check.
+    let run = ayllu(&["list", "--timeout", "0.3"], LIMIT).fails(1, "no node heard");
+    assert!(run.stderr.contains("AYLLU_URL"), "{run:?}");
+    let run = ayllu(&["list", "--json", "--timeout", "0.3"], LIMIT).fails(1, "no node heard");
+    assert_eq!(run.stdout.trim(), "[]", "JSON still gets its (empty) list: {run:?}");
+}
+
+#[test]
+fn disconnect_removes_a_connection_a_killed_echo_left() {
+    let relay = Relay::start();
+    // An echo killed without a word leaves its connection on the node.
+    let mut cmd = Command::new(BIN);
+    cmd.args(["echo", "1", "RELAY.Out", "--udp", &relay.url]);
+    let mut echo = Proc::spawn("echo", cmd);
+    let conns = wait_for(LIMIT, Duration::from_millis(50), || {
+        let report = relay.cli(&["list", "1", "--json"]).ok().json();
+        let conns: Vec<u64> = report["connections"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|c| c["destination"].to_string().contains("ECHO"))
+            .filter_map(|c| c["id"].as_u64())
+            .collect();
+        (!conns.is_empty()).then_some(conns)
+    })
+    .expect("echo connected");
+    echo.kill();
+    let conn = format!("c{}", conns[0]);
+    let done = relay.cli(&["disconnect", "1", &conn]).ok();
+    assert!(done.stdout.contains(&format!("disconnected n1's connection {conn}")), "{done:?}");
+    let report = relay.cli(&["list", "1", "--json"]).ok().json();
+    assert!(!report["connections"].to_string().contains("ECHO"), "{report}");
+    // Twice: the node says it has no such connection.
+    relay.cli(&["disconnect", "1", &conn]).fails(1, "no connection with id");
+    ayllu(&["disconnect", "1", "cx"], LIMIT).fails(2, "not a connection id");
+}
+
+#[test]
+fn typos_in_names_get_a_suggestion() {
+    let relay = Relay::start();
+    relay.cli(&["why", "1", "RELAY.Ou"]).fails(1, "did you mean `RELAY.Out`?");
+    relay.cli(&["why", "1", "relay.Out"]).fails(1, "did you mean `RELAY.Out`?");
+    relay.write("FRELAY.inn", "1", &[]).fails(1, "did you mean `FRELAY.In`?");
+    // Nothing close: no suggestion.
+    let run = relay.cli(&["why", "1", "RELAY.Completely"]).fails(1, "has no port named");
+    assert!(!run.stderr.contains("did you mean"), "{run:?}");
+}
+
+#[test]
+fn output_for_people_rounds_floats_and_json_times_are_seconds() {
+    let relay = Relay::start();
+    relay.write("FRELAY.In", "0.30000000000000004", &[]).ok();
+    let why = relay.cli(&["why", "1", "FRELAY.In"]).ok();
+    assert!(why.stdout.contains("0.30000000000000004"), "why keeps the exact value: {why:?}");
+    let text = relay.cli(&["list", "1"]).ok();
+    assert!(text.stdout.contains(" 0.3 ") && !text.stdout.contains("0.30000000000000004"), "{text:?}");
+    // The implicit BLE ports show only on BLE members (the relay has none).
+    assert!(!text.stdout.contains("Best") && !text.stdout.contains("Inhibit"), "{text:?}");
+    let json = relay.cli(&["why", "1", "FRELAY.In", "--json"]).ok().json();
+    assert!(json["now"].is_f64(), "times in seconds: {json}");
+    assert!(json["last_accepted"].is_f64(), "{json}");
+    assert_eq!(json["value"], json!({"Float": 0.30000000000000004}), "JSON keeps every bit");
 }

@@ -163,7 +163,7 @@ impl NodeCore {
             ConnectOptions::default(),
         )?;
         self.join(&config.group);
-        self.add_process(behavior, "BLE_Select", Trigger::Periodic(claim_period), select)?;
+        self.add_process(behavior, BLE_SELECT, Trigger::Periodic(claim_period), select)?;
         let b = self.behavior_index(behavior)?;
         self.behavior_mut(b).expect("indexed").ble = Some(BleState {
             group: Arc::from(config.group.as_str()),
@@ -211,6 +211,10 @@ impl NodeCore {
         names.into_iter().filter_map(|n| self.ble_status(n).ok().flatten()).collect()
     }
 }
+
+/// The name of the process [`NodeCore::ble_join`] adds to a BLE member (the paper's
+/// `BLE_Select`): tools tell BLE members by it.
+pub const BLE_SELECT: &str = "BLE_Select";
 
 /// The BLE select process (paper: `BLE_Select`, 1 Hz).
 fn select(ctx: &mut Ctx<'_>) {

@@ -56,7 +56,7 @@ pub mod value;
 pub use address::{ConnectionId, Endpoint, NodeId, Source};
 pub use arbitration::{Origin, Window, WindowKind};
 pub use behavior::{BehaviorClass, Mono, Port, ProcessFn, Slot, Trigger, BEST, INHIBIT, LOCAL};
-pub use ble::{check_inhibit_period, minimum_inhibit_period, BleConfig, BleGroup, BleStatus};
+pub use ble::{check_inhibit_period, minimum_inhibit_period, BleConfig, BleGroup, BleStatus, BLE_SELECT};
 pub use connection::{ConnectOptions, ConnectionInfo, ConnectionKind};
 pub use counters::{Counters, DropCause};
 pub use error::Error;

@@ -75,6 +75,10 @@ pub enum ReplyBody {
     Value(Value),
     Node(Box<NodeReport>),
     Port(Box<PortReport>),
+    /// A report of a shape this implementation does not model, as its JSON text: an AylluLite
+    /// node answers LIST with `{"node":N,"lite":true,"behaviors":[{"name":B,"ports":[P..]}]}`
+    /// (spec/protocol.md), which the requester should show rather than refuse.
+    OtherReport(String),
 }
 
 #[derive(Clone, Debug, PartialEq)]

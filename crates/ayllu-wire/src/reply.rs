@@ -51,6 +51,7 @@ pub fn reply_messages(
         Ok(ReplyBody::Value(v)) => return Ok(single(ReplyPart::Value(v.clone()))),
         Ok(ReplyBody::Node(r)) => serde_json::to_string(r),
         Ok(ReplyBody::Port(r)) => serde_json::to_string(r),
+        Ok(ReplyBody::OtherReport(json)) => Ok(json.clone()),
     };
     // Serializing plain report structs to a String cannot fail (no maps with non-string keys,
     // no I/O); should it ever, say so rather than panic.
@@ -219,14 +220,20 @@ impl ReplyAssembler {
 
 /// A report's JSON as the core's reply. The two report shapes are disjoint (a `NodeReport`
 /// has `groups` and `behaviors`, a `PortReport` has `behavior` and `port`, each required), so
-/// trying one and then the other cannot confuse them.
+/// trying one and then the other cannot confuse them. Any other JSON object (an AylluLite
+/// node's LIST) is kept as text, [`ReplyBody::OtherReport`]; text that is not a JSON object is
+/// refused.
 fn parse_report(json: &str) -> Result<ReplyBody, AssembleError> {
     if let Ok(node) = serde_json::from_str::<NodeReport>(json) {
         return Ok(ReplyBody::Node(Box::new(node)));
     }
-    serde_json::from_str::<PortReport>(json)
-        .map(|port| ReplyBody::Port(Box::new(port)))
-        .map_err(|e| AssembleError::BadReport(e.to_string()))
+    match serde_json::from_str::<PortReport>(json) {
+        Ok(port) => Ok(ReplyBody::Port(Box::new(port))),
+        Err(e) => match serde_json::from_str::<serde_json::Value>(json) {
+            Ok(serde_json::Value::Object(_)) => Ok(ReplyBody::OtherReport(json.to_owned())),
+            _ => Err(AssembleError::BadReport(e.to_string())),
+        },
+    }
 }
 
 #[cfg(test)]
@@ -312,15 +319,27 @@ mod tests {
     }
 
     #[test]
+    fn a_lite_nodes_list_is_kept_as_another_report() {
+        // An AylluLite node answers LIST with its own small object (spec/protocol.md).
+        let lite = r#"{"node":77,"lite":true,"behaviors":[{"name":"Drive","ports":["Speed"]}]}"#;
+        let mut a = ReplyAssembler::new();
+        assert_eq!(a.push(0, 1, ReplyPart::Report(lite.into())), Ok(Some(Ok(ReplyBody::OtherReport(lite.to_owned())))));
+        // And it goes out again as it came.
+        let parts = reply_messages(9, &Ok(ReplyBody::OtherReport(lite.to_owned())), 1472, false).unwrap();
+        assert_eq!(assemble(parts), Ok(ReplyBody::OtherReport(lite.to_owned())));
+    }
+
+    #[test]
     fn assembler_refuses_inconsistent_and_oversized_input() {
         let mut a = ReplyAssembler::new();
         assert_eq!(a.push(0, 0, ReplyPart::Report("x".into())), Err(AssembleError::Inconsistent));
         assert_eq!(a.push(3, 3, ReplyPart::Report("x".into())), Err(AssembleError::Inconsistent));
-        assert_eq!(a.push(0, 3, ReplyPart::Report("{".into())), Ok(None));
+        assert_eq!(a.push(0, 3, ReplyPart::Report("[".into())), Ok(None));
         assert_eq!(a.missing().collect::<Vec<_>>(), vec![1, 2]);
         assert_eq!(a.push(1, 4, ReplyPart::Report("x".into())), Err(AssembleError::Inconsistent));
         assert_eq!(a.push(1, 3, ReplyPart::Error("x".into())), Err(AssembleError::Inconsistent));
-        assert_eq!(a.push(1, 3, ReplyPart::Report("}".into())), Ok(None));
+        assert_eq!(a.push(1, 3, ReplyPart::Report("]".into())), Ok(None));
+        // JSON, but not an object: no report of any shape.
         assert!(matches!(a.push(2, 3, ReplyPart::Report(" ".into())), Err(AssembleError::BadReport(_))));
 
         let mut a = ReplyAssembler::with_limit(10);

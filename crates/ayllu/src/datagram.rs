@@ -20,6 +20,11 @@ pub trait DatagramSocket: Send {
     fn wait(&mut self, timeout: StdDuration);
     fn local_addr(&self) -> io::Result<SocketAddr>;
     fn join_multicast(&mut self, group: Ipv4Addr) -> io::Result<()>;
+    /// The TTL of multicast datagrams sent (0: they never leave this machine).
+    fn set_multicast_ttl(&mut self, ttl: u32) -> io::Result<()> {
+        let _ = ttl;
+        Ok(())
+    }
 }
 
 /// A real UDP socket: non-blocking, broadcast allowed. The main socket is *exclusive*: binding
@@ -309,6 +314,9 @@ impl DatagramSocket for OsSocket {
     }
     fn local_addr(&self) -> io::Result<SocketAddr> {
         self.socket.local_addr()
+    }
+    fn set_multicast_ttl(&mut self, ttl: u32) -> io::Result<()> {
+        self.socket.set_multicast_ttl_v4(ttl)
     }
     fn join_multicast(&mut self, group: Ipv4Addr) -> io::Result<()> {
         self.socket.join_multicast_v4(&group, &Ipv4Addr::UNSPECIFIED)?;

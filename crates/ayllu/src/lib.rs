@@ -25,7 +25,7 @@ pub use mem::{MemNetwork, MemTransport};
 pub use node::{Node, NodeStats};
 pub use transport::{PeerInfo, Sent, Transport};
 pub use udp::UdpTransport;
-pub use udp_config::UdpConfig;
+pub use udp_config::{default_url, UdpConfig, DEFAULT_URL, URL_ENV};
 
 /// The README's Rust examples, compiled and run by `cargo test`.
 #[cfg(doctest)]

@@ -71,6 +71,15 @@ impl Tally {
     }
 }
 
+/// Why discovery does not work here, and what to do instead.
+fn discovery_warning(config: &UdpConfig, error: &str) -> String {
+    let at = config.discovery.map_or_else(String::new, |a| a.to_string());
+    format!(
+        "discovery by multicast at {at} is not available on this machine ({error}): nodes will not find each \
+         other by themselves; list them with peer=ADDR:PORT in the udp:// URL (AYLLU_URL)"
+    )
+}
+
 /// When a peer silent since `last_heard` is forgotten: three of its HELLO periods (N6).
 fn expiry(p: &Peer) -> Instant {
     p.last_heard + p.interval * 3
@@ -109,6 +118,8 @@ pub struct UdpTransport<S: DatagramSocket = OsSocket> {
     duplicates: Vec<SocketAddr>,
     /// Warnings for the node to report ([`Transport::take_warnings`]).
     warnings: Vec<String>,
+    /// Sending to the discovery address failed once (warned about once).
+    discovery_failed: bool,
     joined: Vec<String>,
     batches: Vec<(SocketAddr, DatagramWriter)>,
     inbox: VecDeque<(NodeId, Message)>,
@@ -147,7 +158,7 @@ impl UdpTransport<OsSocket> {
         })?;
         // A socket bound to a unicast address does not hear broadcast or multicast datagrams:
         // listen on the team's broadcast and group addresses too.
-        for addr in config.broadcast.iter().chain(config.groups.iter().map(|(_, a)| a)) {
+        for addr in config.broadcast.iter().chain(config.groups.iter().map(|(_, a)| a)).chain(config.discovery.iter()) {
             socket.listen_also(*addr).map_err(|e| Error::Io {
                 what: format!("binding UDP socket {addr} to receive group messages (or bind to 0.0.0.0)"),
                 error: e.to_string(),
@@ -160,6 +171,10 @@ impl UdpTransport<OsSocket> {
 impl<S: DatagramSocket> UdpTransport<S> {
     /// A transport over any datagram socket (tests use the in-memory bus and fault injector).
     pub fn with_socket(id: NodeId, config: UdpConfig, mut socket: S) -> Result<Self, Error> {
+        socket.set_multicast_ttl(config.ttl).map_err(|e| Error::Io {
+            what: format!("setting the multicast TTL to {}", config.ttl),
+            error: e.to_string(),
+        })?;
         for (_, addr) in &config.groups {
             if let IpAddr::V4(ip) = addr.ip() {
                 if ip.is_multicast() {
@@ -168,6 +183,14 @@ impl<S: DatagramSocket> UdpTransport<S> {
                         error: e.to_string(),
                     })?;
                 }
+            }
+        }
+        // Discovery is a convenience: a machine without multicast still runs the node, and
+        // says why nobody is found.
+        let mut warnings = Vec::new();
+        if let Some(IpAddr::V4(ip)) = config.discovery.map(|a| a.ip()) {
+            if let Err(e) = socket.join_multicast(ip) {
+                warnings.push(discovery_warning(&config, &e.to_string()));
             }
         }
         // Start above any sequence number an earlier run of this node used (spec: boot
@@ -191,7 +214,8 @@ impl<S: DatagramSocket> UdpTransport<S> {
             held: VecDeque::new(),
             seq_start: boot << 32,
             duplicates: Vec::new(),
-            warnings: Vec::new(),
+            warnings,
+            discovery_failed: false,
             joined: Vec::new(),
             batches: Vec::new(),
             inbox: VecDeque::new(),
@@ -291,7 +315,13 @@ impl<S: DatagramSocket> UdpTransport<S> {
         let bytes = w.finish();
         match self.socket.send_to(&bytes, addr) {
             Ok(()) => self.count("datagrams_sent"),
-            Err(_) => self.count("send_error"),
+            Err(e) => {
+                self.count("send_error");
+                if Some(addr) == self.config.discovery && !self.discovery_failed {
+                    self.discovery_failed = true;
+                    self.warnings.push(discovery_warning(&self.config, &e.to_string()));
+                }
+            }
         }
         // Kept for the next datagram: a loop turn then allocates nothing to send.
         if self.spare.len() < SPARE_BUFFERS {
@@ -311,6 +341,7 @@ impl<S: DatagramSocket> UdpTransport<S> {
         let mut targets: Vec<SocketAddr> = self.config.peers.clone();
         targets.extend(self.config.groups.iter().map(|(_, a)| *a));
         targets.extend(self.config.broadcast);
+        targets.extend(self.config.discovery);
         targets.extend(self.peers.values().map(|p| p.addr));
         targets.sort();
         targets.dedup();

@@ -2,8 +2,15 @@
 //!
 //! ```text
 //! udp://BIND_ADDR:PORT?team=7&key=HEX64&peer=ADDR:PORT&broadcast=ADDR:PORT
-//!                     &group=NAME@ADDR:PORT&hello_ms=1000&mtu=1472&name=robot-1
+//!                     &group=NAME@ADDR:PORT&discovery=ADDR:PORT&ttl=1
+//!                     &hello_ms=1000&mtu=1472&name=robot-1
 //! ```
+//!
+//! Every program (the runtime's [`default_url`], the `ayllu` tool, the AylluLite clients)
+//! takes its URL from the environment variable `AYLLU_URL`, else uses [`DEFAULT_URL`]:
+//! discovery by multicast with a TTL of 0, so nodes on one machine find each other with no
+//! configuration and nothing leaves the machine. For a team on one subnet, set
+//! `AYLLU_URL='udp://0.0.0.0:7400?discovery=239.255.65.89:7400&ttl=1'` on every robot.
 //!
 //! * `team` (default 0): the team id; datagrams of other teams are ignored.
 //! * `key`: 64 hex digits, the 32-byte team key. Without it the team is open (N5).
@@ -12,6 +19,10 @@
 //!   paper's `ayMakeBroadcast("10.255.255.255")`).
 //! * `group=NAME@ADDR` (repeatable): a group's own address, broadcast or multicast (joined).
 //!   A group with neither is delivered by unicast to every peer that announced it (HELLO).
+//! * `discovery=ADDR:PORT`: a multicast address to which HELLOs go and on which the node
+//!   listens (shared with the other nodes of the machine): nodes that hear each other's HELLO
+//!   greet each other by unicast, so no peer needs to be listed.
+//! * `ttl` (default 1, 0 to 255): the multicast TTL; 0 keeps discovery on this machine.
 //! * `hello_ms`: liveness period (N6); peers are forgotten after three silent periods.
 //! * `mtu`: the largest datagram sent (batching fills datagrams up to it, N3).
 //!
@@ -28,6 +39,17 @@ pub const DEFAULT_MTU: usize = 1472;
 /// Largest datagram accepted (spec/protocol.md).
 pub const MAX_DATAGRAM: usize = 8192;
 
+/// The environment variable every Ayllu program reads its `udp://` URL from.
+pub const URL_ENV: &str = "AYLLU_URL";
+/// The URL used when `AYLLU_URL` is not set: any address, a port the system chooses, team 0,
+/// no key, discovery on this machine only (multicast TTL 0).
+pub const DEFAULT_URL: &str = "udp://0.0.0.0:0?discovery=239.255.65.89:7400&ttl=0";
+
+/// The URL this program should use: `AYLLU_URL` if set (and not empty), else [`DEFAULT_URL`].
+pub fn default_url() -> String {
+    std::env::var(URL_ENV).ok().filter(|u| !u.trim().is_empty()).unwrap_or_else(|| DEFAULT_URL.to_owned())
+}
+
 /// A parsed `udp://` URL.
 #[derive(Clone, Debug, PartialEq)]
 pub struct UdpConfig {
@@ -37,6 +59,10 @@ pub struct UdpConfig {
     pub peers: Vec<SocketAddr>,
     pub broadcast: Option<SocketAddr>,
     pub groups: Vec<(String, SocketAddr)>,
+    /// Multicast address for HELLOs (zero-config discovery), listened on.
+    pub discovery: Option<SocketAddr>,
+    /// Multicast TTL (0: this machine only).
+    pub ttl: u32,
     pub hello_interval: Duration,
     pub mtu: usize,
     pub name: String,
@@ -52,6 +78,8 @@ impl UdpConfig {
             peers: Vec::new(),
             broadcast: None,
             groups: Vec::new(),
+            discovery: None,
+            ttl: 1,
             hello_interval: Duration::from_millis(1000),
             mtu: DEFAULT_MTU,
             name: String::new(),
@@ -77,6 +105,20 @@ impl UdpConfig {
                         return Err(bad(format!("group name `{name}` must be 1 to 255 bytes")));
                     }
                     config.groups.push((name.to_owned(), resolve(a).map_err(bad)?));
+                }
+                "discovery" => {
+                    let a = resolve(v).map_err(bad)?;
+                    if !a.ip().is_multicast() {
+                        return Err(bad(format!("discovery `{v}` must be a multicast address (224.0.0.0/4)")));
+                    }
+                    config.discovery = Some(a);
+                }
+                "ttl" => {
+                    config.ttl = v
+                        .parse()
+                        .ok()
+                        .filter(|t| *t <= 255)
+                        .ok_or_else(|| bad(format!("ttl `{v}` must be a number from 0 to 255")))?;
                 }
                 "hello_ms" => {
                     let ms: u64 = v.parse().map_err(|_| bad(format!("hello_ms `{v}` is not a number")))?;
@@ -117,6 +159,11 @@ pub fn parse_key(hex: &str) -> Result<[u8; 32], String> {
     if hex.len() != 64 {
         return Err(format!("key must be 64 hex digits, got {}", hex.len()));
     }
+    // Checked first: slicing non-ASCII text by bytes would panic, and from_str_radix would
+    // take "+f" as a number.
+    if !hex.bytes().all(|b| b.is_ascii_hexdigit()) {
+        return Err("key must be hex digits (0-9, a-f)".to_owned());
+    }
     let mut key = [0u8; 32];
     for (i, byte) in key.iter_mut().enumerate() {
         *byte = u8::from_str_radix(&hex[2 * i..2 * i + 2], 16).map_err(|_| "key must be hex digits".to_owned())?;
@@ -145,6 +192,17 @@ mod tests {
     }
 
     #[test]
+    fn the_default_url_discovers_on_this_machine_only() {
+        let c = UdpConfig::parse(DEFAULT_URL).unwrap();
+        assert_eq!(c.bind, "0.0.0.0:0".parse().unwrap(), "any address, a port the system chooses");
+        assert_eq!(c.discovery, Some("239.255.65.89:7400".parse().unwrap()));
+        assert_eq!((c.ttl, c.team, c.key), (0, 0, None), "TTL 0: nothing leaves the machine; team 0, open");
+        let c = UdpConfig::parse("udp://0.0.0.0:7400?discovery=239.255.65.89:7400&ttl=1").unwrap();
+        assert_eq!(c.ttl, 1);
+        assert_eq!(UdpConfig::parse("udp://0.0.0.0:0").unwrap().ttl, 1, "ttl defaults to 1 when not given");
+    }
+
+    #[test]
     fn mistakes_are_named() {
         for (url, needle) in [
             ("udp://nowhere", "HOST:PORT"),
@@ -155,6 +213,12 @@ mod tests {
             ("udp://127.0.0.1:1?hello_ms=0", "hello_ms"),
             ("udp://127.0.0.1:1?mtu=10", "mtu"),
             ("udp://127.0.0.1:1?colour=blue", "unknown option"),
+            ("udp://127.0.0.1:1?key=+0112233445566778899aabbccddeeff00112233445566778899aabbccddeeff", "hex"),
+            ("udp://127.0.0.1:1?key=ééééééééééééééééééééééééééééééééé", "64 hex"),
+            ("udp://127.0.0.1:1?key=éééééééééééééééééééééééééééééééé", "hex"),
+            ("udp://127.0.0.1:1?discovery=127.0.0.1:7400", "multicast"),
+            ("udp://127.0.0.1:1?ttl=256", "ttl"),
+            ("udp://127.0.0.1:1?ttl=-1", "ttl"),
             ("tcp://127.0.0.1:1", "udp://"),
         ] {
             let e = UdpConfig::parse(url).unwrap_err().to_string();

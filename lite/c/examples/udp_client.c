@@ -11,7 +11,9 @@
  *
  * VALUE: true/false (bool), an integer (int), a decimal number (float), vec:1,2.5 (vector),
  * hex:00ff (bytes), anything else (text; text:... forces text).
- * Options: --team N (1), --node N (900), --kind normal|suppress|inhibit|override-in|
+ * Team and key: from AYLLU_URL's team= and key= if set (as every Ayllu program), else team 0
+ * and no key; --team and --key override them.
+ * Options: --team N (0), --node N (900), --kind normal|suppress|inhibit|override-in|
  * override-out|write-inhibit, --period-ms N (special kinds; default 500), --priority N,
  * --key HEX64 (authenticated team), --count N (1), --interval-ms N (100).
  */
@@ -151,7 +153,7 @@ int main(int argc, char **argv) {
     static ayl_seq_entry seqs[8];
     static ayl_pending pending[1];
     static uint8_t rx[AYL_MAX_DATAGRAM], tx[AYL_MTU], out[4096];
-    uint32_t team = 1, node_id = 900;
+    uint32_t team = 0, node_id = 900;
     int kind = AYL_NORMAL, count = 1, read_mode = 0, a;
     long period_ms = 500, interval_ms = 100;
     int32_t priority = 0;
@@ -164,6 +166,9 @@ int main(int argc, char **argv) {
     ayl_node node;
     ayl_addr to;
 
+    if (posix_env_team_key(&team, key, &keyed) < 0) {
+        return 2;
+    }
     for (a = 1; a < argc; a++) {
         const char *o = argv[a];
         const char *arg = a + 1 < argc ? argv[a + 1] : NULL;

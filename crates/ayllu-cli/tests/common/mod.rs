@@ -40,6 +40,7 @@ pub struct Proc {
 impl Proc {
     /// Start `cmd` with stdout and stderr captured.
     pub fn spawn(name: &str, mut cmd: Command) -> Proc {
+        loopback_by_default(&mut cmd);
         let mut child = cmd
             .stdin(Stdio::null())
             .stdout(Stdio::piped())
@@ -148,8 +149,18 @@ impl Run {
     }
 }
 
+/// Unless the test chose (set or removed `AYLLU_URL`), a command without `--udp` uses
+/// loopback without discovery: tests never send multicast from the machine they share, and
+/// never find nodes of other tests (docs/testing.md). The discovery tests run in namespaces.
+fn loopback_by_default(cmd: &mut Command) {
+    if !cmd.get_envs().any(|(k, _)| k == "AYLLU_URL") {
+        cmd.env("AYLLU_URL", "udp://127.0.0.1:0");
+    }
+}
+
 /// Run `cmd` to completion, killing it (and failing the test) if it takes longer than `limit`.
 pub fn run(mut cmd: Command, limit: Duration) -> Run {
+    loopback_by_default(&mut cmd);
     let start = Instant::now();
     let mut child = cmd
         .stdin(Stdio::null())

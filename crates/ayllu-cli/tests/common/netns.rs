@@ -2,7 +2,7 @@
 //! (loopback has none).
 //!
 //! Promises: namespace i (0-based) has address `10.SUBNET.0.(i+1)/24` with its broadcast
-//! address `10.SUBNET.0.255`; everything created is removed when the guard drops (links, then
+//! address `10.SUBNET.0.255` and a route for multicast (224.0.0.0/4) onto the bridge; everything created is removed when the guard drops (links, then
 //! namespaces), whatever happened in between; names are unique per test process and tag, so
 //! tests in one binary, and binaries run at the same time, do not collide. Creating them needs
 //! root and `ip`: [`Netns::create`] says why it could not, and callers skip loudly.
@@ -48,6 +48,9 @@ impl Netns {
             ip(&["-n", &ns, "addr", "add", &format!("{}/24", net.addr(i - 1)), "brd", "+", "dev", &inner])?;
             ip(&["-n", &ns, "link", "set", &inner, "up"])?;
             ip(&["-n", &ns, "link", "set", "lo", "up"])?;
+            // Multicast (zero-config discovery) leaves by the bridge: a namespace has no
+            // default route, and the kernel needs one to send to 224.0.0.0/4.
+            ip(&["-n", &ns, "route", "add", "224.0.0.0/4", "dev", &inner])?;
         }
         Ok(net)
     }
