@@ -1,6 +1,6 @@
 //! `udp://` — the network transport: Ayllu nodes on real IP networks (paper §3.1).
 //!
-//! What it does, by rule of `../../docs/semantics.md` and `spec/protocol.md`:
+//! What it does, by rule of `docs/semantics.md` and `spec/protocol.md`:
 //! * N1: port messages are sent once, never retransmitted; the core drops stale sequence numbers.
 //! * N3: messages for the same address leaving in one loop turn share datagrams up to the MTU;
 //!   [`Transport::flush`] ends the turn.
