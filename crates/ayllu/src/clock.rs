@@ -11,6 +11,7 @@ use ayllu_core::{Duration, Instant};
 
 /// A source of `now` for one node.
 pub trait Clock: Send {
+    /// The current instant on this clock (nanoseconds since the clock's origin); never goes backwards.
     fn now(&self) -> Instant;
     /// Whether waiting for this clock means sleeping (real time) or not (manual time).
     fn is_real_time(&self) -> bool;
@@ -23,6 +24,7 @@ pub struct MonotonicClock {
 }
 
 impl MonotonicClock {
+    /// A clock whose origin is now.
     pub fn new() -> MonotonicClock {
         MonotonicClock { origin: std::time::Instant::now() }
     }
@@ -55,6 +57,7 @@ pub struct ManualClock {
 }
 
 impl ManualClock {
+    /// A clock at `Instant::ZERO` that moves only when [`ManualClock::advance`] is called.
     pub fn new() -> ManualClock {
         ManualClock::default()
     }
@@ -62,6 +65,7 @@ impl ManualClock {
     pub fn set(&self, t: Instant) {
         self.nanos.fetch_max(t.as_nanos(), Ordering::SeqCst);
     }
+    /// Move this clock (and every clone of it) forward by `d`.
     pub fn advance(&self, d: Duration) {
         let _ = self.nanos.fetch_update(Ordering::SeqCst, Ordering::SeqCst, |n| Some(n.saturating_add(d.as_nanos())));
     }

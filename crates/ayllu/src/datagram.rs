@@ -13,12 +13,15 @@ use std::time::Duration as StdDuration;
 
 /// A non-blocking datagram socket.
 pub trait DatagramSocket: Send {
+    /// Send one datagram to `to`. A full send buffer drops it silently (best effort, N1).
     fn send_to(&mut self, bytes: &[u8], to: SocketAddr) -> io::Result<()>;
     /// The next datagram, if one is waiting. Never blocks.
     fn recv_from(&mut self, buf: &mut [u8]) -> io::Result<Option<(usize, SocketAddr)>>;
     /// Block until a datagram may be waiting or `timeout` passes.
     fn wait(&mut self, timeout: StdDuration);
+    /// The address the socket is bound to.
     fn local_addr(&self) -> io::Result<SocketAddr>;
+    /// Also receive datagrams sent to multicast `group` (on the default interface).
     fn join_multicast(&mut self, group: Ipv4Addr) -> io::Result<()>;
     /// The TTL of multicast datagrams sent (0: they never leave this machine).
     fn set_multicast_ttl(&mut self, ttl: u32) -> io::Result<()> {
@@ -227,6 +230,7 @@ fn os_socket(addr: SocketAddr, shared: bool) -> io::Result<UdpSocket> {
 }
 
 impl OsSocket {
+    /// An exclusive, non-blocking socket bound to `addr` (port 0: the system chooses).
     pub fn bind(addr: SocketAddr) -> io::Result<OsSocket> {
         Ok(OsSocket { socket: os_socket(addr, false)?, extra: Vec::new(), ahead: ReadAhead::new() })
     }
@@ -351,6 +355,7 @@ fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
 }
 
 impl DatagramBus {
+    /// An empty network.
     pub fn new() -> DatagramBus {
         DatagramBus::default()
     }

@@ -4,23 +4,34 @@ use core::fmt;
 
 use ayllu_core::NodeId;
 
+/// What went wrong in the runtime: the core refused (misuse), a URL did not parse, a
+/// transport is not available, or the operating system said no. Never a panic.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Error {
+    /// The core refused the call (see [`ayllu_core::Error`]).
     Core(ayllu_core::Error),
+    /// A transport URL that does not parse; `reason` names the bad part.
     BadUrl {
+        /// The URL as given.
         url: String,
+        /// What is wrong with it.
         reason: String,
     },
+    /// A transport or feature this build does not have.
     Unsupported {
+        /// What was asked for.
         what: String,
     },
     /// Two nodes with the same id on one transport.
     DuplicateNode {
+        /// The id already attached.
         node: NodeId,
     },
     /// The operating system refused something (binding a socket, joining a group).
     Io {
+        /// What the runtime was doing, with what to do about it where known.
         what: String,
+        /// The operating system's error message.
         error: String,
     },
 }

@@ -19,13 +19,17 @@ use crate::datagram::DatagramSocket;
 /// What to do to outgoing datagrams. Probabilities are per datagram, in `0.0..=1.0`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct FaultConfig {
+    /// Seed of the injector's random stream: the same seed, the same faults.
     pub seed: u64,
+    /// Probability that a datagram is dropped.
     pub loss: f64,
+    /// Probability that a datagram is sent twice.
     pub duplicate: f64,
     /// Hold a datagram back and send it after the next one.
     pub reorder: f64,
     /// Flip one random bit.
     pub corrupt: f64,
+    /// Fixed delay added to every datagram.
     pub delay: Duration,
     /// Extra delay, uniform in `0..jitter`.
     pub jitter: Duration,
@@ -49,11 +53,17 @@ impl FaultConfig {
 /// How many datagrams each fault touched.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct FaultCounts {
+    /// Datagrams handed to the injector.
     pub sent: u64,
+    /// Datagrams dropped.
     pub lost: u64,
+    /// Datagrams sent twice.
     pub duplicated: u64,
+    /// Datagrams held back behind the next one.
     pub reordered: u64,
+    /// Datagrams with one bit flipped.
     pub corrupted: u64,
+    /// Datagrams delayed.
     pub delayed: u64,
 }
 
@@ -71,11 +81,13 @@ pub struct FaultySocket<S, C> {
 }
 
 impl<S: DatagramSocket, C: Clock> FaultySocket<S, C> {
+    /// Wrap `inner`: faults are drawn from `config`'s seed and delays measured on `clock`.
     pub fn new(inner: S, clock: C, config: FaultConfig) -> Self {
         let rng = fastrand::Rng::with_seed(config.seed);
         FaultySocket { inner, clock, config, rng, held: VecDeque::new(), swapped: None, counts: FaultCounts::default() }
     }
 
+    /// What the injector has done so far.
     pub fn counts(&self) -> FaultCounts {
         self.counts
     }

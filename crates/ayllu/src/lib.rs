@@ -2,8 +2,10 @@
 //!
 //! Wraps the sans-IO [`ayllu_core`] in what a program needs to run it: a [`Node`] with a
 //! [`Clock`] (real monotonic or [`ManualClock`]) and a [`Transport`] chosen by URL
-//! (`mem://` in-process now; `udp://` next), and [`Lockstep`] for deterministic teams on
+//! (`mem://` in-process, `udp://` on IP networks), and [`Lockstep`] for deterministic teams on
 //! virtual time. Everything in the core is re-exported, so `use ayllu::*` is enough.
+
+#![warn(missing_docs)]
 
 pub mod clock;
 pub mod datagram;

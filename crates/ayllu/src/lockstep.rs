@@ -14,6 +14,20 @@ use crate::mem::MemNetwork;
 use crate::node::Node;
 
 /// A deterministic team on virtual time.
+///
+/// ```
+/// use ayllu::*;
+/// let mut team = Lockstep::new("demo");
+/// for id in 1..=3 {
+///     let i = team.add(NodeId(id))?;
+///     team.node(i).join("Peers");
+/// }
+/// team.advance(Duration::from_millis(100), Duration::from_millis(10));
+/// assert_eq!(team.now(), Instant::from_millis(100));
+/// drop(team.kill(NodeId(2))); // robot 2 dies; the others go on
+/// assert_eq!(team.nodes().len(), 2);
+/// # Ok::<(), RuntimeError>(())
+/// ```
 pub struct Lockstep {
     name: String,
     clock: ManualClock,
@@ -27,6 +41,7 @@ impl Lockstep {
         Lockstep { name: name.to_owned(), clock: ManualClock::new(), nodes: Vec::new(), network: MemNetwork::new() }
     }
 
+    /// The name given at creation (for messages).
     pub fn name(&self) -> &str {
         &self.name
     }
@@ -51,13 +66,16 @@ impl Lockstep {
         self.nodes.len() - 1
     }
 
+    /// The team's virtual time.
     pub fn now(&self) -> Instant {
         use crate::clock::Clock;
         self.clock.now()
     }
+    /// The team's clock: nodes added with [`Lockstep::add_node`] must use a clone of it.
     pub fn clock(&self) -> &ManualClock {
         &self.clock
     }
+    /// The live nodes, in the order they were added.
     pub fn nodes(&self) -> &[Node] {
         &self.nodes
     }

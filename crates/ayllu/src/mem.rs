@@ -46,6 +46,7 @@ fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
 }
 
 impl MemNetwork {
+    /// A private network: only transports attached to this value (or its clones) share it.
     pub fn new() -> MemNetwork {
         MemNetwork::default()
     }

@@ -34,6 +34,33 @@ pub struct NodeStats {
 }
 
 /// A running Ayllu node. See the module docs.
+///
+/// Two nodes in one program over `mem://`, on a clock the program moves: node 1 writes
+/// node 2's port across the transport.
+///
+/// ```
+/// use ayllu::*;
+/// let clock = ManualClock::new();
+/// let net = MemNetwork::new();
+/// let mut nodes = Vec::new();
+/// for id in [1, 2] {
+///     let mut node = Node::new(clock.clone(), net.attach(NodeId(id))?);
+///     let mut relay = BehaviorClass::new("Relay");
+///     relay.port(PortSpec::new("Out", 0i64))?;
+///     relay.port(PortSpec::new("In", 0i64))?;
+///     node.define(relay)?;
+///     node.create("Relay", "R")?;
+///     nodes.push(node);
+/// }
+/// nodes[0].connect(&Endpoint::local("R", "Out"), &Endpoint::node(NodeId(2), "R", "In"),
+///                  ConnectionKind::Normal)?;
+/// nodes[0].write("R", "Out", 42i64)?;
+/// nodes[0].step(); // sends
+/// clock.advance(Duration::from_millis(1));
+/// nodes[1].step(); // receives
+/// assert_eq!(nodes[1].read("R", "In")?, Value::Int(42));
+/// # Ok::<(), RuntimeError>(())
+/// ```
 pub struct Node {
     core: NodeCore,
     clock: Box<dyn Clock>,
@@ -109,12 +136,16 @@ impl Node {
         self.joined = wanted;
     }
 
+    /// This node's id.
     pub fn id(&self) -> NodeId {
         self.core.id()
     }
+    /// The node's clock now.
     pub fn now(&self) -> Instant {
         self.clock.now()
     }
+    /// The sans-IO core, for reading everything this wrapper does not forward (reports, BLE
+    /// status, warnings).
     pub fn core(&self) -> &NodeCore {
         &self.core
     }
@@ -123,6 +154,7 @@ impl Node {
     pub fn core_mut(&mut self) -> &mut NodeCore {
         &mut self.core
     }
+    /// Traffic figures since the node started.
     pub fn stats(&self) -> NodeStats {
         self.stats
     }
@@ -140,12 +172,15 @@ impl Node {
         self.transport.address()
     }
 
+    /// Define a behavior class on this node (rule S2).
     pub fn define(&mut self, class: BehaviorClass) -> Result<(), Error> {
         Ok(self.core.define(class)?)
     }
+    /// Create behavior `name` of class `class` (rule S9: also while running).
     pub fn create(&mut self, class: &str, name: &str) -> Result<BehaviorRef, Error> {
         Ok(self.core.create(class, name)?)
     }
+    /// Remove behavior `name` and every connection into or out of it (rule S9).
     pub fn remove(&mut self, name: &str) -> Result<(), Error> {
         Ok(self.core.remove(name)?)
     }
@@ -169,6 +204,7 @@ impl Node {
     ) -> Result<ConnectionId, Error> {
         Ok(self.core.connect(source, destination, kind, options)?)
     }
+    /// Remove a connection this node owns; windows it holds here end at once (D6.9).
     pub fn disconnect(&mut self, id: ConnectionId) -> Result<(), Error> {
         Ok(self.core.disconnect(id)?)
     }
@@ -177,6 +213,7 @@ impl Node {
         self.core.join(group);
         self.sync_groups();
     }
+    /// Leave a broadcast group, on the core and on the transport.
     pub fn leave(&mut self, group: &str) {
         self.core.leave(group);
         self.sync_groups();

@@ -73,8 +73,11 @@ pub fn sonar_class(beams: usize, max_range: f64) -> Result<BehaviorClass, Error>
 /// front sector is `slow` metres away or more, nothing at `stop` or less, linear between.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SafeVelocity {
+    /// Translation speed (m/s) with a clear way ahead.
     pub speed: f64,
+    /// Distance (m) at or under which the robot stops.
     pub stop: f64,
+    /// Distance (m) from which the robot goes at full speed.
     pub slow: f64,
     /// Half-width of the front sector (rad) whose beams count.
     pub sector: f64,

@@ -27,6 +27,7 @@ pub trait Transport: Send {
     fn wait(&mut self, timeout: std::time::Duration);
     /// Start receiving messages sent to `group`.
     fn join(&mut self, group: &str);
+    /// Stop receiving messages sent to `group`.
     fn leave(&mut self, group: &str);
     /// End of a loop turn: send what `send` batched (N3).
     fn flush(&mut self) {}
@@ -89,10 +90,15 @@ pub enum Sent {
 /// A peer as a transport knows it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PeerInfo {
+    /// The peer's node id.
     pub node: NodeId,
+    /// Where it was last heard from (`IP:PORT` for `udp://`).
     pub addr: String,
+    /// The name it announces (may be empty).
     pub name: String,
+    /// The broadcast groups it announced in its HELLO.
     pub groups: Vec<String>,
+    /// When it was last heard, on this node's clock.
     pub last_heard: Instant,
 }
 

@@ -53,18 +53,27 @@ pub fn default_url() -> String {
 /// A parsed `udp://` URL.
 #[derive(Clone, Debug, PartialEq)]
 pub struct UdpConfig {
+    /// Where the node's own socket binds (port 0: the system chooses; see `Node::address`).
     pub bind: SocketAddr,
+    /// The team id; datagrams of other teams are dropped (`wrong_team`).
     pub team: u32,
+    /// The 32-byte team key: with it every datagram is authenticated (N5); without, the team is open.
     pub key: Option<[u8; 32]>,
+    /// Addresses greeted with HELLO at start and every period (bootstrap for unicast teams).
     pub peers: Vec<SocketAddr>,
+    /// Where group messages go when the group has no address of its own.
     pub broadcast: Option<SocketAddr>,
+    /// Groups with an address of their own (broadcast or multicast), by name.
     pub groups: Vec<(String, SocketAddr)>,
     /// Multicast address for HELLOs (zero-config discovery), listened on.
     pub discovery: Option<SocketAddr>,
     /// Multicast TTL (0: this machine only).
     pub ttl: u32,
+    /// Liveness period (N6); a peer silent for three of its periods is forgotten.
     pub hello_interval: Duration,
+    /// The largest datagram sent (N3 batches up to it).
     pub mtu: usize,
+    /// The name announced in HELLO.
     pub name: String,
 }
 
@@ -86,6 +95,7 @@ impl UdpConfig {
         }
     }
 
+    /// Parse a `udp://` URL (module docs); the error names the bad part. Never panics.
     pub fn parse(url: &str) -> Result<UdpConfig, Error> {
         let bad = |reason: String| Error::BadUrl { url: url.to_owned(), reason };
         let rest = url.strip_prefix("udp://").ok_or_else(|| bad("expected udp://HOST:PORT".into()))?;
