@@ -5,9 +5,14 @@ CARGO ?= cargo
 .PHONY: demo test lint bench bench-net bench-sim fuzz fmt
 
 ## Run the main demo: W-CMOMMT in the simulator (the paper's setting, a sweep, a robot killed
-## halfway) for BLE and every baseline; prints the tables and writes ayllu-report/index.html.
+## halfway) for BLE and every baseline; prints a short summary (BLE against each baseline, whether
+## the paper's claim held) and writes ayllu-report/ (index.html replays any run; tables.txt).
+## Cargo's own progress shows while it builds (the first build takes a minute or two).
 demo:
-	$(CARGO) run --release --quiet -p ayllu-cli -- sim cmommt
+	@echo "make demo: building the ayllu tool (release; the first build takes a minute or two)..."
+	$(CARGO) build --release -p ayllu-cli
+	@echo "make demo: running the study (1400 simulated runs, about 15-40 s; progress on stderr)..."
+	@$(TARGET_DIR)/release/ayllu sim cmommt
 
 PYTHON ?= python3
 # Where cargo puts binaries (honours CARGO_TARGET_DIR).

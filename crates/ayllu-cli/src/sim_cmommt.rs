@@ -1,40 +1,52 @@
 //! `ayllu sim cmommt`: the paper's multi-target observation study (section 4) in one command.
 //!
 //! It runs the plan of [`ayllu_sim::study`] (the paper's setting, the sweep, the robustness
-//! scenario; every controller, seeds 1..=N) on worker threads, prints the three tables and how
-//! each controller's A_w compares with BLE's, then records BLE's run in the paper's setting
-//! (seed 1) with every controller's coverage on that same world, and writes the report folder.
+//! scenario; every controller, seeds 1..=N) on worker threads, recording the runs the report
+//! can replay (every controller and seed, up to [`REPLAY_SEEDS`], of the paper's setting and the
+//! robustness scenario; seed 1 of each sweep cell), writes the report folder, then prints a
+//! short summary: BLE against every other controller on A_w, whether the paper's claim held,
+//! what a killed robot cost. The three tables go into the folder (`tables.txt`, the page) and
+//! to stdout only with `--full`.
 //!
-//! Promises: stdout carries only results (tables and comparisons, or one JSON document with
-//! `--json`), the same for the same arguments whatever `--jobs` is, except for the wall time
-//! line; progress goes to stderr (a bar on a terminal, a few plain lines otherwise, so CI logs
-//! show it moving); exit 0 once the report is written, 1 with one message otherwise.
+//! Promises: stdout carries only results (the summary, the tables with `--full`, or one JSON
+//! document with `--json`), the same for the same arguments whatever `--jobs` is, except for the
+//! wall time line; progress goes to stderr (a bar on a terminal, a few plain lines otherwise,
+//! so CI logs show it moving); exit 0 once the report is written — also when the reader of
+//! stdout goes away early (`| head -1`): the rest of the output is dropped quietly — and 1 with
+//! one message otherwise. Nothing written to stderr can panic.
 
-use std::io::{IsTerminal, Write};
+use std::fmt;
+use std::io::{self, IsTerminal, Write};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
-use ayllu_sim::controller::Controller;
 use ayllu_sim::recording::CoverageSeries;
-use ayllu_sim::report::{self, Report};
-use ayllu_sim::scenario::{Outcome, Scenario};
-use ayllu_sim::study::{self, Plan, Results, Row, StudyConfig, PAPER_ROBOTS, PAPER_TARGETS};
+use ayllu_sim::report::{self, Replay, Report};
+use ayllu_sim::scenario::Outcome;
+use ayllu_sim::study::{self, Cell, Plan, StudyConfig, Table};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
 
 use crate::fail::Fail;
 
-/// Seed of the replayed run (and of the coverage comparison on the same world).
+/// The seed of the run the page opens on (BLE, paper setting), of every controller's coverage on
+/// that same world, and the only seed of the sweep's cells kept for a replay.
 const REPLAY_SEED: u64 = 1;
+/// Seeds kept for a replay in the paper's setting and the robustness scenario: 1..=this.
+const REPLAY_SEEDS: u64 = 10;
+/// Seconds between the poses a replay keeps (the simulator records a frame every 0.2 s). The
+/// full study's page is then about 6 MB; the page says how it was thinned.
+const REPLAY_STEP: f64 = 0.4;
 
 #[derive(Args, Debug)]
 #[command(after_help = "\
-The full study is 1400 runs (paper 5 cells, sweep 120, robustness 15; x 10 seeds of 300 s),
-plus 5 for the replay: about 30 CPU-seconds in a release build, so 15-35 s on 2 cores
-depending on what else runs; --quick (125 runs) takes under a second.
-The columns are defined in docs/cmommt.md; the command in docs/cli.md.")]
+The full study is 1400 runs (paper 5 cells, sweep 120, robustness 15; x 10 seeds of 300 s):
+about 30 CPU-seconds in a release build, so 15-40 s on 2 cores depending on what else runs;
+--quick (120 runs) takes about a second. Stdout gets a short summary (BLE against each baseline,
+whether the paper's claim held); the tables are in DIR/tables.txt and DIR/index.html, which
+also replays any run. The columns are defined in docs/cmommt.md; the command in docs/cli.md.")]
 pub struct CmommtArgs {
     /// Runs per setting, seeds 1..=N [default: 10; 3 with --quick].
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=10_000))]
@@ -56,9 +68,12 @@ pub struct CmommtArgs {
     /// Skip the sweep (paper setting and robustness only).
     #[arg(long)]
     pub no_sweep: bool,
-    /// Print the rows as one JSON document instead of tables.
-    #[arg(long)]
+    /// Print the rows as one JSON document instead of the summary.
+    #[arg(long, conflicts_with = "full")]
     pub json: bool,
+    /// Also print the three tables after the summary (they are always in DIR/tables.txt).
+    #[arg(long)]
+    pub full: bool,
 }
 
 pub fn run(args: &CmommtArgs) -> Result<(), Fail> {
@@ -75,37 +90,55 @@ pub fn run(args: &CmommtArgs) -> Result<(), Fail> {
     }
     let jobs = args.jobs.map_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()), |j| j as usize);
     let plan = Plan::new(&config);
-    let replays = replay_scenarios(&config);
-    let total = plan.runs() + replays.len();
+    let total = plan.runs();
+    let recorded = plan
+        .cells_by_table()
+        .flat_map(|(t, c)| (1..=u64::from(c.seeds)).map(move |seed| (t, seed)))
+        .filter(|&(t, seed)| record(t, seed))
+        .count();
 
-    eprintln!(
-        "sim cmommt: {total} runs of {} s (paper {} cells, sweep {}, robustness {}; {} seeds; {} replayed) on {}",
+    note(format_args!(
+        "sim cmommt: {total} runs of {} s (paper {} cells, sweep {}, robustness {}; {} seeds; {recorded} recorded for \
+         the report's replay) on {}",
         config.duration,
         plan.paper.len(),
         plan.sweep.len(),
         plan.robustness.len(),
         config.seeds,
-        replays.len(),
         threads(jobs),
-    );
+    ));
     let progress = Progress::new(total as u64, started);
-    let results =
-        study::run_plan(&plan, jobs, &|| progress.tick()).map_err(|e| Fail::error(format!("a run failed: {e}")))?;
-    let outcomes = study::run_all(&replays, jobs, &|| progress.tick(), &|o: Outcome| o)
-        .map_err(|e| Fail::error(format!("the replay run failed: {e}")))?;
+    let (results, kept) =
+        study::run_plan_recording(&plan, jobs, &|| progress.tick(), &|t, _, seed| record(t, seed), &keep)
+            .map_err(|e| Fail::error(format!("a run failed: {e}")))?;
     progress.finish();
 
-    let mut recording = None;
     let mut coverage: Vec<(String, CoverageSeries)> = Vec::new();
-    for (scenario, outcome) in replays.iter().zip(outcomes) {
-        coverage.push((scenario.controller.name().to_owned(), outcome.coverage));
-        recording = recording.or(outcome.recording);
+    let mut replays: [Vec<Replay>; 3] = Default::default();
+    for (table, cell, seed, kept) in kept {
+        // Recorded runs always have a recording; a run without one simply has no replay.
+        let Some((replay, series)) = kept else { continue };
+        if table == Table::Paper && seed == REPLAY_SEED {
+            coverage.push((cell.controller.name().to_owned(), series));
+        }
+        // The menus list the paper's setting, then the robustness scenario, then the sweep.
+        let at = match table {
+            Table::Paper => 0,
+            Table::Robustness => 1,
+            Table::Sweep => 2,
+        };
+        replays[at].push(replay);
     }
-    let recording = recording.ok_or_else(|| Fail::error("the replay run kept no recording"))?;
+    // Opening on BLE in the paper's setting, seed 1: the plan lists BLE first, seeds in order.
+    let replays: Vec<Replay> = replays.into_iter().flatten().collect();
+    if replays.is_empty() {
+        return Err(Fail::error("no run was recorded for the report's replay"));
+    }
     let report = Report {
         title: "W-CMOMMT: Broadcast of Local Eligibility against the baselines".to_owned(),
         command: command_line(),
-        recording,
+        duration: config.duration,
+        replays,
         coverage,
         paper: results.paper.clone(),
         sweep: results.sweep.clone(),
@@ -115,9 +148,9 @@ pub fn run(args: &CmommtArgs) -> Result<(), Fail> {
     report::write(&args.out, &report)
         .map_err(|e| Fail::error(format!("writing the report into {}: {e}", args.out.display())))?;
     let wall = started.elapsed().as_secs_f64();
+    let timing = format!("{wall:.1} s ({total} runs on {})", threads(jobs));
 
-    let mut out = std::io::stdout().lock();
-    if args.json {
+    let printed = if args.json {
         let doc = json!({
             "paper": results.paper,
             "robustness": results.robustness,
@@ -125,86 +158,84 @@ pub fn run(args: &CmommtArgs) -> Result<(), Fail> {
             "report": index.display().to_string(),
         });
         let text = serde_json::to_string_pretty(&doc).map_err(|e| Fail::error(e.to_string()))?;
-        writeln!(out, "{text}")?;
-        // Kept off stdout so the document is the same for the same arguments.
-        eprintln!("sim cmommt: wall time {wall:.1} s ({total} runs on {})", threads(jobs));
-    } else {
-        write_tables(&mut out, &config, &results)?;
-        writeln!(out, "Report: {}", index.display())?;
-        writeln!(out, "Wall time: {wall:.1} s ({total} runs on {})", threads(jobs))?;
-    }
-    out.flush()?;
-    Ok(())
-}
-
-/// Every controller in the paper's setting on the replay seed: the same world for all (where
-/// robots and targets start, and how targets move, depend on the seed only, not on what the
-/// robots do). The first controller's run (BLE) is recorded.
-fn replay_scenarios(config: &StudyConfig) -> Vec<Scenario> {
-    config
-        .controllers
-        .iter()
-        .enumerate()
-        .map(|(i, &c)| {
-            let s = Scenario::sized(c, PAPER_ROBOTS, PAPER_TARGETS, REPLAY_SEED).duration(config.duration);
-            if i == 0 {
-                s.recorded()
-            } else {
-                s
-            }
+        print_json(&text).inspect(|()| {
+            // Kept off stdout so the document is the same for the same arguments.
+            note(format_args!("sim cmommt: wall time {timing}"));
         })
-        .collect()
-}
-
-fn write_tables(out: &mut impl Write, config: &StudyConfig, results: &Results) -> std::io::Result<()> {
-    let runs = format!("{} seeds x {} s", config.seeds, config.duration);
-    writeln!(
-        out,
-        "Paper setting: {PAPER_ROBOTS} robots, {PAPER_TARGETS} targets (priorities 4,3,2,1), no loss; {runs}"
-    )?;
-    writeln!(out, "{}", report::text_table(&results.paper))?;
-    writeln!(out, "Robustness: paper setting, the most useful robot killed at {} s; {runs}", config.duration / 2.0)?;
-    writeln!(out, "{}", report::text_table(&results.robustness))?;
-    if results.sweep.is_empty() {
-        writeln!(out, "Sweep: skipped (--no-sweep)\n")?;
     } else {
-        writeln!(out, "Sweep: robots x targets x radio loss; {runs}")?;
-        writeln!(out, "{}", report::text_table(&results.sweep))?;
+        print_summary(&report, &args.out, args.full, &timing)
+    };
+    match printed {
+        // The reader went away (`ayllu sim cmommt | head -1`): it has read what it wanted, and
+        // the report is written. A normal end, not an error.
+        Err(e) if e.kind() == io::ErrorKind::BrokenPipe => Ok(()),
+        Err(e) => Err(Fail::error(format!("writing output: {e}"))),
+        Ok(()) => Ok(()),
     }
-    write_comparison(out, &results.paper)
 }
 
-/// One line per controller: its A_w in the paper's setting against BLE's, with the standard
-/// error of the difference so that a gap can be told from seed-to-seed noise.
-fn write_comparison(out: &mut impl Write, paper: &[Row]) -> std::io::Result<()> {
-    let Some(ble) = paper.iter().find(|r| r.controller == Controller::Ble.name()) else { return Ok(()) };
-    let width = paper.iter().map(|r| r.controller.len()).max().unwrap_or(0);
-    writeln!(out, "A_w against BLE (paper setting; ± is one standard error of the difference):")?;
-    for row in paper {
-        let (a, b) = (&row.metrics, &ble.metrics);
-        let name = &row.controller;
-        if row.controller == ble.controller {
-            writeln!(out, "  {name:<width$}  A_w {:.3} ± {:.3} sd", a.a_w, row.a_w_sd)?;
-            continue;
-        }
-        let diff = b.a_w - a.a_w;
-        let se = (ble.a_w_sd.powi(2) / f64::from(ble.seeds.max(1)) + row.a_w_sd.powi(2) / f64::from(row.seeds.max(1)))
-            .sqrt();
-        let ratio = if a.a_w > 0.0 { format!("x{:.2}", b.a_w / a.a_w) } else { "-".to_owned() };
-        let verdict = if diff.abs() <= 2.0 * se {
-            "within noise"
-        } else if diff > 0.0 {
-            "BLE better"
-        } else {
-            "BLE worse"
-        };
-        writeln!(
-            out,
-            "  {name:<width$}  A_w {:.3} ± {:.3} sd   BLE − {name} = {diff:+.3} ± {se:.3} ({ratio}): {verdict}",
-            a.a_w, row.a_w_sd
-        )?;
+/// Which runs are recorded for the page: every seed (up to [`REPLAY_SEEDS`]) of the paper's
+/// setting and of the robustness scenario, seed [`REPLAY_SEED`] of the sweep (120 cells of bigger
+/// teams: all their seeds would multiply the page by ten).
+fn record(table: Table, seed: u64) -> bool {
+    match table {
+        Table::Paper | Table::Robustness => seed <= REPLAY_SEEDS,
+        Table::Sweep => seed == REPLAY_SEED,
     }
-    writeln!(out)
+}
+
+/// What a recorded run leaves for the report, taken on the worker that ran it (so its
+/// frame-by-frame recording is dropped there): its replay and its coverage series.
+fn keep(table: Table, cell: &Cell, _seed: u64, outcome: Outcome) -> Option<(Replay, CoverageSeries)> {
+    let setting = match table {
+        Table::Paper => "Paper setting".to_owned(),
+        Table::Robustness => format!("Robustness: {} % loss", percent(cell.loss)),
+        Table::Sweep => {
+            format!("Sweep: {} robots, {} targets, {} % loss", cell.robots, cell.targets, percent(cell.loss))
+        }
+    };
+    let replay = Replay::new(setting, outcome.recording.as_ref()?, REPLAY_STEP);
+    Some((replay, outcome.coverage))
+}
+
+/// A loss probability as the tables write it: "10", "2.5".
+fn percent(loss: f64) -> String {
+    let p = loss * 100.0;
+    if (p - p.round()).abs() < 1e-9 {
+        format!("{p:.0}")
+    } else {
+        format!("{p:.1}")
+    }
+}
+
+fn print_json(text: &str) -> io::Result<()> {
+    let mut out = io::stdout().lock();
+    writeln!(out, "{text}")?;
+    out.flush()
+}
+
+/// The summary first (the point), then with `full` the tables, then where the rest is.
+fn print_summary(report: &Report, dir: &std::path::Path, full: bool, timing: &str) -> io::Result<()> {
+    let mut out = io::stdout().lock();
+    write!(out, "{}", report::summary_text(report))?;
+    if full {
+        write!(out, "\n{}", report::tables_text(report))?;
+    } else {
+        writeln!(out)?;
+    }
+    writeln!(out, "Report: {} (replays any run; tables, plots)", dir.join("index.html").display())?;
+    if !full {
+        writeln!(out, "Tables: {} (or run with --full)", dir.join("tables.txt").display())?;
+    }
+    writeln!(out, "Wall time: {timing}")?;
+    out.flush()
+}
+
+/// A line on stderr. Progress and notes must never end the command: if stderr is closed (the
+/// command piped with `2>&1 | head -1`), the line is dropped rather than panicking as
+/// `eprintln!` would.
+fn note(line: fmt::Arguments) {
+    let _ = writeln!(io::stderr().lock(), "{line}");
 }
 
 fn threads(jobs: usize) -> String {
@@ -261,11 +292,11 @@ impl Progress {
         let done = self.done.fetch_add(1, Ordering::Relaxed) as u64 + 1;
         let total = self.total.max(1);
         if done * 10 / total > (done - 1) * 10 / total {
-            eprintln!(
+            note(format_args!(
                 "sim cmommt: {done}/{total} runs ({}%), {:.1} s",
                 done * 100 / total,
                 self.started.elapsed().as_secs_f64()
-            );
+            ));
         }
     }
 

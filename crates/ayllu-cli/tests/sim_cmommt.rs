@@ -1,17 +1,23 @@
 //! `ayllu sim cmommt` as a user runs it: the built binary, a small study (`--quick` with
-//! fewer seeds and shorter runs, so that the debug build finishes in seconds), its tables on
-//! stdout, its report folder on disk; the same numbers whatever `--jobs`; and the errors a user
-//! meets (bad arguments, an output folder that cannot be written).
+//! fewer seeds and shorter runs, so that the debug build finishes in seconds), its short summary
+//! on stdout (and its tables with `--full`), its report folder on disk; the same numbers whatever
+//! `--jobs`; the errors a user meets (bad arguments, an output folder that cannot be written);
+//! a reader that goes away early (`| head -1`), which must end the command with exit code 0 and
+//! no panic; and the progress bar, which must appear when stderr is a terminal.
 //!
 //! Every run is bounded (killed, and the test failed, past its limit). The report folders go
 //! under Cargo's per-target scratch directory, one per test, emptied first.
 
 mod common;
 
-use std::path::PathBuf;
-use std::time::Duration;
+use std::fs::File;
+use std::io::Read;
+use std::os::fd::{FromRawFd, OwnedFd};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, ExitStatus, Stdio};
+use std::time::{Duration, Instant};
 
-use common::ayllu;
+use common::{ayllu, BIN};
 use serde_json::Value as Json;
 
 const CONTROLLERS: [&str; 5] = ["BLE", "Random", "Local", "ForceField", "Centralized"];
@@ -44,12 +50,21 @@ fn a_w(rows: &[&str], controller: &str) -> f64 {
     cells[at - 1].parse().unwrap_or_else(|e| panic!("A_w of `{row}`: {e}"))
 }
 
+/// The small study every test here runs, into `out`, with `extra` arguments.
+fn quick_args<'a>(out: &'a Path, extra: &[&'a str]) -> Vec<&'a str> {
+    let out = out.to_str().expect("a UTF-8 path");
+    [&["sim", "cmommt", "--quick", "--seeds", "2", "--duration", "60", "--out", out][..], extra].concat()
+}
+
 #[test]
-fn a_quick_study_prints_the_tables_and_writes_the_report() {
+fn a_quick_study_prints_the_summary_then_the_tables_with_full_and_writes_the_report() {
     let out = scratch("quick");
-    let out_arg = out.to_str().expect("a UTF-8 path");
-    let run = ayllu(&["sim", "cmommt", "--quick", "--seeds", "2", "--duration", "60", "--out", out_arg], LIMIT).ok();
+    let run = ayllu(&quick_args(&out, &["--full"]), LIMIT).ok();
     println!("{}\n{}took {:?}", run.stdout, run.stderr, run.took);
+    // The point first: the summary opens the output, the tables follow.
+    assert!(run.stdout.starts_with("W-CMOMMT in the paper's setting"), "{}", run.stdout);
+    let summary_end = run.stdout.find("\nPaper setting:").expect("the tables after the summary");
+    assert!(run.stdout[..summary_end].contains("The paper's claim "), "{}", run.stdout);
 
     let paper = table(&run.stdout, "Paper setting");
     let robustness = table(&run.stdout, "Robustness");
@@ -71,6 +86,9 @@ fn a_quick_study_prints_the_tables_and_writes_the_report() {
     let index = out.join("index.html");
     assert!(run.stdout.contains(&format!("Report: {}", index.display())), "{}", run.stdout);
     assert!(run.stdout.contains("Wall time: "));
+    // What --full printed before the report's path is the folder's tables.txt.
+    let tables = std::fs::read_to_string(out.join("tables.txt")).expect("tables.txt");
+    assert!(run.stdout.starts_with(&tables), "stdout:\n{}\ntables.txt:\n{tables}", run.stdout);
     for file in ["index.html", "coverage.svg", "sweep_robots.svg", "sweep_loss.svg", "robustness.svg", "results.json"] {
         let len = std::fs::metadata(out.join(file)).map(|m| m.len()).unwrap_or(0);
         assert!(len > 0, "{file} missing or empty in {}", out.display());
@@ -81,9 +99,198 @@ fn a_quick_study_prints_the_tables_and_writes_the_report() {
 }
 
 #[test]
+fn by_default_it_prints_a_short_summary_and_the_page_replays_every_recorded_run() {
+    let out = scratch("summary");
+    let run = ayllu(&quick_args(&out, &[]), LIMIT).ok();
+    println!("{}\n{}", run.stdout, run.stderr);
+    let lines: Vec<&str> = run.stdout.lines().collect();
+    assert!(lines.len() <= 16, "{} lines is not short:\n{}", lines.len(), run.stdout);
+    assert!(lines[0].starts_with("W-CMOMMT in the paper's setting (3 robots, 4 targets, 0 % loss; 2 seeds x 60 s)"));
+    // BLE against every baseline on A_w, then the verdict on the paper's claim.
+    for name in &CONTROLLERS[1..] {
+        assert!(run.stdout.contains(&format!("BLE − {name} = ")), "no comparison line for {name}");
+    }
+    let rows: Vec<&str> = lines.iter().copied().filter(|l| l.starts_with("  ") && l.contains(" A_w ")).collect();
+    assert_eq!(rows.len(), CONTROLLERS.len(), "one line per controller: {rows:#?}");
+    assert!(a_w(&rows, "BLE") > a_w(&rows, "Random"), "{}", run.stdout);
+    assert!(
+        lines
+            .iter()
+            .any(|l| l.starts_with("The paper's claim held") || l.starts_with("The paper's claim did NOT hold")),
+        "{}",
+        run.stdout
+    );
+    assert!(lines.iter().any(|l| l.starts_with("Robot killed halfway (0 % loss): BLE's A_w ")), "{}", run.stdout);
+    // No table on stdout, but where the tables are.
+    assert!(!lines.iter().any(|l| l.starts_with("controller ")), "{}", run.stdout);
+    let tables = out.join("tables.txt");
+    assert!(run.stdout.contains(&format!("Tables: {} (or run with --full)", tables.display())), "{}", run.stdout);
+    let tables = std::fs::read_to_string(tables).expect("tables.txt");
+    assert_eq!(tables.lines().filter(|l| l.starts_with("controller ")).count(), 3, "{tables}");
+    assert!(tables.starts_with(&run.stdout[..run.stdout.find("\n\n").expect("a blank line after the summary")]));
+
+    // The page: every controller and seed of the paper's setting (5 x 2) and of the robustness
+    // scenario (15 x 2), seed 1 of each sweep cell (20), each a run of its own, and BLE first.
+    let html = std::fs::read_to_string(out.join("index.html")).expect("index.html");
+    let runs = html.matches("<script type=\"application/json\" id=\"run-").count();
+    assert_eq!(runs, 10 + 30 + 20, "replayable runs");
+    let open = "<script type=\"application/json\" id=\"data\">";
+    let data = &html[html.find(open).expect("the data block") + open.len()..];
+    let data: Json = serde_json::from_str(&data[..data.find("</script>").expect("its end")]).expect("JSON");
+    let menu = data["runs"].as_array().expect("the runs' menu");
+    assert_eq!(
+        (menu[0]["setting"].as_str(), menu[0]["controller"].as_str(), menu[0]["seed"].as_u64()),
+        (Some("Paper setting"), Some("BLE"), Some(1))
+    );
+    for setting in ["Robustness: 0 % loss", "Robustness: 30 % loss", "Sweep: 5 robots, 4 targets, 30 % loss"] {
+        for name in CONTROLLERS {
+            assert!(menu.iter().any(|r| r["setting"] == setting && r["controller"] == name), "{setting} {name}");
+        }
+    }
+    assert!(html.contains("60 runs can be replayed"), "the page says what it holds");
+    let _ = std::fs::remove_dir_all(&out);
+}
+
+/// Waits for `child` up to `limit`, killing it (and failing the test) past it.
+fn wait_bounded(child: &mut Child, limit: Duration) -> ExitStatus {
+    let start = Instant::now();
+    loop {
+        if let Some(status) = child.try_wait().expect("waiting for the CLI") {
+            return status;
+        }
+        if start.elapsed() > limit {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("ayllu sim cmommt ran longer than {limit:?}");
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
+/// A pipe whose buffer is one page, and that size: a writer blocks (and then meets the closed
+/// end) once it is full, whatever the system's default pipe size, so the test does not depend on
+/// timing.
+fn small_pipe() -> (File, OwnedFd, u64) {
+    let mut fds = [0; 2];
+    // SAFETY: pipe2 writes two new descriptors into the array we own; we take ownership of both.
+    assert_eq!(unsafe { libc::pipe2(fds.as_mut_ptr(), libc::O_CLOEXEC) }, 0, "pipe2");
+    // SAFETY: fds[0] is an open pipe descriptor owned here.
+    let size = unsafe { libc::fcntl(fds[0], libc::F_SETPIPE_SZ, 4096) };
+    assert!(size >= 4096, "F_SETPIPE_SZ: {}", std::io::Error::last_os_error());
+    // SAFETY: both descriptors are open and owned by nobody else.
+    unsafe { (File::from_raw_fd(fds[0]), OwnedFd::from_raw_fd(fds[1]), size as u64) }
+}
+
+/// Reads up to and including the first newline, one byte at a time (nothing read beyond it).
+fn first_line(reader: &mut File) -> String {
+    let mut line = Vec::new();
+    let mut byte = [0u8];
+    while reader.read(&mut byte).expect("reading the pipe") == 1 {
+        line.push(byte[0]);
+        if byte[0] == b'\n' {
+            break;
+        }
+    }
+    String::from_utf8_lossy(&line).into_owned()
+}
+
+#[test]
+fn a_reader_that_goes_away_after_one_line_ends_the_command_quietly() {
+    // `ayllu sim cmommt --full | head -1`: the output (summary and tables, about 7 kB) cannot
+    // fit in the 4 kB pipe with the line read, so the command certainly writes after the reader
+    // closed its end.
+    let out = scratch("pipe");
+    let (mut reader, writer, capacity) = small_pipe();
+    let mut child = Command::new(BIN)
+        .args(quick_args(&out, &["--full"]))
+        .stdin(Stdio::null())
+        .stdout(Stdio::from(writer))
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("starting ayllu");
+    let mut stderr = child.stderr.take().expect("piped stderr");
+    let err_reader = std::thread::spawn(move || {
+        let mut s = String::new();
+        let _ = stderr.read_to_string(&mut s);
+        s
+    });
+    let line = first_line(&mut reader);
+    drop(reader);
+    let status = wait_bounded(&mut child, LIMIT);
+    let stderr = err_reader.join().expect("stderr reader");
+    println!("first line: {line}stderr:\n{stderr}");
+    assert!(line.starts_with("W-CMOMMT"), "{line:?}");
+    let written = std::fs::metadata(out.join("tables.txt")).map(|m| m.len()).unwrap_or(0);
+    assert!(written > capacity + line.len() as u64, "the output ({written} bytes) must overflow the pipe");
+    assert_eq!(status.code(), Some(0), "{status:?}\n{stderr}");
+    assert!(!stderr.contains("panicked") && !stderr.contains("internal error"), "{stderr}");
+    assert!(!stderr.contains("ayllu:"), "no error message for a reader that left: {stderr}");
+
+    // `2>&1 | head -1`: progress lines share the closed pipe too; they must not end the command
+    // either (a panic there would abort, as the panic hook's own message cannot be written).
+    let (mut reader, writer, _) = small_pipe();
+    let both = writer.try_clone().expect("dup");
+    let mut child = Command::new(BIN)
+        .args(quick_args(&out, &["--full"]))
+        .stdin(Stdio::null())
+        .stdout(Stdio::from(writer))
+        .stderr(Stdio::from(both))
+        .spawn()
+        .expect("starting ayllu");
+    let line = first_line(&mut reader);
+    drop(reader);
+    let status = wait_bounded(&mut child, LIMIT);
+    assert!(line.starts_with("sim cmommt: "), "{line:?}");
+    assert_eq!(status.code(), Some(0), "{status:?}");
+    let _ = std::fs::remove_dir_all(&out);
+}
+
+#[test]
+fn the_progress_bar_appears_when_stderr_is_a_terminal() {
+    let out = scratch("tty");
+    let (mut master, mut slave) = (-1, -1);
+    let size = libc::winsize { ws_row: 40, ws_col: 120, ws_xpixel: 0, ws_ypixel: 0 };
+    // SAFETY: openpty writes two new descriptors into our integers; name and termios may be null.
+    let opened = unsafe { libc::openpty(&mut master, &mut slave, std::ptr::null_mut(), std::ptr::null(), &size) };
+    assert_eq!(opened, 0, "openpty: {}", std::io::Error::last_os_error());
+    // SAFETY: both descriptors are open and owned by nobody else.
+    let (mut master, slave) = unsafe { (File::from_raw_fd(master), OwnedFd::from_raw_fd(slave)) };
+    let mut child = Command::new(BIN)
+        .args(quick_args(&out, &[]))
+        .env("TERM", "xterm")
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::from(slave))
+        .spawn()
+        .expect("starting ayllu");
+    // Reads until the terminal's other side is closed (EIO once the child has exited).
+    let reader = std::thread::spawn(move || {
+        let mut seen = Vec::new();
+        let mut buf = [0u8; 4096];
+        while let Ok(n) = master.read(&mut buf) {
+            if n == 0 {
+                break;
+            }
+            seen.extend_from_slice(&buf[..n]);
+        }
+        String::from_utf8_lossy(&seen).into_owned()
+    });
+    let status = wait_bounded(&mut child, LIMIT);
+    let seen = reader.join().expect("terminal reader");
+    println!("{seen:?}");
+    assert_eq!(status.code(), Some(0), "{seen}");
+    // The bar: "00:00:01 [=====>    ] 57/80 runs, 1s left", redrawn in place.
+    assert!(seen.contains("/80 runs, ") && seen.contains(" left") && seen.contains("=>"), "no bar: {seen:?}");
+    // And not the plain lines meant for logs.
+    assert!(!seen.contains("runs (100%)"), "plain progress lines on a terminal: {seen:?}");
+    let _ = std::fs::remove_dir_all(&out);
+}
+
+#[test]
 fn the_numbers_do_not_depend_on_the_number_of_threads() {
     let out = scratch("jobs");
     let out_arg = out.to_str().expect("a UTF-8 path");
+    // --json prints the rows only: the same document for the same arguments.
     let study = |jobs: &str| {
         let args = ["sim", "cmommt", "--no-sweep", "--seeds", "2", "--duration", "20", "--json", "--jobs", jobs];
         ayllu(&[&args[..], &["--out", out_arg]].concat(), LIMIT).ok()

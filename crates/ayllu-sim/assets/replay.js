@@ -1,21 +1,34 @@
-// Canvas replay of one recorded run, inlined into the report page by ayllu-sim's report module.
+// Canvas replay of the runs of a study, inlined into the report page by ayllu-sim's report module.
 //
-// Reads the JSON in <script id="data"> ({recording, coverage, colours}), draws the arena at the
-// current time, and keeps the side panel, the timeline and the controls in step. Promises:
-// after the first frame is on the canvas, body[data-status] is "drawn" and body[data-canvas]
-// holds the canvas's page rectangle "x,y,w,h" in CSS pixels (a screenshot test reads both);
+// Reads the JSON in <script id="data"> ({colours, runs: [{setting, controller, seed}]}) to fill
+// the three menus, and the run chosen from <script id="run-N"> (a Replay of report/replay.rs:
+// decimated, delta-coded poses and exact state changes); draws the arena at the current time,
+// and keeps the side panel, the timeline and the controls in step. Promises: each time a run's
+// frame is on the canvas, body[data-status] is "drawn", body[data-run] is that run's
+// "setting|controller|seed", body[data-canvas] holds the canvas's page rectangle "x,y,w,h" in CSS
+// pixels, body[data-walls] the arena's inner walls "x,y,w,h" and body[data-labels] every label
+// drawn in the arena "text@x,y,w,h;..." (canvas CSS pixels; each is kept inside the walls), and
+// body[data-robots] the robots' drawn positions "x,y;..." (arena metres);
 // nothing here touches the network. Arena coordinates are metres, y up; the canvas is y down.
 (function () {
   'use strict';
 
   const data = JSON.parse(document.getElementById('data').textContent);
-  const rec = data.recording;
-  const meta = rec.meta;
-  const frames = rec.frames;
-  const [arenaW, arenaH] = meta.arena;
-  const dt = meta.frame_dt > 0 ? meta.frame_dt : 1;
-  const lastT = frames.length ? frames[frames.length - 1].t : 0;
-  const endT = Math.max(lastT, 0);
+  const runs = data.runs;
+  // The run on screen, set by load(): everything that draws reads these.
+  let current = -1;
+  let rec = null;
+  let meta = null;
+  let arenaW = 1;
+  let arenaH = 1;
+  let dt = 1; // seconds between recorded frames
+  let nFrames = 0;
+  let endT = 0;
+  let samples = []; // the recorded frame of each pose sample
+  let poses = []; // per robot: [x, y, theta] per sample
+  let paths = []; // per target: [x, y] per sample
+  let states = []; // per robot: [frame, alive, drive, claims, inhibited, observing] at each change
+  let coverage = []; // [t, A_w] at each change of who observes what
 
   // Cool colours for robots so they never read as the warm-coloured targets.
   const ROBOT_COLOURS = ['#1f77b4', '#2ca02c', '#9467bd', '#17becf', '#8c564b', '#e377c2',
@@ -26,16 +39,15 @@
   const KILL = '#c81e1e';
 
   // Targets: warm colour and size by priority rank (target 1 is the highest priority).
-  const prios = rec.targets.map((t) => t.priority);
-  const pMin = Math.min(...prios, 0);
-  const pMax = Math.max(...prios, 1);
+  let pMin = 0;
+  let pMax = 1;
   const prioShare = (p) => (pMax > pMin ? (p - pMin) / (pMax - pMin) : 1);
   function targetColour(p) {
     const s = prioShare(p);
     const mix = (a, b) => Math.round(a + (b - a) * s);
     return `rgb(${mix(246, 192)},${mix(190, 40)},${mix(70, 30)})`;
   }
-  const targetIndex = new Map(rec.targets.map((t, i) => [t.id, i]));
+  let targetIndex = new Map();
 
   const arena = document.getElementById('arena');
   const ctx = arena.getContext('2d');
@@ -47,6 +59,10 @@
   const clock = document.getElementById('clock');
   const robotsBody = document.getElementById('robots-state');
   const targetsBody = document.getElementById('targets-state');
+  const settingSel = document.getElementById('run-setting');
+  const controllerSel = document.getElementById('run-controller');
+  const seedSel = document.getElementById('run-seed');
+  const facts = document.getElementById('run-facts');
 
   let t = 0;
   let playing = false;
@@ -61,12 +77,15 @@
     // Leave room for the side panel; keep the arena's aspect ratio and a bounded height so
     // the controls stay on screen.
     const avail = Math.max(360, Math.min(780, window.innerWidth - 32 - 16 - 360));
+    // Width decides, not the window's height: headless browsers report different heights for
+    // the same window size, and a screenshot test must find the canvas where the DOM said.
+    const maxH = 620;
     const margin = 26;
     const aspect = arenaH > 0 && arenaW > 0 ? arenaH / arenaW : 1;
     let w = avail;
     let h = Math.round((w - 2 * margin) * aspect + 2 * margin);
-    if (h > 620) {
-      h = 620;
+    if (h > maxH) {
+      h = maxH;
       w = Math.round((h - 2 * margin) / aspect + 2 * margin);
     }
     arena.style.width = w + 'px';
@@ -83,16 +102,142 @@
     timeline.height = Math.round(58 * dpr);
     tctx.setTransform(dpr, 0, 0, dpr, 0, 0);
     document.querySelector('.controls').style.width = w + 'px';
+    document.querySelector('.replay-note').style.maxWidth = Math.max(w, 360) + 'px';
   }
 
   const X = (x) => view.ox + x * view.s;
   const Y = (y) => view.h - view.oy - y * view.s;
 
+  // ---- runs ---------------------------------------------------------------------------------
+
+  const ALPHABET = 'ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/';
+  const DIGIT = new Map(Array.from(ALPHABET).map((c, i) => [c, i]));
+
+  // The integers of a replay.rs code: one character for a delta within ±31, '/' and four
+  // base-64 digits for anything else.
+  function decode(text) {
+    const out = [];
+    const digit = (i) => {
+      const d = DIGIT.get(text[i]);
+      if (d === undefined) throw new Error(`bad replay code at character ${i}`);
+      return d;
+    };
+    for (let i = 0; i < text.length;) {
+      if (text[i] === '/') {
+        let v = 0;
+        for (let k = 1; k <= 4; k++) v = v * 64 + digit(i + k);
+        out.push(v - (1 << 23));
+        i += 5;
+      } else {
+        out.push(digit(i) - 31);
+        i += 1;
+      }
+    }
+    return out;
+  }
+
+  // Deltas back to positions: centimetres to metres, 1/256 turns to radians.
+  function integrate(text, width) {
+    const d = decode(text);
+    const acc = new Array(width).fill(0);
+    const out = [];
+    for (let i = 0; i + width <= d.length; i += width) {
+      const p = [];
+      for (let c = 0; c < width; c++) {
+        acc[c] += d[i + c];
+        p.push(c === 2 ? (((acc[c] % 256) + 256) % 256) / 256 * 2 * Math.PI : acc[c] / 100);
+      }
+      out.push(p);
+    }
+    return out;
+  }
+
+  // A robot's state changes: frames since the previous change, alive, drive, then claims,
+  // inhibited and observing, each as its length and its target ids.
+  function changes(text) {
+    const d = decode(text);
+    const out = [];
+    let frame = 0;
+    let i = 0;
+    const list = () => {
+      const n = d[i++];
+      const ids = d.slice(i, i + n);
+      i += n;
+      return ids;
+    };
+    while (i < d.length) {
+      frame += d[i];
+      const alive = d[i + 1];
+      const drive = d[i + 2];
+      i += 3;
+      out.push([frame, alive, drive, list(), list(), list()]);
+    }
+    return out;
+  }
+
+  // The last change at or before `frame` (changes are in frame order).
+  function stateIn(list, frame) {
+    let lo = 0;
+    let hi = list.length - 1;
+    if (hi < 0 || list[0][0] > frame) return null;
+    while (lo < hi) {
+      const mid = (lo + hi + 1) >> 1;
+      if (list[mid][0] <= frame) lo = mid; else hi = mid - 1;
+    }
+    return list[lo];
+  }
+
+  // A_w over time, a step at every frame where someone's observations change.
+  function coverageSteps() {
+    const total = rec.targets.reduce((sum, tg) => sum + tg.priority, 0) || 1;
+    const changes = Array.from(new Set([0].concat(...states.map((l) => l.map((c) => c[0]))))).sort((a, b) => a - b);
+    return changes.map((f) => {
+      const seen = new Set();
+      states.forEach((l) => {
+        const c = stateIn(l, f);
+        if (c && c[1]) c[5].forEach((id) => seen.add(id));
+      });
+      const w = rec.targets.reduce((sum, tg) => sum + (seen.has(tg.id) ? tg.priority : 0), 0);
+      return [f * dt, w / total];
+    });
+  }
+
+  function load(index) {
+    const raw = JSON.parse(document.getElementById('run-' + index).textContent);
+    current = index;
+    rec = raw;
+    meta = raw.meta;
+    [arenaW, arenaH] = meta.arena;
+    dt = meta.frame_dt > 0 ? meta.frame_dt : 1;
+    nFrames = raw.frames;
+    endT = Math.max(0, (nFrames - 1) * dt);
+    const every = Math.max(1, raw.every);
+    samples = [];
+    for (let f = 0; f < nFrames; f += every) samples.push(f);
+    if (nFrames > 0 && samples[samples.length - 1] !== nFrames - 1) samples.push(nFrames - 1);
+    poses = raw.poses.map((text) => integrate(text, 3));
+    paths = raw.paths.map((text) => integrate(text, 2));
+    states = raw.states.map(changes);
+    const prios = rec.targets.map((tg) => tg.priority);
+    pMin = Math.min(...prios, 0);
+    pMax = Math.max(...prios, 1);
+    targetIndex = new Map(rec.targets.map((tg, i) => [tg.id, i]));
+    coverage = coverageSteps();
+    panelFrame = -1;
+    fillFacts();
+  }
+
   // ---- state at a time ------------------------------------------------------------------------
 
   function frameIndex(time) {
-    if (!frames.length) return -1;
-    return Math.max(0, Math.min(frames.length - 1, Math.floor(time / dt + 1e-9)));
+    if (!nFrames || !samples.length) return -1;
+    return Math.max(0, Math.min(nFrames - 1, Math.floor(time / dt + 1e-9)));
+  }
+
+  // The pose sample at or before `time`.
+  function sampleIndex(time) {
+    const every = Math.max(1, rec.every);
+    return Math.max(0, Math.min(samples.length - 1, Math.floor(time / (dt * every) + 1e-9)));
   }
 
   function lerpAngle(a, b, u) {
@@ -102,35 +247,48 @@
     return a + d * u;
   }
 
-  // Positions interpolate between frames so playback is smooth; discrete state (drive, claims,
-  // observing) is the frame's own, never interpolated.
+  // Positions interpolate between pose samples so playback is smooth; discrete state (alive,
+  // drive, claims, observing) is the recorded frame's own, never interpolated.
   function stateAt(time) {
     const i = frameIndex(time);
     if (i < 0) return null;
-    const f = frames[i];
-    const g = frames[Math.min(i + 1, frames.length - 1)];
-    const u = g.t > f.t ? Math.max(0, Math.min(1, (time - f.t) / (g.t - f.t))) : 0;
-    const robots = f.robots.map((r, k) => {
-      const q = g.robots[k] || r;
-      if (!r.alive || !q.alive) return Object.assign({}, r);
-      return Object.assign({}, r, {
-        x: r.x + (q.x - r.x) * u,
-        y: r.y + (q.y - r.y) * u,
-        theta: lerpAngle(r.theta, q.theta, u),
-      });
+    const s = sampleIndex(time);
+    const g = Math.min(s + 1, samples.length - 1);
+    const ts = samples[s] * dt;
+    const tg = samples[g] * dt;
+    const u = tg > ts ? Math.max(0, Math.min(1, (time - ts) / (tg - ts))) : 0;
+    const robots = rec.robots.map((_, k) => {
+      const c = stateIn(states[k] || [], i) || [i, 1, 0, [], [], []];
+      const p = poses[k][s];
+      const q = poses[k][g] || p;
+      const alive = c[1] === 1;
+      const moving = alive && u > 0;
+      return {
+        x: moving ? p[0] + (q[0] - p[0]) * u : p[0],
+        y: moving ? p[1] + (q[1] - p[1]) * u : p[1],
+        theta: moving ? lerpAngle(p[2], q[2], u) : p[2],
+        alive,
+        drive: c[2],
+        claims: c[3],
+        inhibited: c[4],
+        observing: c[5],
+      };
     });
-    const targets = f.targets.map((p, k) => {
-      const q = g.targets[k] || p;
+    const targets = paths.map((path) => {
+      const p = path[s];
+      const q = path[g] || p;
       return [p[0] + (q[0] - p[0]) * u, p[1] + (q[1] - p[1]) * u];
     });
-    return { index: i, frame: f, robots, targets };
+    return { index: i, sample: s, frame: { robots }, robots, targets };
   }
 
   // ---- drawing ------------------------------------------------------------------------------
 
+  const fontOf = (o) => (o.bold ? 'bold ' : '') + (o.size || 12) + 'px "DejaVu Sans", Arial, sans-serif';
+
   function label(text, x, y, colour, opts) {
     const o = opts || {};
-    ctx.font = (o.bold ? 'bold ' : '') + (o.size || 12) + 'px "DejaVu Sans", Arial, sans-serif';
+    ctx.font = fontOf(o);
     ctx.textAlign = o.align || 'left';
     ctx.textBaseline = 'middle';
     // A white halo keeps labels readable over wedges and lines.
@@ -139,6 +297,45 @@
     ctx.strokeText(text, x, y);
     ctx.fillStyle = colour;
     ctx.fillText(text, x, y);
+  }
+
+  // Every label drawn in the arena this frame: [text, x, y, w, h] in canvas CSS pixels.
+  let labelBoxes = [];
+  const HALO = 1.5; // half the halo's line width: ink beyond the glyphs
+
+  // Label lines stacked beside a thing drawn at (x, y) with radius `rad`: on its `side` ('left'
+  // or 'right') unless they would cross the wall there, then on the other; then moved inside
+  // the walls, since a thing in a corner has no free side. Each line's box is kept for
+  // data-labels. lines: [{text, colour, size, bold}].
+  function labelBlock(lines, x, y, rad, side) {
+    if (!lines.length) return;
+    const pad = 2;
+    const wl = X(0) + pad;
+    const wr = X(arenaW) - pad;
+    const wt = Y(arenaH) + pad;
+    const wb = Y(0) - pad;
+    const widths = lines.map((ln) => {
+      ctx.font = fontOf(ln);
+      return ctx.measureText(ln.text).width + 2 * HALO;
+    });
+    const heights = lines.map((ln) => (ln.size || 12) + 2 * HALO);
+    const bw = Math.max(...widths);
+    const bh = heights.reduce((a, b) => a + b, 0);
+    const gap = rad + 4;
+    const onRight = (r) => (r ? x + gap : x - gap - bw);
+    let right = side === 'right';
+    if (right && onRight(true) + bw > wr) right = false;
+    else if (!right && onRight(false) < wl) right = true;
+    const left = Math.max(wl, Math.min(wr - bw, onRight(right)));
+    let top = Math.max(wt, Math.min(wb - bh, y - heights[0] / 2 - 7));
+    lines.forEach((ln, i) => {
+      // Text reads away from the thing: left-aligned on its right, right-aligned on its left.
+      const lx = right ? left : left + bw - widths[i];
+      label(ln.text, right ? lx + HALO : lx + widths[i] - HALO, top + heights[i] / 2, ln.colour,
+        Object.assign({}, ln, { align: right ? 'left' : 'right' }));
+      labelBoxes.push([ln.text, lx, top, widths[i], heights[i]]);
+      top += heights[i];
+    });
   }
 
   function drawArena() {
@@ -195,24 +392,19 @@
     return `rgba(${(n >> 16) & 255},${(n >> 8) & 255},${n & 255},${a})`;
   }
 
+  // The last 8 s of each robot's path, through its pose samples.
   function drawTrails(st) {
-    const span = Math.max(1, Math.round(8 / dt));
-    const from = Math.max(0, st.index - span);
+    const every = Math.max(1, rec.every);
+    const span = Math.max(1, Math.round(8 / (dt * every)));
+    const from = Math.max(0, st.sample - span);
     rec.robots.forEach((_, k) => {
       ctx.beginPath();
-      let started = false;
-      for (let i = from; i <= st.index; i++) {
-        const r = frames[i].robots[k];
-        if (!r) continue;
-        if (!started) {
-          ctx.moveTo(X(r.x), Y(r.y));
-          started = true;
-        } else {
-          ctx.lineTo(X(r.x), Y(r.y));
-        }
+      for (let i = from; i <= st.sample; i++) {
+        const p = poses[k][i];
+        if (i === from) ctx.moveTo(X(p[0]), Y(p[1])); else ctx.lineTo(X(p[0]), Y(p[1]));
       }
       const now = st.robots[k];
-      if (started && now) ctx.lineTo(X(now.x), Y(now.y));
+      if (now) ctx.lineTo(X(now.x), Y(now.y));
       ctx.strokeStyle = withAlpha(robotColour(k), 0.3);
       ctx.lineWidth = 2;
       ctx.setLineDash([]);
@@ -221,6 +413,7 @@
   }
 
   function draw() {
+    labelBoxes = [];
     drawArena();
     const st = stateAt(t);
     if (!st) {
@@ -297,8 +490,10 @@
         ctx.lineWidth = 3;
         ctx.stroke();
       }
-      label('T' + info.id, X(p[0]) + rad + 6, Y(p[1]) - 6, '#6b1d12', { bold: true, size: 13 });
-      label('w ' + fmtNum(info.priority), X(p[0]) + rad + 6, Y(p[1]) + 8, '#8a4b3c', { size: 11 });
+      labelBlock([
+        { text: 'T' + info.id, colour: '#6b1d12', bold: true, size: 13 },
+        { text: 'w ' + fmtNum(info.priority), colour: '#8a4b3c', size: 11 },
+      ], X(p[0]), Y(p[1]), rad + 2, 'right');
     });
 
     // Robots on top.
@@ -333,18 +528,14 @@
         ctx.stroke();
       }
       // Labels go on the side the robot faces away from, where its view and drive line are not.
-      const left = Math.cos(r.theta) >= 0;
-      const lx = left ? cx - rad - 4 : cx + rad + 4;
-      const align = left ? 'right' : 'left';
-      label('R' + info.id + (r.alive ? '' : ' dead'), lx, cy - 7, r.alive ? c : '#777', { bold: true, size: 13, align });
-      let ly = cy + 8;
+      const lines = [{ text: 'R' + info.id + (r.alive ? '' : ' dead'), colour: r.alive ? c : '#777', bold: true, size: 13 }];
       if (r.alive && r.claims.length) {
-        label('claims ' + r.claims.map((id) => 'T' + id).join(','), lx, ly, c, { size: 11, align, bold: true });
-        ly += 13;
+        lines.push({ text: 'claims ' + r.claims.map((id) => 'T' + id).join(','), colour: c, size: 11, bold: true });
       }
       if (r.alive && r.inhibited.length) {
-        label('inhib ' + r.inhibited.map((id) => 'T' + id).join(','), lx, ly, '#6b7280', { size: 11, align });
+        lines.push({ text: 'inhib ' + r.inhibited.map((id) => 'T' + id).join(','), colour: '#6b7280', size: 11 });
       }
+      labelBlock(lines, cx, cy, rad, Math.cos(r.theta) >= 0 ? 'left' : 'right');
     });
     return st;
   }
@@ -355,8 +546,6 @@
 
   // ---- timeline -----------------------------------------------------------------------------
 
-  const replayCoverage = (data.coverage.find((c) => c.name === meta.controller) || data.coverage[0]) || null;
-
   function drawTimeline() {
     const w = view.w;
     const h = 58;
@@ -366,14 +555,18 @@
     tctx.fillStyle = '#fbfbfc';
     tctx.fillRect(0, 0, w, h);
     const tx = (time) => 8 + (endT > 0 ? time / endT : 0) * (w - 16);
-    if (replayCoverage && replayCoverage.t.length) {
-      const colour = replayCoverage.colour || '#1f5fbf';
+    if (coverage.length) {
+      const colour = data.colours[meta.controller] || '#1f5fbf';
+      const y = (w) => bottom - (bottom - top) * w;
+      // A step function: A_w holds until the next change of who observes what.
       tctx.beginPath();
-      tctx.moveTo(tx(replayCoverage.t[0]), bottom);
-      replayCoverage.t.forEach((time, i) => {
-        tctx.lineTo(tx(time), bottom - (bottom - top) * replayCoverage.weighted[i]);
+      tctx.moveTo(tx(0), bottom);
+      coverage.forEach(([time, weighted], i) => {
+        if (i > 0) tctx.lineTo(tx(time), y(coverage[i - 1][1]));
+        tctx.lineTo(tx(time), y(weighted));
       });
-      tctx.lineTo(tx(replayCoverage.t[replayCoverage.t.length - 1]), bottom);
+      tctx.lineTo(tx(endT), y(coverage[coverage.length - 1][1]));
+      tctx.lineTo(tx(endT), bottom);
       tctx.closePath();
       tctx.fillStyle = withAlpha(colour, 0.22);
       tctx.fill();
@@ -384,7 +577,7 @@
       tctx.font = '10px "DejaVu Sans", Arial, sans-serif';
       tctx.textAlign = 'left';
       tctx.textBaseline = 'top';
-      tctx.fillText('A_w(t) ' + replayCoverage.name, 10, 1);
+      tctx.fillText('A_w(t) ' + meta.controller, 10, 1);
     }
     // Time ticks.
     const step = niceStep(endT / 8);
@@ -463,11 +656,17 @@
 
   function render() {
     const st = draw();
+    // Where the robots are drawn (arena metres), for a test to compare with the report's data.
+    document.body.dataset.robots = st ? st.robots.map((r) => `${r.x.toFixed(4)},${r.y.toFixed(4)}`).join(';') : '';
     drawTimeline();
     updatePanel(st);
     slider.value = String(t);
     const i = frameIndex(t);
-    clock.textContent = `t = ${t.toFixed(1)} s / ${endT.toFixed(1)} s · frame ${i + 1}/${frames.length}`;
+    clock.textContent = `t = ${t.toFixed(1)} s / ${endT.toFixed(1)} s · frame ${i + 1}/${nFrames}`;
+    const b = document.body.dataset;
+    b.labels = labelBoxes.map(([text, x, y, w, h]) => text + '@' + [x, y, w, h].map((v) => v.toFixed(1)).join(','))
+      .join(';');
+    b.walls = [X(0), Y(arenaH), arenaW * view.s, arenaH * view.s].map((v) => v.toFixed(1)).join(',');
   }
 
   function setTime(time) {
@@ -497,9 +696,6 @@
     requestAnimationFrame(tick);
   }
 
-  slider.min = '0';
-  slider.max = String(endT);
-  slider.step = String(dt);
   slider.addEventListener('input', () => setTime(Number(slider.value)));
   playBtn.addEventListener('click', () => {
     if (!playing && t >= endT) t = 0;
@@ -517,7 +713,7 @@
     if (e.key === 'ArrowRight') { setPlaying(false); setTime(t + dt); }
     if (e.key === 'ArrowLeft') { setPlaying(false); setTime(t - dt); }
   });
-  window.addEventListener('resize', () => { layout(); render(); publishCanvas(); });
+  window.addEventListener('resize', () => { if (current >= 0) { layout(); render(); publishCanvas(); } });
 
   function publishCanvas() {
     const r = arena.getBoundingClientRect();
@@ -525,10 +721,94 @@
       .map((v) => Math.round(v)).join(',');
   }
 
-  // "#t=42.5" in the address opens the replay at that time.
-  const m = /(?:^|[#&])t=([0-9.]+)/.exec(window.location.hash);
-  layout();
-  setTime(m ? Number(m[1]) : 0);
-  publishCanvas();
-  document.body.dataset.status = 'drawn';
+  // ---- choosing a run ------------------------------------------------------------------------
+
+  const keyOf = (r) => `${r.setting}|${r.controller}|${r.seed}`;
+  const distinct = (xs) => xs.filter((x, i) => xs.indexOf(x) === i);
+
+  function fillMenu(sel, values, want) {
+    sel.textContent = '';
+    values.forEach((v) => {
+      const o = document.createElement('option');
+      o.value = String(v);
+      o.textContent = String(v);
+      sel.appendChild(o);
+    });
+    sel.value = values.map(String).includes(String(want)) ? String(want) : String(values[0]);
+  }
+
+  // Each menu lists what the menus before it leave; a choice is kept when the new setting (or
+  // controller) has it, so switching setting compares the same controller and seed.
+  function fillMenus(want) {
+    fillMenu(settingSel, distinct(runs.map((r) => r.setting)), want.setting);
+    const inSetting = runs.filter((r) => r.setting === settingSel.value);
+    fillMenu(controllerSel, distinct(inSetting.map((r) => r.controller)), want.controller);
+    const inBoth = inSetting.filter((r) => r.controller === controllerSel.value);
+    fillMenu(seedSel, distinct(inBoth.map((r) => r.seed)), want.seed);
+  }
+
+  function fillFacts() {
+    const events = rec.events.length ? rec.events.map((e) => `R${e.robot} ${e.kind} at ${e.t.toFixed(1)} s`).join('; ')
+      : 'none';
+    const every = Math.max(1, rec.every);
+    const rows = [
+      ['setting', rec.setting],
+      ['controller', meta.controller],
+      ['seed', String(meta.seed)],
+      ['radio loss', `${fmtNum(Math.round(meta.loss * 1000) / 10)} %`],
+      ['arena', `${fmtNum(arenaW)} × ${fmtNum(arenaH)} m`],
+      ['robots / targets', `${rec.robots.length} / ${rec.targets.length}`],
+      ['camera', `${Math.round(meta.camera_fov * 180 / Math.PI)}° field of view, ${fmtNum(meta.camera_range)} m range`],
+      ['observe range', `${fmtNum(meta.observe_range)} m`],
+      ['run length', `${fmtNum(meta.duration)} s, a frame every ${fmtNum(dt)} s`],
+      ['positions', every > 1 ? `every ${fmtNum(Math.round(every * dt * 100) / 100)} s (decimated), interpolated`
+        : 'every frame'],
+      ['events', events],
+    ];
+    facts.textContent = '';
+    rows.forEach(([k, v]) => {
+      const dt_ = document.createElement('dt');
+      dt_.textContent = k;
+      const dd = document.createElement('dd');
+      dd.textContent = v;
+      facts.append(dt_, dd);
+    });
+  }
+
+  // Draw run `index` at `time` (kept when the new run is long enough).
+  function show(index, time) {
+    document.body.dataset.status = 'loading';
+    setPlaying(false);
+    load(index);
+    layout();
+    slider.min = '0';
+    slider.max = String(endT);
+    slider.step = String(dt);
+    setTime(time);
+    publishCanvas();
+    document.body.dataset.run = keyOf(runs[index]);
+    document.body.dataset.status = 'drawn';
+  }
+
+  function onMenu() {
+    fillMenus({ setting: settingSel.value, controller: controllerSel.value, seed: seedSel.value });
+    const i = runs.findIndex((r) => r.setting === settingSel.value && r.controller === controllerSel.value
+      && String(r.seed) === seedSel.value);
+    if (i >= 0) show(i, t);
+  }
+  [settingSel, controllerSel, seedSel].forEach((sel) => sel.addEventListener('change', onMenu));
+
+  // "#run=3&t=42.5" in the address opens the fourth run at that time (both optional).
+  const hashRun = /(?:^|[#&])run=([0-9]+)/.exec(window.location.hash);
+  const hashT = /(?:^|[#&])t=([0-9.]+)/.exec(window.location.hash);
+  if (!runs.length) {
+    layout();
+    label('this report has no recorded run', view.w / 2, view.h / 2, '#5b6575', { size: 16, align: 'center' });
+    publishCanvas();
+    document.body.dataset.status = 'drawn';
+    return;
+  }
+  const first = hashRun && Number(hashRun[1]) < runs.length ? Number(hashRun[1]) : 0;
+  fillMenus(runs[first]);
+  show(first, hashT ? Number(hashT[1]) : 0);
 })();

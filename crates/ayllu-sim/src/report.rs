@@ -1,21 +1,30 @@
 //! The report folder of `ayllu sim cmommt`: what a person opens after a study.
 //!
 //! [`write()`] fills one folder with:
-//! * `index.html`: one self-contained page (inline CSS and JS, no network): the command, a canvas
-//!   replay of [`Report::recording`], the tables, and the plots inlined as SVG markup. Once it has
-//!   drawn the first replay frame it sets `data-status="drawn"` on `<body>`; every script error
-//!   is counted in `data-errors` and shown in a red box. It also publishes the replay canvas's
-//!   page rectangle as `data-canvas="x,y,w,h"` (CSS px) so a screenshot test knows where to look.
+//! * `index.html`: one self-contained page (inline CSS and JS, no network): the command, whether
+//!   the paper's claim held, a canvas replay of any run in [`Report::replays`] (chosen with three
+//!   menus: setting, controller, seed; it opens on the first), the summary ([`summary_text`]),
+//!   the tables, and the plots inlined as SVG markup. Each time it has drawn a run it sets
+//!   `data-status="drawn"` and `data-run` (the run's "setting|controller|seed") on `<body>`;
+//!   every script error is counted in `data-errors` and shown in a red box. It also publishes the replay canvas's page
+//!   rectangle as `data-canvas="x,y,w,h"` (CSS px), the arena's inner walls on the canvas as
+//!   `data-walls`, every label drawn in the arena as `data-labels` ("text@x,y,w,h;...", canvas
+//!   px; the page keeps them inside the walls) and the robots' drawn positions as `data-robots`
+//!   ("x,y;...", arena metres), so a browser test knows where to look and what to expect.
 //! * `coverage.svg`, `sweep_robots.svg`, `sweep_loss.svg`, `robustness.svg`: the same plots as
 //!   files, for papers and slides.
-//! * `results.json`: the whole [`Report`], replay frames included, so it deserializes back into a
+//! * `results.json`: the whole [`Report`], replays included, so it deserializes back into a
 //!   `Report` and a page can be re-rendered from it without re-running the study.
 //! * `results.md`: the three tables in Markdown, with the columns of [`text_table`].
+//! * `tables.txt`: what `ayllu sim cmommt --full` prints: the summary, then the three tables as
+//!   fixed-width text ([`tables_text`]).
 //!
 //! Everything is a pure function of the `Report`: the same report writes the same bytes.
 
 mod page;
 mod plots;
+mod replay;
+mod summary;
 mod tables;
 #[cfg(test)]
 mod tests;
@@ -26,8 +35,11 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use crate::recording::{CoverageSeries, Recording};
+use crate::recording::CoverageSeries;
 use crate::study::Row;
+
+pub use replay::{decode, encode, Replay, State};
+pub use summary::{compare, paper_claim, Comparison, Verdict};
 
 /// Everything a report shows.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -35,9 +47,11 @@ pub struct Report {
     pub title: String,
     /// The command line that produced it, for people to re-run.
     pub command: String,
-    /// The run replayed on the page (BLE in the paper's setting).
-    pub recording: Recording,
-    /// Coverage over time in the replayed world, one series per controller (same seed).
+    /// Seconds of virtual time per run (for the tables' headings).
+    pub duration: f64,
+    /// The runs the page can replay, in the order its menus list them; it opens on the first.
+    pub replays: Vec<Replay>,
+    /// Coverage over time in the first replay's world, one series per controller (same seed).
     pub coverage: Vec<(String, CoverageSeries)>,
     /// The paper's setting: one row per controller.
     pub paper: Vec<Row>,
@@ -65,10 +79,22 @@ pub fn write(dir: &Path, report: &Report) -> io::Result<Vec<PathBuf>> {
     let json = serde_json::to_string_pretty(report).map_err(io::Error::other)?;
     put("results.json", &json)?;
     put("results.md", &tables::markdown(report))?;
+    put("tables.txt", &format!("{}\n{}", summary_text(report), tables_text(report)))?;
     Ok(written)
 }
 
 /// The rows as a fixed-width text table for a terminal: a header line, then one line per row.
 pub fn text_table(rows: &[Row]) -> String {
     tables::text(rows)
+}
+
+/// The few lines that say what the study found: BLE against every other controller on A_w in
+/// the paper's setting, whether the paper's claim held, and what a robot killed halfway cost.
+pub fn summary_text(report: &Report) -> String {
+    summary::text(report)
+}
+
+/// The three tables as fixed-width text, each under a heading that gives its setting.
+pub fn tables_text(report: &Report) -> String {
+    tables::text_all(report)
 }

@@ -2,7 +2,8 @@
 //! robustness scenario (a robot killed halfway), each for BLE and every baseline.
 //!
 //! A [`Plan`] lists [`Cell`]s (a controller in one setting, run over seeds 1..=seeds); [`run_plan`]
-//! runs every (cell, seed) on worker threads and [`aggregate`]s each cell into a [`Row`].
+//! runs every (cell, seed) on worker threads and [`aggregate`]s each cell into a [`Row`];
+//! [`run_plan_recording`] does the same while recording the runs a caller picks, for replays.
 //!
 //! Promise: the rows are a pure function of the plan. Runs are independent and each is
 //! deterministic (see [`crate::scenario`]); results are stored by their place in the plan, not
@@ -111,6 +112,14 @@ impl StudyConfig {
     }
 }
 
+/// The three tables of a plan.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Table {
+    Paper,
+    Sweep,
+    Robustness,
+}
+
 /// The three tables' cells, each table in the order its rows print.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Plan {
@@ -159,6 +168,16 @@ impl Plan {
     /// Every cell: paper, then sweep, then robustness.
     pub fn cells(&self) -> impl Iterator<Item = &Cell> {
         self.paper.iter().chain(&self.sweep).chain(&self.robustness)
+    }
+
+    /// Every cell with its table, in the order of [`Plan::cells`].
+    pub fn cells_by_table(&self) -> impl Iterator<Item = (Table, &Cell)> {
+        let tag = |table: Table| move |c| (table, c);
+        self.paper
+            .iter()
+            .map(tag(Table::Paper))
+            .chain(self.sweep.iter().map(tag(Table::Sweep)))
+            .chain(self.robustness.iter().map(tag(Table::Robustness)))
     }
 
     /// How many runs the plan makes.
@@ -224,6 +243,16 @@ pub fn run_all<R: Send>(
     done: &(dyn Fn() + Sync),
     keep: &(dyn Fn(Outcome) -> R + Sync),
 ) -> Result<Vec<R>, Error> {
+    run_indexed(scenarios, jobs, done, &|_, outcome| keep(outcome))
+}
+
+/// [`run_all`], with `keep` also told the scenario's index.
+fn run_indexed<R: Send>(
+    scenarios: &[Scenario],
+    jobs: usize,
+    done: &(dyn Fn() + Sync),
+    keep: &(dyn Fn(usize, Outcome) -> R + Sync),
+) -> Result<Vec<R>, Error> {
     // Bigger teams in bigger rooms take longer: start them first so that no long run is left
     // alone at the end while the other workers idle. Only the order of work changes.
     let mut order: Vec<usize> = (0..scenarios.len()).collect();
@@ -239,7 +268,7 @@ pub fn run_all<R: Send>(
                     break;
                 }
                 let Some(&i) = order.get(next.fetch_add(1, Ordering::Relaxed)) else { break };
-                let result = scenario::run(&scenarios[i]).map(keep);
+                let result = scenario::run(&scenarios[i]).map(|outcome| keep(i, outcome));
                 if result.is_err() {
                     failed.store(true, Ordering::Relaxed);
                 }
@@ -270,9 +299,54 @@ fn cost(s: &Scenario) -> f64 {
 
 /// Run the whole plan on up to `jobs` threads; `done` is called after each run.
 pub fn run_plan(plan: &Plan, jobs: usize, done: &(dyn Fn() + Sync)) -> Result<Results, Error> {
+    let (results, _) = run_plan_recording::<()>(plan, jobs, done, &|_, _, _| false, &|_, _, _, _| ())?;
+    Ok(results)
+}
+
+/// [`run_plan`], recording the runs `record` picks (by table, cell and seed) and handing each
+/// one's outcome to `keep` on the worker that ran it, so that a frame-by-frame recording lives
+/// no longer than its run. Recording changes nothing in a run (the rows are those of
+/// [`run_plan`], bit for bit); what `keep` returned comes back in the plan's order, each with
+/// its table, cell and seed.
+#[allow(clippy::type_complexity)]
+pub fn run_plan_recording<R: Send>(
+    plan: &Plan,
+    jobs: usize,
+    done: &(dyn Fn() + Sync),
+    record: &(dyn Fn(Table, &Cell, u64) -> bool + Sync),
+    keep: &(dyn Fn(Table, &Cell, u64, Outcome) -> R + Sync),
+) -> Result<(Results, Vec<(Table, Cell, u64, R)>), Error> {
     let cells: Vec<&Cell> = plan.cells().collect();
-    let scenarios: Vec<Scenario> = cells.iter().flat_map(|c| c.scenarios()).collect();
-    let metrics = run_all(&scenarios, jobs, done, &|o: Outcome| o.metrics)?;
+    let runs: Vec<(Table, &Cell, u64)> =
+        plan.cells_by_table().flat_map(|(t, c)| (1..=u64::from(c.seeds)).map(move |seed| (t, c, seed))).collect();
+    let scenarios: Vec<Scenario> = runs
+        .iter()
+        .map(|&(t, c, seed)| {
+            let s = c.scenario(seed);
+            if record(t, c, seed) {
+                s.recorded()
+            } else {
+                s
+            }
+        })
+        .collect();
+    let outcomes = run_indexed(&scenarios, jobs, done, &|i, o: Outcome| {
+        let metrics = o.metrics.clone();
+        let kept = scenarios[i].record.then(|| {
+            let (t, c, seed) = runs[i];
+            keep(t, c, seed, o)
+        });
+        (metrics, kept)
+    })?;
+    let mut kept = Vec::new();
+    let mut metrics = Vec::with_capacity(outcomes.len());
+    for (i, (m, k)) in outcomes.into_iter().enumerate() {
+        metrics.push(m);
+        if let Some(k) = k {
+            let (t, c, seed) = runs[i];
+            kept.push((t, c.clone(), seed, k));
+        }
+    }
     let mut rest = metrics.as_slice();
     let mut rows = cells.iter().map(|cell| {
         let (runs, tail) = rest.split_at(cell.seeds as usize);
@@ -283,7 +357,7 @@ pub fn run_plan(plan: &Plan, jobs: usize, done: &(dyn Fn() + Sync)) -> Result<Re
     let paper = take(plan.paper.len());
     let sweep = take(plan.sweep.len());
     let robustness = take(plan.robustness.len());
-    Ok(Results { paper, sweep, robustness })
+    Ok((Results { paper, sweep, robustness }, kept))
 }
 
 #[cfg(test)]
@@ -397,5 +471,49 @@ mod tests {
         assert_eq!(&names[..4], ["BLE", "Random", "BLE", "Random"]);
         assert_eq!((one.sweep[2].robots, one.sweep[2].loss), (2, 0.3));
         assert!(one.robustness.iter().all(|r| r.kill && r.seeds == 2));
+    }
+
+    #[test]
+    fn recording_picks_runs_and_changes_no_row() {
+        let config = StudyConfig {
+            seeds: 2,
+            duration: 6.0,
+            controllers: vec![Controller::Ble, Controller::Local],
+            sweep_robots: vec![2],
+            sweep_targets: vec![3],
+            sweep_loss: vec![0.0],
+            robustness_loss: vec![0.1],
+        };
+        let plan = Plan::new(&config);
+        let plain = run_plan(&plan, 2, &|| {}).unwrap();
+        // Everything but the sweep's second seed, as `ayllu sim cmommt` keeps seed 1 of the sweep.
+        let record = |t: Table, _: &Cell, seed: u64| t != Table::Sweep || seed == 1;
+        let keep = |_: Table, _: &Cell, _: u64, o: Outcome| o.recording.map(|r| (r.meta.controller, r.frames.len()));
+        let (rows, kept) = run_plan_recording(&plan, 2, &|| {}, &record, &keep).unwrap();
+        assert_eq!(rows, plain, "recording changes no number");
+        let seen: Vec<(Table, &str, u64)> =
+            kept.iter().map(|(t, c, seed, _)| (*t, c.controller.name(), *seed)).collect();
+        use Table::*;
+        assert_eq!(
+            seen,
+            [
+                (Paper, "BLE", 1),
+                (Paper, "BLE", 2),
+                (Paper, "Local", 1),
+                (Paper, "Local", 2),
+                (Sweep, "BLE", 1),
+                (Sweep, "Local", 1),
+                (Robustness, "BLE", 1),
+                (Robustness, "BLE", 2),
+                (Robustness, "Local", 1),
+                (Robustness, "Local", 2),
+            ]
+        );
+        // Each kept value came from its own run: a recording of its controller, every frame.
+        for (_, cell, _, recording) in &kept {
+            let (controller, frames) = recording.as_ref().expect("a recorded run has a recording");
+            assert_eq!(controller, cell.controller.name());
+            assert_eq!(*frames, 31, "6 s at a frame every 0.2 s, both ends");
+        }
     }
 }

@@ -1,7 +1,11 @@
 //! The report page in a real browser: Debian's headless Chromium opens `index.html` written from
 //! a synthetic report, and the test checks that the page says it drew the replay
-//! (`<body data-status="drawn">`), that no script error was recorded (`data-errors="0"`), and,
-//! from a screenshot, that the replay canvas is not blank and shows robots and targets.
+//! (`<body data-status="drawn">`), that no script error was recorded (`data-errors="0"`), that
+//! every label drawn in the arena lies inside its walls (`data-labels`, `data-walls`), and, from a
+//! screenshot, that the replay canvas is not blank and shows robots and targets. A second page
+//! chooses every run through the page's menus, as a person would, and then a run with a robot
+//! killed: each must draw without errors, with its labels inside the walls, the last one with the
+//! positions the report holds for it and a dead robot on the canvas.
 //!
 //! The checker is also run on pages built to fail (a script that throws, a canvas nobody draws
 //! on) to show it can tell. Without `/usr/bin/chromium` the test fails and says to run
@@ -22,7 +26,7 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use ayllu_sim::metrics::Metrics;
 use ayllu_sim::recording::{CoverageSeries, Event, Frame, Recording, RecordingMeta, RobotFrame, RobotInfo, TargetInfo};
-use ayllu_sim::report::{self, Report};
+use ayllu_sim::report::{self, Replay, Report};
 use ayllu_sim::study::Row;
 
 const CHROMIUM: &str = "/usr/bin/chromium";
@@ -45,6 +49,16 @@ struct PageCheck {
     /// Pixels of the first robot's colour and of the highest-priority target's colour.
     robot_pixels: usize,
     target_pixels: usize,
+    /// Pixels of a dead robot's grey.
+    dead_pixels: usize,
+    /// The run drawn (`data-run`), the arena's inner walls and the labels drawn in it.
+    run: Option<String>,
+    walls: Option<[f64; 4]>,
+    labels: Vec<(String, [f64; 4])>,
+    /// Robots' positions on the canvas (`data-robots`, arena metres).
+    robots: Vec<[f64; 2]>,
+    /// What the test's own script wrote into `<pre id="visited">`, if anything.
+    visited: Option<String>,
 }
 
 impl PageCheck {
@@ -66,12 +80,58 @@ impl PageCheck {
             )),
             Some(_) => {}
         }
+        match self.walls {
+            None => problems.push("page did not publish its arena walls (data-walls)".into()),
+            Some(walls) => problems.extend(labels_outside(&self.labels, walls)),
+        }
         if problems.is_empty() {
             Ok(())
         } else {
             Err(problems.join("; "))
         }
     }
+}
+
+/// Tolerance for text measured in fractional pixels and published to 0.1 px.
+const LABEL_SLACK: f64 = 0.11;
+
+/// A problem for each label whose box crosses the walls `[x, y, w, h]`.
+fn labels_outside(labels: &[(String, [f64; 4])], [wx, wy, ww, wh]: [f64; 4]) -> Vec<String> {
+    labels
+        .iter()
+        .filter(|(_, [x, y, w, h])| {
+            *x < wx - LABEL_SLACK
+                || *y < wy - LABEL_SLACK
+                || x + w > wx + ww + LABEL_SLACK
+                || y + h > wy + wh + LABEL_SLACK
+        })
+        .map(|(text, b)| format!("label {text:?} at {b:?} crosses the walls {:?}", [wx, wy, ww, wh]))
+        .collect()
+}
+
+/// "x,y,w,h" as numbers.
+fn numbers<const N: usize>(s: &str) -> Option<[f64; N]> {
+    let v: Vec<f64> = s.split(',').map(|n| n.trim().parse::<f64>()).collect::<Result<_, _>>().ok()?;
+    v.try_into().ok()
+}
+
+/// `data-labels`: "text@x,y,w,h;...".
+fn parse_labels(s: &str) -> Vec<(String, [f64; 4])> {
+    s.split(';')
+        .filter(|l| !l.is_empty())
+        .map(|l| {
+            let (text, rect) = l.rsplit_once('@').unwrap_or_else(|| panic!("label without a box: {l:?}"));
+            (text.to_string(), numbers(rect).unwrap_or_else(|| panic!("bad label box: {l:?}")))
+        })
+        .collect()
+}
+
+/// The text of the page's `<pre id="visited">`, HTML entities undone.
+fn visited(dom: &str) -> Option<String> {
+    let open = "<pre id=\"visited\">";
+    let start = dom.find(open)? + open.len();
+    let end = start + dom[start..].find("</pre>")?;
+    Some(dom[start..end].replace("&lt;", "<").replace("&gt;", ">").replace("&quot;", "\"").replace("&amp;", "&"))
 }
 
 /// Chromium, or None when the caller should skip; panics when it is missing and not skipped.
@@ -201,6 +261,14 @@ fn check_page(browser: &str, page: &Path) -> PageCheck {
         colours: 0,
         robot_pixels: 0,
         target_pixels: 0,
+        dead_pixels: 0,
+        run: attrs.get("data-run").cloned(),
+        walls: attrs.get("data-walls").and_then(|s| numbers(s)),
+        labels: attrs.get("data-labels").map_or_else(Vec::new, |s| parse_labels(s)),
+        robots: attrs.get("data-robots").map_or_else(Vec::new, |s| {
+            s.split(';').filter(|p| !p.is_empty()).map(|p| numbers(p).expect("x,y")).collect()
+        }),
+        visited: visited(&dom),
     };
     if let Some(rect) = canvas {
         inspect_canvas(&shot, rect, &mut check);
@@ -237,6 +305,7 @@ fn inspect_canvas(png_path: &Path, [x, y, w, h]: [u32; 4], check: &mut PageCheck
     // The replay's colour for the first robot and for the highest-priority target.
     check.robot_pixels = counts.iter().filter(|(c, _)| near(c, [0x1f, 0x77, 0xb4])).map(|(_, n)| n).sum();
     check.target_pixels = counts.iter().filter(|(c, _)| near(c, [192, 40, 30])).map(|(_, n)| n).sum();
+    check.dead_pixels = counts.iter().filter(|(c, _)| near(c, [0xa9, 0xa9, 0xa9])).map(|(_, n)| n).sum();
 }
 
 fn finish(dir: &Path) {
@@ -261,7 +330,121 @@ fn the_report_page_draws_its_replay_without_errors() {
     assert!(check.target_pixels > 30, "no top-priority target drawn in the replay: {check:?}");
     let [x, y, w, h] = check.canvas.unwrap();
     assert!(x + w <= WINDOW.0 && y + h <= WINDOW.1, "canvas not fully on the first screen: {check:?}");
+    assert_eq!(check.run.as_deref(), Some("Paper setting|BLE|7"), "it opens on the first run");
+    // R1-R3 and, per target, its id and priority; claims and inhibitions when there are some.
+    assert!(check.labels.len() >= 3 + 2 * 4, "{:?}", check.labels);
+    // A few grey pixels can come from anti-aliasing; a dead robot is a disc of hundreds.
+    assert!(check.dead_pixels <= 10, "nobody is dead at t = 0 in this run: {check:?}");
     finish(&dir);
+}
+
+/// Appended to the page: picks every run through the three menus (firing `change` as a person's
+/// choice does), notes what each drew, then picks the robustness run and moves its slider to
+/// 20 s, after robot 3 was killed at 15 s.
+const CHOOSER: &str = r#"<pre id="visited"></pre>
+<script>
+(function () {
+  const pick = (id, value) => {
+    const sel = document.getElementById(id);
+    sel.value = value;
+    sel.dispatchEvent(new Event('change'));
+  };
+  const options = (id) => Array.from(document.getElementById(id).options).map((o) => o.value);
+  const b = document.body.dataset;
+  const seen = [];
+  for (const setting of options('run-setting')) {
+    pick('run-setting', setting);
+    for (const controller of options('run-controller')) {
+      pick('run-controller', controller);
+      for (const seed of options('run-seed')) {
+        pick('run-seed', seed);
+        seen.push({ want: [setting, controller, seed].join('|'), run: b.run, status: b.status, errors: b.errors,
+          labels: b.labels, walls: b.walls });
+      }
+    }
+  }
+  document.getElementById('visited').textContent = JSON.stringify(seen);
+  pick('run-setting', 'Robustness: 10 % loss');
+  pick('run-controller', 'BLE');
+  pick('run-seed', '7');
+  const slider = document.getElementById('slider');
+  slider.value = '20';
+  slider.dispatchEvent(new Event('input'));
+})();
+</script>
+"#;
+
+#[test]
+fn choosing_another_run_draws_it_without_errors() {
+    let Some(browser) = chromium() else { return };
+    let dir = scratch("choose");
+    let report = fixture::report();
+    report::write(&dir, &report).unwrap();
+    let page = dir.join("choose.html");
+    let html = fs::read_to_string(dir.join("index.html")).unwrap();
+    let at = html.rfind("</body>").unwrap();
+    fs::write(&page, format!("{}{CHOOSER}{}", &html[..at], &html[at..])).unwrap();
+    let check = check_page(browser, &page);
+    eprintln!("{check:?}");
+    if let Err(problems) = check.verdict() {
+        panic!("report page in {} after choosing runs: {problems}", dir.display());
+    }
+
+    // Every run was reached through the menus, and each drew without errors and with its labels
+    // inside its walls.
+    let visited: serde_json::Value = serde_json::from_str(check.visited.as_deref().expect("the chooser ran")).unwrap();
+    let visited = visited.as_array().unwrap();
+    let keys: Vec<String> =
+        report.replays.iter().map(|r| format!("{}|{}|{}", r.setting, r.meta.controller, r.meta.seed)).collect();
+    let drawn: Vec<&str> = visited.iter().map(|v| v["run"].as_str().unwrap_or("")).collect();
+    assert_eq!(drawn, keys, "the menus reach every run once, in order");
+    for v in visited {
+        assert_eq!(v["want"], v["run"], "{v}");
+        assert_eq!((v["status"].as_str(), v["errors"].as_str()), (Some("drawn"), Some("0")), "{v}");
+        let walls = numbers(v["walls"].as_str().unwrap()).unwrap();
+        let labels = parse_labels(v["labels"].as_str().unwrap());
+        assert!(labels.len() >= 2 * report.replays[0].targets.len(), "{v}");
+        let outside = labels_outside(&labels, walls);
+        assert!(outside.is_empty(), "{}: {outside:?}", v["run"]);
+        // The run squeezed into the corners: every robot and target labelled, three lines for
+        // robot 3 (claims, inhibitions).
+        if v["run"].as_str().is_some_and(|r| r.starts_with("Sweep")) {
+            let texts: Vec<&str> = labels.iter().map(|(t, _)| t.as_str()).collect();
+            assert_eq!(texts.len(), 3 + 2 + 2 * 4, "{texts:?}");
+            assert!(texts.contains(&"claims T3,T4") && texts.contains(&"inhib T1,T2"), "{texts:?}");
+        }
+    }
+
+    // The last choice: the robustness run at 20 s, robot 3 dead (grey, with a red cross), and
+    // the robots where the report says they are (what the page decoded is what Rust encoded).
+    assert_eq!(check.run.as_deref(), Some("Robustness: 10 % loss|BLE|7"));
+    assert!(check.dead_pixels > 30, "no dead robot drawn after the kill: {check:?}");
+    let replay: &Replay = &report.replays[3];
+    let sample = replay.sample_frames().iter().position(|&f| f as f64 * replay.meta.frame_dt == 20.0).unwrap();
+    assert_eq!(check.robots.len(), replay.robots.len());
+    for (k, p) in check.robots.iter().enumerate() {
+        let (x, y, _) = replay.robot_poses(k).unwrap()[sample];
+        assert!((p[0] - x).abs() < 1e-3 && (p[1] - y).abs() < 1e-3, "robot {k}: page {p:?}, report ({x}, {y})");
+    }
+    finish(&dir);
+}
+
+#[test]
+fn the_label_check_sees_a_label_across_a_wall() {
+    let walls = [10.0, 20.0, 300.0, 200.0];
+    let inside = ("T1".to_string(), [12.0, 22.0, 20.0, 16.0]);
+    assert!(labels_outside(std::slice::from_ref(&inside), walls).is_empty());
+    for outside in
+        [[305.0, 30.0, 20.0, 16.0], [5.0, 30.0, 20.0, 16.0], [50.0, 15.0, 20.0, 16.0], [50.0, 210.0, 20.0, 16.0]]
+    {
+        let found = labels_outside(&[inside.clone(), ("R1".to_string(), outside)], walls);
+        assert_eq!(found.len(), 1, "{outside:?}");
+        assert!(found[0].contains("\"R1\""), "{found:?}");
+    }
+    assert_eq!(
+        parse_labels("R1 dead@1.5,2,30.25,16;claims T3,T4@0,0,1,1"),
+        [("R1 dead".to_string(), [1.5, 2.0, 30.25, 16.0]), ("claims T3,T4".to_string(), [0.0, 0.0, 1.0, 1.0])]
+    );
 }
 
 #[test]

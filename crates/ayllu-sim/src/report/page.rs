@@ -1,9 +1,10 @@
 //! `index.html`: the report as one self-contained page.
 //!
 //! Promises: no external resource of any kind (styles and scripts inline, plots as inline SVG
-//! markup, data as inline JSON), so the folder can be mailed or opened offline; every string
-//! from the report reaches the page escaped (HTML text escaped; the JSON data block cannot end
-//! its `<script>` early); script errors are counted on `<body data-errors>` and shown in a red
+//! markup, data as inline JSON: a menu of the runs and one block per run, parsed only when the
+//! run is chosen, so a page of hundreds of runs opens as fast as one of a single run), so the
+//! folder can be mailed or opened offline; every string from the report reaches the page
+//! escaped (HTML text escaped; no JSON block can end its `<script>` early); script errors are counted on `<body data-errors>` and shown in a red
 //! box, so a broken page is visibly broken, to people and to tests.
 
 use std::fmt::Write as _;
@@ -12,7 +13,7 @@ use serde_json::json;
 
 use super::plots::{self, Plot};
 use super::tables;
-use super::Report;
+use super::{Replay, Report};
 
 const CSS: &str = include_str!("../../assets/report.css");
 const REPLAY_JS: &str = include_str!("../../assets/replay.js");
@@ -71,26 +72,30 @@ pub(super) fn script_json(value: &serde_json::Value) -> String {
     out
 }
 
-/// What the replay script reads: the recording, the coverage series with the controllers'
-/// colours (the timeline draws the replayed controller's coverage in its plot colour). Numbers
-/// are rounded (see [`round_floats`]); `results.json` keeps them exact.
+/// What the replay script reads first: the menu of runs and the controllers' colours (the
+/// timeline draws the replayed controller's coverage in its plot colour). Each run's data is a
+/// block of its own ([`run_block`]), parsed only when the run is chosen.
 fn data(report: &Report) -> serde_json::Value {
-    let colours = plots::controllers(report);
-    let colour_of = |name: &str| colours.iter().find(|(n, _)| n == name).map(|(_, c)| plots::hex(*c));
-    let coverage: Vec<serde_json::Value> = report
-        .coverage
+    let colours: serde_json::Map<String, serde_json::Value> =
+        plots::controllers(report).into_iter().map(|(n, c)| (n, plots::hex(c).into())).collect();
+    let runs: Vec<serde_json::Value> = report
+        .replays
         .iter()
-        .map(|(name, s)| {
-            json!({"name": name, "colour": colour_of(name), "t": s.t, "observed": s.observed, "weighted": s.weighted})
-        })
+        .map(|r| json!({"setting": r.setting, "controller": r.meta.controller, "seed": r.meta.seed}))
         .collect();
-    let mut value = json!({"recording": report.recording, "coverage": coverage});
+    json!({"colours": colours, "runs": runs})
+}
+
+/// One run's replay as the page embeds it. Numbers are rounded (see [`round_floats`]);
+/// `results.json` keeps them exact.
+fn run_block(replay: &Replay) -> serde_json::Value {
+    let mut value = serde_json::to_value(replay).unwrap_or(serde_json::Value::Null);
     round_floats(&mut value);
     value
 }
 
 /// Rounds every non-integer number to 4 decimals (0.1 mm, 0.1 mrad): far below what a canvas
-/// shows, and it halves the page of a long run, whose frames are most of its bytes.
+/// shows.
 fn round_floats(value: &mut serde_json::Value) {
     use serde_json::Value;
     match value {
@@ -106,38 +111,75 @@ fn round_floats(value: &mut serde_json::Value) {
     }
 }
 
-fn run_facts(report: &Report) -> String {
-    let m = &report.recording.meta;
-    let facts: [(&str, String); 9] = [
-        ("controller", m.controller.clone()),
-        ("seed", m.seed.to_string()),
-        ("radio loss", format!("{} %", tables::percent(m.loss))),
-        ("arena", format!("{} × {} m", m.arena[0], m.arena[1])),
-        ("robots / targets", format!("{} / {}", report.recording.robots.len(), report.recording.targets.len())),
-        ("camera", format!("{:.0}° field of view, {} m range", m.camera_fov.to_degrees(), m.camera_range)),
-        ("observe range", format!("{} m", m.observe_range)),
-        ("run length", format!("{} s, a frame every {} s", m.duration, m.frame_dt)),
-        (
-            "events",
-            if report.recording.events.is_empty() {
-                "none".to_string()
-            } else {
-                report
-                    .recording
-                    .events
-                    .iter()
-                    .map(|e| format!("R{} {} at {:.1} s", e.robot, e.kind, e.t))
-                    .collect::<Vec<_>>()
-                    .join("; ")
-            },
-        ),
-    ];
-    let mut out = String::from("<dl class=\"run\">");
-    for (k, v) in facts {
-        let _ = write!(out, "<dt>{}</dt><dd>{}</dd>", escape(k), escape(&v));
+/// Seeds as people write them: "seed 1", "seeds 1–10", "seeds 1, 3, 7".
+fn seed_list(seeds: &[u64]) -> String {
+    let contiguous = seeds.windows(2).all(|w| w[1] == w[0] + 1);
+    match seeds {
+        [] => "no seed".to_string(),
+        [one] => format!("seed {one}"),
+        [first, .., last] if contiguous => format!("seeds {first}–{last}"),
+        _ => format!("seeds {}", seeds.iter().map(u64::to_string).collect::<Vec<_>>().join(", ")),
     }
-    out.push_str("</dl>");
-    out
+}
+
+/// Which runs the menus offer and how they were thinned, said on the page.
+fn replay_note(report: &Report) -> String {
+    let Some(first) = report.replays.first() else { return "No run was recorded for a replay.".to_string() };
+    let studied = report.paper.iter().chain(&report.robustness).chain(&report.sweep).map(|r| r.seeds).max();
+    /// The runs of one group of settings.
+    #[derive(Default)]
+    struct Group<'a> {
+        name: &'a str,
+        settings: Vec<&'a str>,
+        controllers: Vec<&'a str>,
+        seeds: Vec<u64>,
+    }
+    // Settings group by the words before their colon: "Sweep: 5 robots, ..." is a Sweep.
+    let mut groups: Vec<Group> = Vec::new();
+    for r in &report.replays {
+        let name = r.setting.split(':').next().unwrap_or("").trim();
+        let at = groups.iter().position(|g| g.name == name).unwrap_or_else(|| {
+            groups.push(Group { name, ..Group::default() });
+            groups.len() - 1
+        });
+        let g = &mut groups[at];
+        if !g.settings.contains(&r.setting.as_str()) {
+            g.settings.push(&r.setting);
+        }
+        if !g.controllers.contains(&r.meta.controller.as_str()) {
+            g.controllers.push(&r.meta.controller);
+        }
+        if !g.seeds.contains(&r.meta.seed) {
+            g.seeds.push(r.meta.seed);
+        }
+    }
+    let mut parts = Vec::new();
+    for Group { name: group, settings, controllers, mut seeds } in groups {
+        seeds.sort_unstable();
+        let settings = if settings.len() > 1 { format!(" ({} settings)", settings.len()) } else { String::new() };
+        let of = match studied {
+            Some(n) if seeds.len() < n as usize => format!(" of the {n} studied"),
+            _ => String::new(),
+        };
+        let plural = if controllers.len() == 1 { "" } else { "s" };
+        parts.push(format!("{group}{settings}: {} controller{plural} × {}{of}", controllers.len(), seed_list(&seeds)));
+    }
+    let mut steps: Vec<f64> = report.replays.iter().map(|r| f64::from(r.every) * r.meta.frame_dt).collect();
+    steps.sort_by(f64::total_cmp);
+    steps.dedup_by(|a, b| (*a - *b).abs() < 1e-9);
+    let step = match steps.as_slice() {
+        [lo, .., hi] => format!("{lo:.2}–{hi:.2} s"),
+        [one] => format!("{one:.2} s"),
+        [] => "?".to_string(),
+    };
+    format!(
+        "{} runs can be replayed: {}. To keep this page small, positions are kept every {step} (the simulator \
+         recorded a frame every {} s) and interpolated in between; who drives, claims, is inhibited and observes \
+         what is exact at every recorded frame.",
+        report.replays.len(),
+        parts.join("; "),
+        first.meta.frame_dt
+    )
 }
 
 /// Small inline pictures for the legend, drawn like the canvas draws them.
@@ -165,7 +207,7 @@ pub(super) fn render(report: &Report, plots: &[Plot]) -> String {
     let mut out = String::with_capacity(64 * 1024);
     let _ = write!(
         out,
-        r#"<!DOCTYPE html>
+        r##"<!DOCTYPE html>
 <html lang="en">
 <head>
 <meta charset="utf-8">
@@ -181,8 +223,14 @@ pub(super) fn render(report: &Report, plots: &[Plot]) -> String {
 </script>
 <h1>{title}</h1>
 <pre class="command">$ {command}</pre>
+<p class="verdict">{verdict} <a href="#summary">Summary</a> · <a href="#tables">tables</a> · <a href="#plots">plots</a></p>
 <section class="replay">
 <div class="stage">
+<div class="runs">
+<label>setting <select id="run-setting" aria-label="setting of the run to replay"></select></label>
+<label>controller <select id="run-controller" aria-label="controller of the run to replay"></select></label>
+<label>seed <select id="run-seed" aria-label="seed of the run to replay"></select></label>
+</div>
 <canvas id="arena" width="780" height="560" aria-label="replay of the recorded run"></canvas>
 <div class="controls">
 <button id="play" type="button">▶ Play</button>
@@ -196,6 +244,7 @@ pub(super) fn render(report: &Report, plots: &[Plot]) -> String {
 <span id="clock" class="mono"></span>
 </div>
 <canvas id="timeline" width="780" height="58" aria-label="timeline: coverage and events; click to seek"></canvas>
+<p class="note replay-note">{note}</p>
 </div>
 <aside class="panel">
 <h3>Robots now</h3>
@@ -205,17 +254,23 @@ pub(super) fn render(report: &Report, plots: &[Plot]) -> String {
 <table class="state"><thead><tr><th>target</th><th>priority</th><th>observed by</th><th>claimed by</th></tr></thead>
 <tbody id="targets-state"></tbody></table>
 <h3>Run</h3>
-{facts}
+<dl class="run" id="run-facts"></dl>
 <h3>Legend</h3>
 {LEGEND}
 </aside>
 </section>
-"#,
+"##,
         command = escape(&report.command),
-        facts = run_facts(report),
+        verdict = escape(&super::summary::claim(report)),
+        note = escape(&replay_note(report)),
     );
 
-    out.push_str("<section class=\"tables\">\n");
+    let _ = writeln!(
+        out,
+        "<section class=\"summary\" id=\"summary\">\n<h2>Summary</h2>\n<pre class=\"summary\">{}</pre>\n</section>",
+        escape(super::summary_text(report).trim_end())
+    );
+    out.push_str("<section class=\"tables\" id=\"tables\">\n");
     for (i, (name, rows)) in tables::sections(report).into_iter().enumerate() {
         let _ = writeln!(out, "<h2>{}</h2>", escape(name));
         let table = tables::html(rows, escape);
@@ -228,7 +283,7 @@ pub(super) fn render(report: &Report, plots: &[Plot]) -> String {
     }
     let _ = write!(out, "<h3>Columns</h3>\n{DEFINITIONS}\n</section>\n");
 
-    out.push_str("<section class=\"plots\">\n<h2>Plots</h2>\n");
+    out.push_str("<section class=\"plots\" id=\"plots\">\n<h2>Plots</h2>\n");
     for plot in plots {
         let _ = write!(
             out,
@@ -241,10 +296,14 @@ pub(super) fn render(report: &Report, plots: &[Plot]) -> String {
     }
     out.push_str("</section>\n");
 
-    let _ = write!(
-        out,
-        "<script type=\"application/json\" id=\"data\">{}</script>\n<script>\n{REPLAY_JS}</script>\n</body>\n</html>\n",
-        script_json(&data(report)),
-    );
+    let _ = writeln!(out, "<script type=\"application/json\" id=\"data\">{}</script>", script_json(&data(report)));
+    for (i, replay) in report.replays.iter().enumerate() {
+        let _ = writeln!(
+            out,
+            "<script type=\"application/json\" id=\"run-{i}\">{}</script>",
+            script_json(&run_block(replay))
+        );
+    }
+    let _ = write!(out, "<script>\n{REPLAY_JS}</script>\n</body>\n</html>\n");
     out
 }

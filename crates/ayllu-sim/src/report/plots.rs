@@ -178,8 +178,7 @@ fn coverage(root: &Area, report: &Report, colour: &dyn Fn(&str) -> RGBColor) -> 
     if series.is_empty() {
         return note(&body, "no coverage series in this report");
     }
-    let t_end =
-        series.iter().filter_map(|(_, s)| s.t.last().copied()).fold(report.recording.meta.duration, f64::max).max(1e-9);
+    let t_end = series.iter().filter_map(|(_, s)| s.t.last().copied()).fold(report.duration, f64::max).max(1e-9);
     let mut chart = ChartBuilder::on(&body)
         .margin_left(10)
         .margin_right(24)
@@ -199,7 +198,8 @@ fn coverage(root: &Area, report: &Report, colour: &dyn Fn(&str) -> RGBColor) -> 
         .x_label_formatter(&|v| format!("{v:.0}"))
         .y_label_formatter(&|v| format!("{v:.1}"))
         .draw()?;
-    for event in &report.recording.events {
+    // The coverage series come from the first replay's world; its events are theirs.
+    for event in report.replays.first().map_or(&[][..], |r| &r.events[..]) {
         chart.draw_series(std::iter::once(PathElement::new(
             vec![(event.t, 0.0), (event.t, 1.0)],
             KILL_RED.mix(0.8).stroke_width(2),

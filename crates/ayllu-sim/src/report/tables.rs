@@ -94,6 +94,38 @@ pub(super) fn text(rows: &[Row]) -> String {
     out
 }
 
+/// The three tables as fixed-width text under headings that give their settings (what
+/// `ayllu sim cmommt --full` prints after the summary).
+pub(super) fn text_all(report: &Report) -> String {
+    let seeds = report.paper.iter().chain(&report.robustness).chain(&report.sweep).map(|r| r.seeds).max().unwrap_or(0);
+    let runs = format!("{seeds} seeds x {} s", report.duration);
+    let mut out = String::new();
+    match report.paper.first() {
+        Some(r) => {
+            let priorities: Vec<String> = (1..=r.targets).rev().map(|p| p.to_string()).collect();
+            let _ = writeln!(
+                out,
+                "Paper setting: {} robots, {} targets (priorities {}), no loss; {runs}",
+                r.robots,
+                r.targets,
+                priorities.join(",")
+            );
+        }
+        None => out.push_str("Paper setting\n"),
+    }
+    let _ = writeln!(out, "{}", text(&report.paper));
+    let _ =
+        writeln!(out, "Robustness: paper setting, the most useful robot killed at {} s; {runs}", report.duration / 2.0);
+    let _ = writeln!(out, "{}", text(&report.robustness));
+    if report.sweep.is_empty() {
+        out.push_str("Sweep: skipped\n");
+    } else {
+        let _ = writeln!(out, "Sweep: robots x targets x radio loss; {runs}");
+        let _ = writeln!(out, "{}", text(&report.sweep));
+    }
+    out
+}
+
 /// The three tables of the report, titled, as one Markdown document.
 pub(super) fn markdown(report: &Report) -> String {
     let mut out = format!("# {}\n\n```\n{}\n```\n", report.title, report.command);

@@ -1,6 +1,8 @@
-//! A synthetic [`Report`] for the report's tests: 3 robots pursuing 4 moving targets for 30 s
-//! (robot 3 killed at 15 s), coverage for 5 controllers, made-up rows for the paper setting,
-//! the robustness scenario and a small sweep.
+//! A synthetic [`Report`] for the report's tests: 3 robots pursuing 4 moving targets for 30 s,
+//! replayable as five runs (the paper setting with BLE on seeds 7 and 8 and with Local on seed 7;
+//! robustness at 10 % loss, robot 3 killed at 15 s; and a run whose robots and targets hug the
+//! walls and corners, where labels have no room on their usual side), coverage for 5
+//! controllers, made-up rows for the paper setting, the robustness scenario and a small sweep.
 //!
 //! Shared by the unit tests (`report/tests.rs`) and `tests/report_chromium.rs`, which includes
 //! this file with `#[path]`; so it names its types through `super::` and each includer brings
@@ -8,7 +10,8 @@
 //! serde_json's default float parser. Made-up numbers: they exercise the page, not the task.
 
 use super::{
-    CoverageSeries, Event, Frame, Metrics, Recording, RecordingMeta, Report, RobotFrame, RobotInfo, Row, TargetInfo,
+    CoverageSeries, Event, Frame, Metrics, Recording, RecordingMeta, Replay, Report, RobotFrame, RobotInfo, Row,
+    TargetInfo,
 };
 
 pub const CONTROLLERS: [&str; 5] = ["BLE", "Centralized", "ForceField", "Local", "Random"];
@@ -36,10 +39,20 @@ fn wrap(a: f64) -> f64 {
     a
 }
 
+/// Seconds between the replays' pose samples: two recorded frames (the page interpolates).
+pub const STEP: f64 = 1.0;
+
+/// The run the page opens on.
 pub fn recording() -> Recording {
+    recording_of("BLE", 7, false)
+}
+
+/// The made-up run of `controller` on `seed` (seeds move the robots' start), robot 3 killed
+/// at 15 s if `kill`.
+pub fn recording_of(controller: &str, seed: u64, kill: bool) -> Recording {
     let meta = RecordingMeta {
-        controller: "BLE".into(),
-        seed: 7,
+        controller: controller.into(),
+        seed,
         arena: [12.0, 9.0],
         camera_fov: r3(60f64.to_radians()),
         camera_range: 3.5,
@@ -51,12 +64,13 @@ pub fn recording() -> Recording {
     let targets: Vec<TargetInfo> =
         (0..4).map(|j| TargetInfo { id: j + 1, priority: f64::from(4 - j), radius: 0.15 }).collect();
     let robots: Vec<RobotInfo> = (0..3).map(|k| RobotInfo { id: k + 1, radius: 0.25 }).collect();
-    let mut pose = [(1.0, 1.0, 0.5), (11.0, 1.0, 2.5), (6.0, 8.3, -1.6)];
+    let shift = 0.3 * (seed % 5) as f64;
+    let mut pose = [(1.0 + shift, 1.0, 0.5), (11.0 - shift, 1.0, 2.5), (6.0, 8.3 - shift, -1.6)];
     let mut frames = Vec::new();
     for i in 0..=60 {
         let t = f64::from(i) * meta.frame_dt;
         let tpos: Vec<[f64; 2]> = (0..4).map(|j| target_at(j, t)).collect();
-        let alive = [true, true, t < 15.0];
+        let alive = [true, true, !kill || t < 15.0];
         // Robot 3 wanders for its first 2 s, then everyone drives to "its" target (T1..T3).
         let drive: Vec<u32> = (0..3).map(|k| if !alive[k] || (k == 2 && t < 2.0) { 0 } else { k as u32 + 1 }).collect();
         let mut observing = vec![Vec::new(); 3];
@@ -114,7 +128,54 @@ pub fn recording() -> Recording {
             pose[k] = (x + step * nth.cos(), y + step * nth.sin(), wrap(nth));
         }
     }
-    Recording { meta, robots, targets, frames, events: vec![Event { t: 15.0, kind: "kill".into(), robot: 3 }] }
+    let events = if kill { vec![Event { t: 15.0, kind: "kill".into(), robot: 3 }] } else { vec![] };
+    Recording { meta, robots, targets, frames, events }
+}
+
+/// Robots and targets pressed against the walls and into the corners, still (10 s): every
+/// label's usual side is a wall. Robot 1 in the bottom-left corner faces right, so its labels
+/// (which go on the side it faces away from) would be drawn into the left wall; robot 2 in the
+/// top-right corner faces left, its labels heading into the right wall; robot 3 sits against
+/// the bottom wall, claiming and inhibited (three lines of labels that would run below it);
+/// targets (labels on their right) sit in the other corners, at the right wall and at the top.
+pub fn cornered() -> Recording {
+    let mut rec = recording_of("Random", 1, false);
+    rec.meta.duration = 10.0;
+    let (w, h) = (rec.meta.arena[0], rec.meta.arena[1]);
+    let robots = [(0.3, 0.3, 0.0), (w - 0.3, h - 0.3, 3.1), (w / 2.0, 0.26, 1.57)];
+    let targets = [[0.2, h - 0.2], [w - 0.2, 0.2], [w - 0.16, h / 2.0], [w / 2.0, h - 0.16]];
+    rec.frames = (0..=20)
+        .map(|i| Frame {
+            t: f64::from(i) * rec.meta.frame_dt,
+            robots: robots
+                .iter()
+                .enumerate()
+                .map(|(k, &(x, y, theta))| RobotFrame {
+                    x,
+                    y,
+                    theta,
+                    alive: true,
+                    drive: if k == 2 { 4 } else { 0 },
+                    claims: if k == 2 { vec![3, 4] } else { vec![] },
+                    inhibited: if k == 2 { vec![1, 2] } else { vec![] },
+                    observing: vec![],
+                })
+                .collect(),
+            targets: targets.to_vec(),
+        })
+        .collect();
+    rec
+}
+
+/// Every run the fixture's page can replay, in menu order; the first is [`recording`]'s.
+pub fn replays() -> Vec<Replay> {
+    vec![
+        Replay::new("Paper setting", &recording(), STEP),
+        Replay::new("Paper setting", &recording_of("BLE", 8, false), STEP),
+        Replay::new("Paper setting", &recording_of("Local", 7, false), STEP),
+        Replay::new("Robustness: 10 % loss", &recording_of("BLE", 7, true), STEP),
+        Replay::new("Sweep: 3 robots, 4 targets, 0 % loss", &cornered(), STEP),
+    ]
 }
 
 /// Made-up but plausible: BLE best, Random worst, coverage dipping after the kill.
@@ -197,7 +258,8 @@ pub fn report() -> Report {
     Report {
         title: "CMOMMT with BLE: 3 robots, 4 targets".into(),
         command: "ayllu sim cmommt --robots 3 --targets 4 --seeds 10 --out report".into(),
-        recording: recording(),
+        duration: 30.0,
+        replays: replays(),
         coverage: coverage(),
         paper: CONTROLLERS.iter().map(|c| row(c, 3, 4, 0.0, false)).collect(),
         sweep,
