@@ -20,7 +20,10 @@ use std::io::Write as _;
 use std::time::{Duration as StdDuration, Instant as StdInstant};
 
 use ayllu::stdlib::{cross_subsumption, BASE, VISION, WANDER_TURN};
-use ayllu::{BehaviorClass, ConnectionKind, Endpoint, MonotonicClock, Node, PortSpec, UdpConfig, UdpTransport, Value};
+use ayllu::{
+    Access, Allow, BehaviorClass, ConnectionKind, Endpoint, Limits, MonotonicClock, Node, PortSpec, UdpConfig,
+    UdpTransport, Value,
+};
 use serde_json::{json, Map, Value as Json};
 
 use crate::fail::Fail;
@@ -134,7 +137,18 @@ pub fn run(args: &NodeArgs) -> Result<(), Fail> {
     if config.name.is_empty() {
         config.name = format!("node-{}", args.id.0);
     }
+    let open = config.key.is_none();
     let mut node = Node::new(MonotonicClock::new(), UdpTransport::bind(args.id, config)?);
+    node.core_mut().set_access(Access { ports: args.allow_write.clone(), structure: args.allow_rewire.clone() });
+    let max_remote_period = ayllu::Duration::try_from_secs_f64(args.max_window)?;
+    node.core_mut().set_limits(Limits { max_remote_period, ..Limits::default() });
+    if open && (args.allow_write == Allow::Everyone || args.allow_rewire == Allow::Everyone) {
+        eprintln!(
+            "ayllu: warning: open team (no key= in the URL): anyone who can reach {} may write this node's ports \
+             and rewire it; give the team a key, and narrow --allow-write / --allow-rewire",
+            node.address().unwrap_or_default()
+        );
+    }
     match args.controller {
         Controller::CrossSubsumption => {
             let groups = cross_subsumption(node.core_mut(), args.layers, GROUP, args.claim_hz)?;

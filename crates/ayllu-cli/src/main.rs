@@ -222,6 +222,18 @@ pub struct NodeArgs {
     /// Stop after this many seconds (default: run until killed or Ctrl-C).
     #[arg(long = "for", value_name = "SECS", value_parser = positive_secs)]
     pub for_secs: Option<f64>,
+    /// Which nodes may write this node's ports: `all` (the paper's open team), `none`, or node
+    /// ids (`7,8`).
+    #[arg(long, value_name = "WHO", default_value = "all", value_parser = parse_allow)]
+    pub allow_write: ayllu::Allow,
+    /// Which nodes may change this node's structure by request (CONNECT, DISCONNECT): `all`,
+    /// `none`, or node ids.
+    #[arg(long, value_name = "WHO", default_value = "all", value_parser = parse_allow)]
+    pub allow_rewire: ayllu::Allow,
+    /// The longest window a message from the network may open (longer ones are refused and
+    /// counted as too_long).
+    #[arg(long, value_name = "SECS", default_value_t = 600.0, value_parser = positive_secs)]
+    pub max_window: f64,
 }
 
 /// The controllers `ayllu node` can host.
@@ -244,6 +256,14 @@ fn parse_node(s: &str) -> Result<NodeId, String> {
         None => digits.parse::<u32>(),
     };
     parsed.map(NodeId).map_err(|_| format!("`{s}` is not a node id (a number: 3, n3 or 0x3)"))
+}
+
+fn parse_allow(s: &str) -> Result<ayllu::Allow, String> {
+    match s {
+        "all" => Ok(ayllu::Allow::Everyone),
+        "none" => Ok(ayllu::Allow::Nobody),
+        ids => ids.split(',').map(|id| parse_node(id.trim())).collect::<Result<_, _>>().map(ayllu::Allow::Only),
+    }
 }
 
 fn parse_connection(s: &str) -> Result<ConnectionId, String> {
@@ -309,7 +329,10 @@ fn run(cli: Cli) -> Result<(), Fail> {
 fn main() -> ExitCode {
     // A bug must not print a backtrace at an engineer: one line, exit 1.
     std::panic::set_hook(Box::new(|info| {
-        eprintln!("ayllu: internal error: {info}");
+        // writeln!, not eprintln!: with stderr closed the latter panics again, inside the hook,
+        // and aborts (`ayllu ... 2>&1 | head -1` died by SIGABRT).
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stderr(), "ayllu: internal error: {info}");
         std::process::exit(1);
     }));
     let cli = match Cli::try_parse() {
@@ -324,7 +347,8 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(fail) => {
             if !fail.message.is_empty() {
-                eprintln!("ayllu: {}", fail.message);
+                use std::io::Write as _;
+                let _ = writeln!(std::io::stderr(), "ayllu: {}", fail.message);
             }
             ExitCode::from(fail.code)
         }
@@ -361,6 +385,14 @@ mod tests {
         for bad in ["0", "-1", "nan", "inf", "x", "1e300", "1e10"] {
             assert!(positive_secs(bad).is_err(), "{bad}");
         }
+    }
+
+    #[test]
+    fn access_rules_parse() {
+        assert_eq!(parse_allow("all"), Ok(ayllu::Allow::Everyone));
+        assert_eq!(parse_allow("none"), Ok(ayllu::Allow::Nobody));
+        assert_eq!(parse_allow("7, n8"), Ok(ayllu::Allow::Only(vec![NodeId(7), NodeId(8)])));
+        assert!(parse_allow("robots").is_err());
     }
 
     #[test]

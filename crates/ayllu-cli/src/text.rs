@@ -235,7 +235,10 @@ pub fn node_report_text(r: &NodeReport, peer: Option<&PeerInfo>) -> String {
         let _ = writeln!(out, "  none");
     }
     for c in &r.connections {
-        let prio = if c.priority != 0 { format!(" priority {}", c.priority) } else { String::new() };
+        let mut prio = if c.priority != 0 { format!(" priority {}", c.priority) } else { String::new() };
+        if let Some(n) = c.requested_by {
+            prio.push_str(&format!(" (requested by {n}: lasts while it lives)"));
+        }
         let _ = writeln!(
             out,
             "  {:<5} {:<22} {} -> {}{prio} (sent {})",

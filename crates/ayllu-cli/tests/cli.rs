@@ -26,9 +26,15 @@ struct Relay {
 
 impl Relay {
     fn start() -> Relay {
+        Relay::start_with(&[])
+    }
+
+    /// A relay with extra `ayllu node` arguments (access rules, limits).
+    fn start_with(extra: &[&str]) -> Relay {
         let mut cmd = Command::new(BIN);
         cmd.args(["node", "--id", "1", "--controller", "relay", "--status-ms", "100", "--for", "60"])
-            .args(["--udp", "udp://127.0.0.1:0"]);
+            .args(["--udp", "udp://127.0.0.1:0"])
+            .args(extra);
         let mut proc = Proc::spawn("relay", cmd);
         let addr = proc.wait_ready();
         Relay { _proc: proc, url: format!("udp://127.0.0.1:0?peer={addr}") }
@@ -321,22 +327,10 @@ fn list_without_a_node_exits_1_when_it_hears_nobody() {
 #[test]
 fn disconnect_removes_a_connection_a_killed_echo_left() {
     let relay = Relay::start();
-    // An echo killed without a word leaves its connection on the node.
-    let mut cmd = Command::new(BIN);
-    cmd.args(["echo", "1", "RELAY.Out", "--udp", &relay.url]);
-    let mut echo = Proc::spawn("echo", cmd);
-    let conns = wait_for(LIMIT, Duration::from_millis(50), || {
-        let report = relay.cli(&["list", "1", "--json"]).ok().json();
-        let conns: Vec<u64> = report["connections"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .filter(|c| c["destination"].to_string().contains("ECHO"))
-            .filter_map(|c| c["id"].as_u64())
-            .collect();
-        (!conns.is_empty()).then_some(conns)
-    })
-    .expect("echo connected");
+    // An echo killed without a word leaves its connection on the node until the node forgets
+    // it (D9.1: three of its HELLO periods; a minute each here, so the lease outlasts the test).
+    let mut echo = start_echo(&relay, 60_000);
+    let conns = echo_connections(&relay);
     echo.kill();
     let conn = format!("c{}", conns[0]);
     let done = relay.cli(&["disconnect", "1", &conn]).ok();
@@ -373,4 +367,61 @@ fn output_for_people_rounds_floats_and_json_times_are_seconds() {
     assert!(json["now"].is_f64(), "times in seconds: {json}");
     assert!(json["last_accepted"].is_f64(), "{json}");
     assert_eq!(json["value"], json!({"Float": 0.30000000000000004}), "JSON keeps every bit");
+}
+
+/// `ayllu echo 1 RELAY.Out` against the relay, announcing itself every `hello_ms`.
+fn start_echo(relay: &Relay, hello_ms: u64) -> Proc {
+    let mut cmd = Command::new(BIN);
+    cmd.args(["echo", "1", "RELAY.Out", "--udp", &format!("{}&hello_ms={hello_ms}", relay.url)]);
+    Proc::spawn("echo", cmd)
+}
+
+/// The relay's connections to an echo, once there is one.
+fn echo_connections(relay: &Relay) -> Vec<u64> {
+    wait_for(LIMIT, Duration::from_millis(50), || {
+        let conns = connections_to_echo(relay);
+        (!conns.is_empty()).then_some(conns)
+    })
+    .expect("echo connected")
+}
+
+fn connections_to_echo(relay: &Relay) -> Vec<u64> {
+    let report = relay.cli(&["list", "1", "--json"]).ok().json();
+    report["connections"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|c| c["destination"].to_string().contains("ECHO"))
+        .filter_map(|c| c["id"].as_u64())
+        .collect()
+}
+
+#[test]
+fn a_killed_echos_connection_expires_with_its_lease() {
+    // D9.1: the connection an echo asked for is leased to it; killed (no DISCONNECT), it
+    // stops announcing itself, the relay forgets it after three HELLO periods and removes the
+    // connection. `list` shows whose request made a connection meanwhile.
+    let relay = Relay::start();
+    let mut echo = start_echo(&relay, 200);
+    let conns = echo_connections(&relay);
+    let text = relay.cli(&["list", "1"]).ok();
+    assert!(text.stdout.contains("requested by"), "{text:?}");
+    echo.kill();
+    let gone = wait_for(LIMIT, Duration::from_millis(100), || connections_to_echo(&relay).is_empty().then_some(()));
+    assert!(gone.is_some(), "connections {conns:?} outlived their requester");
+}
+
+#[test]
+fn a_node_can_refuse_rewiring_and_writes_from_the_network() {
+    // D9.2: `--allow-rewire none` refuses the CONNECT an echo needs, with the reason; port
+    // writes stay open. `--allow-write none` drops port messages, counted as not_allowed.
+    let relay = Relay::start_with(&["--allow-rewire", "none"]);
+    relay.cli(&["echo", "1", "RELAY.Out", "--count", "1"]).fails(1, "not allowed");
+    relay.write("RELAY.In", "4", &[]).ok();
+    let relay = Relay::start_with(&["--allow-write", "none", "--max-window", "10"]);
+    let run = relay.write("RELAY.In", "4", &["--json"]).ok();
+    assert_eq!(run.json()["confirmed"], false, "{run:?}");
+    let report = relay.cli(&["list", "1", "--json"]).ok().json();
+    assert!(report["counted"]["not_allowed"].as_u64().unwrap_or(0) >= 1, "{report}");
+    ayllu(&["node", "--id", "1", "--allow-write", "robots"], LIMIT).fails(2, "not a node id");
 }

@@ -96,4 +96,8 @@ pub struct ConnectionInfo {
     pub priority: i32,
     /// Messages sent along this connection so far.
     pub sent: u64,
+    /// The node whose request created it: the connection lasts as long as that node is alive
+    /// (D9.1). `None` for connections made on this node.
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub requested_by: Option<crate::address::NodeId>,
 }

@@ -37,12 +37,16 @@ pub enum DropCause {
     UnknownPort,
     /// A message older than the newest already applied from the same connection (N1).
     Stale,
-    /// A control request for something that does not exist or is not allowed.
+    /// A control request for something that does not exist, or that the node cannot do.
     BadRequest,
+    /// A message or request the node's access rules refuse (`Access`).
+    NotAllowed,
+    /// A window from the network longer than the node's limit (`Limits::max_remote_period`).
+    TooLong,
 }
 
 impl DropCause {
-    pub const ALL: [DropCause; 14] = [
+    pub const ALL: [DropCause; 16] = [
         DropCause::Suppressed,
         DropCause::OverriddenIn,
         DropCause::Inhibited,
@@ -57,6 +61,8 @@ impl DropCause {
         DropCause::UnknownPort,
         DropCause::Stale,
         DropCause::BadRequest,
+        DropCause::NotAllowed,
+        DropCause::TooLong,
     ];
     pub const COUNT: usize = DropCause::ALL.len();
 
@@ -76,6 +82,8 @@ impl DropCause {
             DropCause::UnknownPort => "unknown_port",
             DropCause::Stale => "stale",
             DropCause::BadRequest => "bad_request",
+            DropCause::NotAllowed => "not_allowed",
+            DropCause::TooLong => "too_long",
         }
     }
 }

@@ -102,6 +102,12 @@ pub enum Error {
     TooManyRegisters {
         behavior: String,
     },
+    /// The node's access rules or limits refuse a request from the network (`Access`,
+    /// `Limits`).
+    NotAllowed {
+        /// What was refused, and by which rule.
+        what: String,
+    },
     /// A BLE group needs the behavior to have the named output port.
     Ble {
         reason: String,
@@ -169,6 +175,7 @@ impl fmt::Display for Error {
                 write!(f, "behavior `{behavior}` declares more than 65535 registers")
             }
             Error::Ble { reason } => write!(f, "BLE group: {reason}"),
+            Error::NotAllowed { what } => write!(f, "not allowed: {what}"),
             Error::Refused { what, cause } => write!(f, "{what} refused the value ({cause})"),
         }
     }

@@ -38,6 +38,7 @@
 //! assert_eq!(node.read(node.port("M", "In").unwrap()).unwrap(), Value::Int(42));
 //! ```
 
+pub mod access;
 pub mod address;
 pub mod arbitration;
 pub mod behavior;
@@ -53,6 +54,7 @@ pub mod process;
 pub mod time;
 pub mod value;
 
+pub use access::{Access, Allow, Limits};
 pub use address::{ConnectionId, Endpoint, NodeId, Source};
 pub use arbitration::{Origin, Window, WindowKind};
 pub use behavior::{BehaviorClass, Mono, Port, ProcessFn, Slot, Trigger, BEST, INHIBIT, LOCAL};

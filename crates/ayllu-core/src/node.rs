@@ -14,6 +14,7 @@
 use std::collections::{HashMap, VecDeque};
 use std::sync::Arc;
 
+use crate::access::{Access, Limits};
 use crate::address::{ConnectionId, Endpoint, NodeId, Source};
 use crate::arbitration::{Origin, WindowKind, Windows};
 use crate::behavior::{validate_process, BehaviorClass, Mono, Port, ProcessSpec, Slot, Trigger};
@@ -138,6 +139,8 @@ pub(crate) struct Conn {
     pub(crate) seq_start: u64,
     pub(crate) source: Endpoint,
     pub(crate) destination: Endpoint,
+    /// The node whose request created it (leased to that node, D9.1); `None`: made here.
+    pub(crate) requested_by: Option<NodeId>,
 }
 
 /// One outgoing connection as the propagation loop sees it: a copy of the connection's
@@ -226,6 +229,8 @@ pub struct NodeCore {
     answered_order: VecDeque<(NodeId, u64)>,
     pub(crate) warnings: Vec<String>,
     pub(crate) transport_counters: Vec<(String, u64)>,
+    access: Access,
+    limits: Limits,
 }
 
 impl NodeCore {
@@ -261,6 +266,8 @@ impl NodeCore {
             answered_order: VecDeque::new(),
             warnings: Vec::new(),
             transport_counters: Vec::new(),
+            access: Access::default(),
+            limits: Limits::default(),
         }
     }
 
@@ -523,6 +530,7 @@ impl NodeCore {
             priority: options.priority,
             seq: self.seq_base,
             seq_start: self.seq_base,
+            requested_by: None,
             source,
             destination: destination.clone(),
         };
@@ -599,7 +607,33 @@ impl NodeCore {
                 }
             }
         }
+        // Connections it asked for were leased to it (D9.1).
+        let leased: Vec<u64> =
+            self.conns.iter().flatten().filter(|c| c.requested_by == Some(node)).map(|c| c.id).collect();
+        for id in leased {
+            let _ = self.disconnect(ConnectionId(id));
+        }
         released
+    }
+
+    /// Set who may write this node's ports and change its structure from the network.
+    pub fn set_access(&mut self, access: Access) {
+        self.access = access;
+    }
+
+    /// The access rules in force.
+    pub fn access(&self) -> &Access {
+        &self.access
+    }
+
+    /// Set the bounds on what the network can make this node hold.
+    pub fn set_limits(&mut self, limits: Limits) {
+        self.limits = limits;
+    }
+
+    /// The limits in force.
+    pub fn limits(&self) -> &Limits {
+        &self.limits
     }
 
     /// Join a broadcast group: messages sent to `(group, behavior, port)` by others reach us.
@@ -930,6 +964,14 @@ impl NodeCore {
     }
 
     fn receive_port(&mut self, from: NodeId, m: &PortMessage) {
+        if !self.access.ports.admits(from) {
+            self.counters.add(DropCause::NotAllowed);
+            return;
+        }
+        if m.kind.period().is_some_and(|p| p > self.limits.max_remote_period) {
+            self.counters.add(DropCause::TooLong);
+            return;
+        }
         let key = incoming_key(from, m.conn);
         // One hash lookup per message from a known connection: this runs for every message.
         let cached = match self.newest_seq.get_mut(&key) {
@@ -1005,10 +1047,12 @@ impl NodeCore {
                 if let Some(result) = self.answered.get(&(from, c.id)) {
                     result.clone()
                 } else {
-                    let result = self.apply_control(body).map_err(|e| e.to_string());
-                    if result.is_err() {
-                        self.counters.add(DropCause::BadRequest);
+                    let result = self.apply_control(from, body);
+                    if let Err(e) = &result {
+                        let refused = matches!(e, Error::NotAllowed { .. });
+                        self.counters.add(if refused { DropCause::NotAllowed } else { DropCause::BadRequest });
                     }
+                    let result = result.map_err(|e| e.to_string());
                     if self.answered_order.len() >= ANSWERED_MAX {
                         if let Some(old) = self.answered_order.pop_front() {
                             self.answered.remove(&old);
@@ -1026,7 +1070,13 @@ impl NodeCore {
         });
     }
 
-    fn apply_control(&mut self, body: ControlBody) -> Result<ReplyBody, Error> {
+    fn apply_control(&mut self, from: NodeId, body: ControlBody) -> Result<ReplyBody, Error> {
+        let changes_structure = matches!(body, ControlBody::Connect { .. } | ControlBody::Disconnect { .. });
+        if changes_structure && !self.access.structure.admits(from) {
+            return Err(Error::NotAllowed {
+                what: format!("{from} may not change this node's structure (its access rules)"),
+            });
+        }
         match body {
             ControlBody::Connect { source_behavior, source_port, destination, kind, priority } => {
                 if matches!(destination, Endpoint::Local { .. }) {
@@ -1034,8 +1084,32 @@ impl NodeCore {
                         what: "a requested connection's destination must name its node".into(),
                     });
                 }
+                if kind.period().is_some_and(|p| p > self.limits.max_remote_period) {
+                    return Err(Error::NotAllowed {
+                        what: format!(
+                            "a {} period over this node's limit of {} for requests",
+                            kind.name(),
+                            self.limits.max_remote_period
+                        ),
+                    });
+                }
+                let mine = self.conns.iter().flatten().filter(|c| c.requested_by == Some(from)).count();
+                let all = self.conns.iter().flatten().filter(|c| c.requested_by.is_some()).count();
+                if mine >= self.limits.remote_connections_per_node || all >= self.limits.remote_connections {
+                    return Err(Error::NotAllowed {
+                        what: format!(
+                            "a new connection: this node holds {all} made by request ({mine} by {from}); its limits \
+                             are {} in all and {} per node",
+                            self.limits.remote_connections, self.limits.remote_connections_per_node
+                        ),
+                    });
+                }
                 let source = Endpoint::Local { behavior: source_behavior, port: source_port };
-                self.connect(&source, &destination, kind, ConnectOptions { priority }).map(ReplyBody::Connection)
+                let id = self.connect(&source, &destination, kind, ConnectOptions { priority })?;
+                if let Some(c) = self.conn_ids.get(&id.0).and_then(|&c| self.conns[c as usize].as_mut()) {
+                    c.requested_by = Some(from);
+                }
+                Ok(ReplyBody::Connection(id))
             }
             ControlBody::Disconnect { conn } => self.disconnect(conn).map(|()| ReplyBody::Connection(conn)),
             ControlBody::List => Ok(ReplyBody::Node(Box::new(self.report()))),
@@ -1357,6 +1431,7 @@ impl NodeCore {
                 kind: c.kind,
                 priority: c.priority,
                 sent: c.seq - c.seq_start,
+                requested_by: c.requested_by,
             })
             .collect();
         v.sort_by_key(|c| c.id);

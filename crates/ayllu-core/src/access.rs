@@ -1,0 +1,67 @@
+//! Who may change a node from the network, and how much one peer may cost it (N4, open teams).
+//!
+//! In the paper's open team anyone who can reach a node may write its ports and rewire it. A
+//! node can narrow that: [`Access`] says which nodes may write its ports along connections and
+//! which may change its structure by request (CONNECT, DISCONNECT); reads (LIST, WHY, READ)
+//! stay open. [`Limits`] bound what the network can make a node hold: connections created by
+//! request (in all and per requesting node) and the period of any window a message opens.
+//! What is refused is counted (`not_allowed`, `too_long`, `bad_request`) and never applied;
+//! requests get an error that says which rule refused them.
+//!
+//! Connections created by request are *leased* to their requester: they are removed when the
+//! requester's node is lost (`NodeCore::node_lost`), so a killed tool's connections do not
+//! stay for good (docs/semantics.md D9.1).
+
+use crate::address::NodeId;
+use crate::time::Duration;
+
+/// Which nodes a right is given to.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub enum Allow {
+    /// Every node that can reach this one (the paper's open team; the default).
+    #[default]
+    Everyone,
+    /// No other node.
+    Nobody,
+    /// Only these nodes.
+    Only(Vec<NodeId>),
+}
+
+impl Allow {
+    /// Whether node `n` has the right.
+    pub fn admits(&self, n: NodeId) -> bool {
+        match self {
+            Allow::Everyone => true,
+            Allow::Nobody => false,
+            Allow::Only(ids) => ids.contains(&n),
+        }
+    }
+}
+
+/// The rights other nodes have on this one. The node's own code is never restricted.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Access {
+    /// Who may write this node's ports along connections (port messages of every kind).
+    pub ports: Allow,
+    /// Who may change this node's structure by request (CONNECT, DISCONNECT).
+    pub structure: Allow,
+}
+
+/// Bounds on what the network can make a node hold. The defaults are far above the paper's use
+/// (a BLE team holds one connection per layer and peer; windows of a few seconds).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Limits {
+    /// Connections created by request, from all nodes together.
+    pub remote_connections: usize,
+    /// Connections created by request, from any one node.
+    pub remote_connections_per_node: usize,
+    /// The longest window a message from the network may open; a longer one is refused and
+    /// counted as `too_long` (not clamped in silence).
+    pub max_remote_period: Duration,
+}
+
+impl Default for Limits {
+    fn default() -> Self {
+        Limits { remote_connections: 256, remote_connections_per_node: 32, max_remote_period: Duration::from_secs(600) }
+    }
+}

@@ -1,0 +1,169 @@
+//! Open teams, bounded (docs/semantics.md D9.1-D9.3): access rules for port writes and for
+//! structure changes by request, limits on connections made by request and on window periods
+//! from the network, and connections leased to the node that asked for them.
+
+use ayllu_core::*;
+
+const ME: NodeId = NodeId(1);
+
+fn ms(x: u64) -> Instant {
+    Instant::from_millis(x)
+}
+
+/// Node 1 with `R` (int ports Out, In).
+fn node() -> NodeCore {
+    let mut n = NodeCore::new(ME);
+    let mut c = BehaviorClass::new("Relay");
+    c.port(PortSpec::new("Out", 0i64)).unwrap();
+    c.port(PortSpec::new("In", 0i64)).unwrap();
+    n.define(c).unwrap();
+    n.create("Relay", "R").unwrap();
+    n
+}
+
+/// Node `from` sends request `id` with `body`; returns node 1's answer.
+fn ask(n: &mut NodeCore, t: Instant, from: u32, id: u64, body: ControlBody) -> Result<ReplyBody, String> {
+    n.receive(t, NodeId(from), Message::Control(ControlMessage { id, body }));
+    while let Some(out) = n.pop_outgoing() {
+        if let (
+            Destination::Node(to),
+            Message::Control(ControlMessage { id: rid, body: ControlBody::Reply { result } }),
+        ) = (out.to, out.message)
+        {
+            if to == NodeId(from) && rid == id {
+                return result;
+            }
+        }
+    }
+    panic!("no answer to request {id}");
+}
+
+fn connect_to(from: u32, kind: ConnectionKind) -> ControlBody {
+    ControlBody::Connect {
+        source_behavior: "R".into(),
+        source_port: "Out".into(),
+        destination: Endpoint::node(NodeId(from), "Echo", "In"),
+        kind,
+        priority: 0,
+    }
+}
+
+fn port_message(conn: u64, seq: u64, kind: ConnectionKind, v: i64) -> Message {
+    Message::Port(PortMessage {
+        conn: ConnectionId(conn),
+        seq,
+        behavior: "R".into(),
+        port: "In".into(),
+        kind,
+        priority: 0,
+        value: Value::Int(v),
+    })
+}
+
+fn remote_connections(n: &NodeCore) -> Vec<(u64, Option<NodeId>)> {
+    n.report().connections.iter().map(|c| (c.id.0, c.requested_by)).collect()
+}
+
+#[test]
+fn structure_changes_by_request_follow_the_access_rule() {
+    // D9.2: with `structure: Nobody` a CONNECT is refused with a reason and counted
+    // not_allowed; reads stay open. With `Only`, listed nodes may, others may not.
+    let mut n = node();
+    n.set_access(Access { structure: Allow::Nobody, ..Access::default() });
+    let refused = ask(&mut n, ms(0), 7, 1, connect_to(7, ConnectionKind::Normal)).unwrap_err();
+    assert!(refused.contains("not allowed") && refused.contains("n7"), "{refused}");
+    assert_eq!(n.counters().get(DropCause::NotAllowed), 1);
+    assert!(remote_connections(&n).is_empty());
+    assert!(matches!(ask(&mut n, ms(1), 7, 2, ControlBody::List), Ok(ReplyBody::Node(_))), "LIST stays open");
+
+    n.set_access(Access { structure: Allow::Only(vec![NodeId(7)]), ..Access::default() });
+    assert!(matches!(ask(&mut n, ms(2), 7, 3, connect_to(7, ConnectionKind::Normal)), Ok(ReplyBody::Connection(_))));
+    assert!(ask(&mut n, ms(3), 8, 1, connect_to(8, ConnectionKind::Normal)).is_err());
+    assert_eq!(remote_connections(&n).len(), 1);
+    // DISCONNECT is a structure change too.
+    let c = remote_connections(&n)[0].0;
+    assert!(ask(&mut n, ms(4), 8, 2, ControlBody::Disconnect { conn: ConnectionId(c) }).is_err());
+    assert!(ask(&mut n, ms(5), 7, 4, ControlBody::Disconnect { conn: ConnectionId(c) }).is_ok());
+}
+
+#[test]
+fn port_writes_follow_the_access_rule() {
+    // D9.2: port messages from a node without the right are dropped (not_allowed) before
+    // anything else, windows included; the right is separate from the structure right.
+    let mut n = node();
+    n.set_access(Access { ports: Allow::Only(vec![NodeId(7)]), structure: Allow::Everyone });
+    n.receive(ms(0), NodeId(8), port_message(1, 1, ConnectionKind::OverrideIn(Duration::from_secs(5)), 8));
+    assert_eq!(n.counters().get(DropCause::NotAllowed), 1);
+    assert!(n.why("R", "In").unwrap().windows.is_empty(), "no window from a refused message");
+    n.receive(ms(1), NodeId(7), port_message(1, 1, ConnectionKind::Normal, 7));
+    assert_eq!(n.read(n.port("R", "In").unwrap()).unwrap(), Value::Int(7));
+    // And the own code is never restricted.
+    n.set_access(Access { ports: Allow::Nobody, structure: Allow::Nobody });
+    n.write_named(ms(2), "R", "In", 3i64).unwrap();
+    assert_eq!(n.read(n.port("R", "In").unwrap()).unwrap(), Value::Int(3));
+}
+
+#[test]
+fn windows_longer_than_the_limit_are_refused_not_clamped() {
+    // D9.3: an override-out of 164 years from the network is dropped and counted too_long; a
+    // CONNECT asking for one is refused with the limit in its reason.
+    let mut n = node();
+    let years = Duration::from_secs(164 * 365 * 24 * 3600);
+    n.receive(ms(0), NodeId(7), port_message(1, 1, ConnectionKind::OverrideOut(years), 1));
+    assert_eq!(n.counters().get(DropCause::TooLong), 1);
+    assert!(n.why("R", "In").unwrap().windows.is_empty());
+    let limit = n.limits().max_remote_period;
+    n.receive(ms(1), NodeId(7), port_message(1, 2, ConnectionKind::Inhibit(limit), 1));
+    assert_eq!(n.why("R", "In").unwrap().windows.len(), 1, "up to the limit is fine");
+    let refused = ask(&mut n, ms(2), 7, 1, connect_to(7, ConnectionKind::Suppress(years))).unwrap_err();
+    assert!(refused.contains("limit"), "{refused}");
+}
+
+#[test]
+fn connections_made_by_request_are_capped_per_node_and_in_all() {
+    let mut n = node();
+    n.set_limits(Limits { remote_connections: 5, remote_connections_per_node: 3, ..Limits::default() });
+    for id in 1..=3 {
+        assert!(ask(&mut n, ms(id), 7, id, connect_to(7, ConnectionKind::Normal)).is_ok());
+    }
+    let refused = ask(&mut n, ms(4), 7, 4, connect_to(7, ConnectionKind::Normal)).unwrap_err();
+    assert!(refused.contains("3 per node"), "{refused}");
+    assert!(ask(&mut n, ms(5), 8, 1, connect_to(8, ConnectionKind::Normal)).is_ok());
+    assert!(ask(&mut n, ms(6), 8, 2, connect_to(8, ConnectionKind::Normal)).is_ok());
+    let refused = ask(&mut n, ms(7), 9, 1, connect_to(9, ConnectionKind::Normal)).unwrap_err();
+    assert!(refused.contains("5 in all"), "{refused}");
+    assert_eq!(n.counters().get(DropCause::NotAllowed), 2);
+    // Connections made in code do not count and are not capped.
+    for _ in 0..10 {
+        n.connect(
+            &Endpoint::local("R", "Out"),
+            &Endpoint::local("R", "In"),
+            ConnectionKind::Normal,
+            ConnectOptions::default(),
+        )
+        .unwrap();
+    }
+}
+
+#[test]
+fn a_lost_requester_takes_its_connections_with_it() {
+    // D9.1: a connection made by request is leased to its requester: when the runtime says
+    // that node is gone, the connection goes; connections made here stay.
+    let mut n = node();
+    assert!(ask(&mut n, ms(0), 7, 1, connect_to(7, ConnectionKind::Normal)).is_ok());
+    assert!(ask(&mut n, ms(1), 8, 1, connect_to(8, ConnectionKind::Normal)).is_ok());
+    n.connect(
+        &Endpoint::local("R", "Out"),
+        &Endpoint::local("R", "In"),
+        ConnectionKind::Normal,
+        ConnectOptions::default(),
+    )
+    .unwrap();
+    let before = remote_connections(&n);
+    assert_eq!(before.iter().filter(|(_, by)| by.is_some()).count(), 2);
+    n.node_lost(ms(2), NodeId(7));
+    let after = remote_connections(&n);
+    assert_eq!(after.len(), 2, "{after:?}");
+    assert!(after.iter().all(|(_, by)| *by != Some(NodeId(7))));
+    assert!(after.iter().any(|(_, by)| by.is_none()), "made here: stays");
+}
