@@ -29,6 +29,12 @@ use crate::udp_config::{UdpConfig, MAX_DATAGRAM};
 
 /// Bounds that keep a flood from growing memory (N4).
 const MAX_PEERS: usize = 1024;
+/// Senders whose replay windows are kept (N5), longer than their peer entries: a window
+/// forgotten with its peer would let an old authenticated datagram be applied again.
+const MAX_REPLAY_SENDERS: usize = 4096;
+/// The longest HELLO period a peer may announce: it bounds how long a forged peer stays in the
+/// table (three periods) and so how long it is greeted.
+const MAX_PEER_INTERVAL: Duration = Duration::from_secs(60);
 const MAX_ASSEMBLIES: usize = 64;
 /// Sent datagrams' buffers kept for reuse (one per destination of a turn is plenty).
 const SPARE_BUFFERS: usize = 8;
@@ -92,7 +98,19 @@ struct Peer {
     groups: Vec<String>,
     interval: Duration,
     last_heard: Instant,
-    replay: ReplayWindow,
+    /// Datagrams accepted from it (saturating).
+    heard: u32,
+    /// It authenticated (keyed team).
+    authenticated: bool,
+}
+
+impl Peer {
+    /// A peer is *proven* once it authenticated, or sent a second datagram: proven peers are
+    /// greeted every period and are never evicted to make room for a newcomer; an unproven one
+    /// (one forged HELLO) gets one greeting.
+    fn proven(&self) -> bool {
+        self.authenticated || self.heard >= 2
+    }
 }
 
 /// A node's UDP transport. `S` is the socket: a real one, or a test bus / fault injector.
@@ -109,6 +127,8 @@ pub struct UdpTransport<S: DatagramSocket = OsSocket> {
     peers: BTreeMap<NodeId, Peer>,
     /// Peers forgotten since the node last asked ([`Transport::take_lost_peers`]).
     lost: Vec<NodeId>,
+    /// Replay windows by sender, with when each was last used (outlive peer entries, N5).
+    replay: BTreeMap<NodeId, (ReplayWindow, Instant)>,
     /// Messages for nodes not heard from yet (never reported as sent, see [`Sent::Held`]).
     held: VecDeque<Held>,
     /// The first datagram sequence number this transport used: datagrams carrying our id and
@@ -211,6 +231,7 @@ impl<S: DatagramSocket> UdpTransport<S> {
             next_expiry: Instant::MAX,
             peers: BTreeMap::new(),
             lost: Vec::new(),
+            replay: BTreeMap::new(),
             held: VecDeque::new(),
             seq_start: boot << 32,
             duplicates: Vec::new(),
@@ -264,6 +285,25 @@ impl<S: DatagramSocket> UdpTransport<S> {
                 }
             }
         }
+    }
+
+    /// Check an authenticated datagram's number against its sender's replay window (N5), kept
+    /// apart from the peer table so that it outlives the peer entry; at most
+    /// [`MAX_REPLAY_SENDERS`] windows, the least recently used forgotten first (counted).
+    fn accept_sequence(&mut self, sender: NodeId, seq: u64) -> bool {
+        if !self.replay.contains_key(&sender) && self.replay.len() >= MAX_REPLAY_SENDERS {
+            if let Some(oldest) = self.replay.iter().min_by_key(|(_, (_, used))| *used).map(|(n, _)| *n) {
+                self.replay.remove(&oldest);
+                self.count("replay_window_evicted");
+            }
+        }
+        let now = self.now;
+        let (window, used) = self.replay.entry(sender).or_insert_with(|| (ReplayWindow::new(), now));
+        if !window.accept(seq) {
+            return false;
+        }
+        *used = now;
+        true
     }
 
     /// Whether a datagram carrying our id came from us: from our own address (or our port on
@@ -342,7 +382,9 @@ impl<S: DatagramSocket> UdpTransport<S> {
         targets.extend(self.config.groups.iter().map(|(_, a)| *a));
         targets.extend(self.config.broadcast);
         targets.extend(self.config.discovery);
-        targets.extend(self.peers.values().map(|p| p.addr));
+        // Unproven peers were greeted once when first heard; greeting them every period would
+        // reflect traffic at whatever address a forger wrote.
+        targets.extend(self.peers.values().filter(|p| p.proven()).map(|p| p.addr));
         targets.sort();
         targets.dedup();
         let hello = self.hello();
@@ -376,11 +418,19 @@ impl<S: DatagramSocket> UdpTransport<S> {
         }
         let now = self.now;
         let default_interval = self.config.hello_interval;
+        if datagram.authenticated && !self.accept_sequence(datagram.sender, datagram.seq) {
+            return self.count("replayed");
+        }
         if !self.peers.contains_key(&datagram.sender) && self.peers.len() >= MAX_PEERS {
-            // Make room by forgetting the peer heard from longest ago.
-            if let Some(oldest) = self.peers.iter().min_by_key(|(_, p)| p.last_heard).map(|(n, _)| *n) {
-                self.peers.remove(&oldest);
-                self.count("peer_evicted");
+            // Make room by forgetting the unproven peer heard from longest ago; proven peers
+            // are never evicted for a newcomer (a flood of forged ids cannot push real peers out).
+            let oldest = self.peers.iter().filter(|(_, p)| !p.proven()).min_by_key(|(_, p)| p.last_heard);
+            match oldest.map(|(n, _)| *n) {
+                Some(n) => {
+                    self.peers.remove(&n);
+                    self.count("peer_evicted");
+                }
+                None => return self.count("peer_table_full"),
             }
         }
         let is_new = !self.peers.contains_key(&datagram.sender);
@@ -390,14 +440,11 @@ impl<S: DatagramSocket> UdpTransport<S> {
             groups: Vec::new(),
             interval: default_interval,
             last_heard: now,
-            replay: ReplayWindow::new(),
+            heard: 0,
+            authenticated: false,
         });
-        if datagram.authenticated && !peer.replay.accept(datagram.seq) {
-            if is_new {
-                self.peers.remove(&datagram.sender);
-            }
-            return self.count("replayed");
-        }
+        peer.heard = peer.heard.saturating_add(1);
+        peer.authenticated |= datagram.authenticated;
         peer.addr = from;
         peer.last_heard = now;
         self.count("datagrams_received");
@@ -418,7 +465,8 @@ impl<S: DatagramSocket> UdpTransport<S> {
                 WireMessage::Reply { id, part, parts, payload } => self.reply_part(sender, id, part, parts, payload),
                 WireMessage::Hello { interval_ms, name, groups } => {
                     if let Some(p) = self.peers.get_mut(&sender) {
-                        p.interval = Duration::from_millis(u64::from(interval_ms.max(1)));
+                        // Clamped: a forged peer announcing 0xFFFFFFFF ms would stay 149 days.
+                        p.interval = Duration::from_millis(u64::from(interval_ms.max(1))).min(MAX_PEER_INTERVAL);
                         p.name = name.to_string();
                         p.groups = groups.iter().map(|g| g.to_string()).collect();
                     }

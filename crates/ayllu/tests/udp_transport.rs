@@ -429,3 +429,83 @@ fn a_second_node_with_the_same_id_is_reported_by_both() {
         assert!(n.peers().is_empty(), "a node using our id is not a peer");
     }
 }
+
+/// Datagrams waiting at `socket`, drained.
+fn drain(socket: &mut BusSocket) -> usize {
+    let mut buf = [0u8; 9000];
+    let mut n = 0;
+    while let Ok(Some(_)) = socket.recv_from(&mut buf) {
+        n += 1;
+    }
+    n
+}
+
+#[test]
+fn n6_a_forged_hello_is_greeted_once_and_forgotten_within_three_clamped_periods() {
+    // Issue "open teams": one forged HELLO announcing a period of 0xFFFFFFFF ms used to keep its
+    // peer for 149 days and be greeted every second (646 datagrams per datagram). Now: one
+    // greeting (the peer is unproven), the period clamped to 60 s, gone within 3 minutes.
+    let bus = DatagramBus::new();
+    let mut team = Lockstep::new("udp-forged-hello");
+    let b = node(&mut team, &bus, 2, None, TEAM);
+    // On another port than the team's, so the node's own broadcasts do not reach it.
+    let mut victim = bus.bind("10.0.0.77:9999".parse().unwrap()).unwrap();
+    let hello = WireMessage::Hello { interval_ms: u32::MAX, name: "forged".into(), groups: vec![] };
+    victim.send_to(&encode_datagram(TEAM, NodeId(500), 1, None, &[hello]).unwrap(), addr(2)).unwrap();
+    team.advance(Duration::from_secs(10), Duration::from_millis(10));
+    assert_eq!(drain(&mut victim), 1, "one greeting, no periodic HELLOs to an unproven peer");
+    assert!(team.nodes()[b].peers().iter().any(|p| p.node == NodeId(500)));
+    team.advance(Duration::from_secs(171), Duration::from_millis(100));
+    assert!(team.nodes()[b].peers().iter().all(|p| p.node != NodeId(500)), "forgotten after 3 x 60 s");
+}
+
+#[test]
+fn n4_forged_newcomers_never_evict_proven_peers() {
+    // A burst of 3000 invented senders between two HELLOs of the real peer used to evict it
+    // (it had become the peer heard longest ago). Proven peers are never evicted for a
+    // newcomer: only unproven ones make room (or the newcomer is refused: peer_table_full).
+    let bus = DatagramBus::new();
+    let mut team = Lockstep::new("udp-flood-proven");
+    let a = node(&mut team, &bus, 1, None, TEAM);
+    let b = node(&mut team, &bus, 2, None, TEAM);
+    team.advance(Duration::from_millis(300), TICK); // node 1 is proven at node 2
+    let mut evil = bus.bind(addr(66)).unwrap();
+    for sender in 1000..4000u32 {
+        let hello = WireMessage::Hello { interval_ms: 60_000, name: "x".into(), groups: vec![] };
+        evil.send_to(&encode_datagram(TEAM, NodeId(sender), 1, None, &[hello]).unwrap(), addr(2)).unwrap();
+    }
+    // All of it at one instant (a node reads at most 256 datagrams a step).
+    for _ in 0..16 {
+        team.step();
+    }
+    let node2 = &team.nodes()[b];
+    assert!(node2.peers().len() <= 1024);
+    assert!(node2.peers().iter().any(|p| p.node == NodeId(1)), "the real peer stayed");
+    assert!(count(node2, "peer_evicted") >= 1900, "{:?}", node2.transport_counters());
+    team.node(a)
+        .connect(&Endpoint::local("R", "Out"), &Endpoint::node(NodeId(2), "R", "In"), ConnectionKind::Normal)
+        .unwrap();
+    team.node(a).write("R", "Out", 9i64).unwrap();
+    team.advance(TICK * 2, TICK);
+    assert_eq!(input(&team.nodes()[b]), Value::Int(9));
+}
+
+#[test]
+fn n5_a_replay_after_the_senders_peer_entry_expired_is_still_refused() {
+    // N5: the replay window outlives the peer entry; an authenticated datagram captured and
+    // sent again after its sender was forgotten is dropped as replayed, not re-applied.
+    let bus = DatagramBus::new();
+    let mut team = Lockstep::new("udp-replay-after-expiry");
+    let b = node(&mut team, &bus, 2, Some(KEY), TEAM);
+    let mut sender = bus.bind(addr(5)).unwrap();
+    let captured = encode_datagram(TEAM, NodeId(5), 1, Some(KEY), &[port_message(1, 1, "In", Value::Int(42))]).unwrap();
+    inject(&mut team, &mut sender, 2, &captured);
+    assert_eq!(input(&team.nodes()[b]), Value::Int(42));
+    team.node(b).write("R", "In", 0i64).unwrap();
+    // Node 5 falls silent and is forgotten (3 x 100 ms, its default period here is ours).
+    team.advance(Duration::from_secs(5), Duration::from_millis(10));
+    assert!(team.nodes()[b].peers().iter().all(|p| p.node != NodeId(5)));
+    inject(&mut team, &mut sender, 2, &captured);
+    assert_eq!(count(&team.nodes()[b], "replayed"), 1);
+    assert_eq!(input(&team.nodes()[b]), Value::Int(0), "the old value was not applied again");
+}
