@@ -212,6 +212,30 @@ mod tests {
         assert_eq!(UdpConfig::parse("udp://0.0.0.0:0").unwrap().ttl, 1, "ttl defaults to 1 when not given");
     }
 
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(2048))]
+
+        /// The parser never panics (it promises so): every option with values of every shape,
+        /// non-ASCII included, and keys of any text. Values hold no letters, so no host name is
+        /// looked up (DNS) and the test stays off the network.
+        #[test]
+        fn any_text_is_parsed_or_refused_never_a_panic(
+            pairs in proptest::collection::vec((
+                proptest::sample::select(vec![
+                    "team", "key", "peer", "broadcast", "group", "discovery", "ttl", "hello_ms", "mtu", "name", "x",
+                ]),
+                "[0-9.:@é+\\- ]{0,24}",
+            ), 0..6),
+            key in "[0-9a-fA-F+é ]{0,70}",
+            junk in "[=&?0-9.:é]{0,30}",
+        ) {
+            let query: Vec<String> = pairs.iter().map(|(k, v)| format!("{k}={v}")).collect();
+            let _ = UdpConfig::parse(&format!("udp://127.0.0.1:7400?{}", query.join("&")));
+            let _ = UdpConfig::parse(&format!("udp://127.0.0.1:7400?key={key}"));
+            let _ = UdpConfig::parse(&format!("udp://{junk}"));
+        }
+    }
+
     #[test]
     fn mistakes_are_named() {
         for (url, needle) in [
