@@ -60,8 +60,14 @@ impl Bounds {
     }
 }
 
-/// `ayllu node` arguments for node `id` (1-based) of the paper's team.
+/// `ayllu node` arguments for node `id` (1-based) of the paper's team, running 40 s.
 fn node_args(id: u32, url: &str) -> Vec<String> {
+    node_args_for(id, url, 40)
+}
+
+/// As [`node_args`], running `secs` seconds.
+fn node_args_for(id: u32, url: &str, secs: u32) -> Vec<String> {
+    let secs = secs.to_string();
     [
         "node",
         "--id",
@@ -79,7 +85,7 @@ fn node_args(id: u32, url: &str) -> Vec<String> {
         "--status-ms",
         &STATUS.as_millis().to_string(),
         "--for",
-        "40",
+        &secs,
     ]
     .iter()
     .map(|s| s.to_string())
@@ -253,4 +259,161 @@ fn three_processes_in_network_namespaces_use_real_subnet_broadcast() {
         assert_eq!(groups, &serde_json::json!(["Peers"]), "{heard}");
         in_ns2(&["why", "2", "OBS1.Rotate", "--json", "--udp", broadcast_url])
     });
+}
+
+/// The packet filter of namespace `i`: a table whose input chain drops `loss` % of UDP at
+/// random (`numgen random`), and an output chain, both empty of other rules.
+fn filter(net: &Netns, i: usize, loss: u32) -> Result<(), String> {
+    let nft = |args: &[&str]| net.exec(i, "nft", args);
+    nft(&["add", "table", "inet", "ayllu"])?;
+    nft(&["add", "chain", "inet", "ayllu", "input", "{ type filter hook input priority 0; }"])?;
+    nft(&["add", "chain", "inet", "ayllu", "output", "{ type filter hook output priority 0; }"])?;
+    nft(&[
+        "add",
+        "rule",
+        "inet",
+        "ayllu",
+        "input",
+        "meta",
+        "l4proto",
+        "udp",
+        "numgen",
+        "random",
+        "mod",
+        "100",
+        "<",
+        &loss.to_string(),
+        "drop",
+    ])
+}
+
+/// Cut namespace `i` off (every UDP datagram in and out dropped), or heal it (back to `loss`).
+fn partition(net: &Netns, i: usize, cut: bool, loss: u32) -> Result<(), String> {
+    let nft = |args: &[&str]| net.exec(i, "nft", args);
+    nft(&["flush", "chain", "inet", "ayllu", "input"])?;
+    nft(&["flush", "chain", "inet", "ayllu", "output"])?;
+    if cut {
+        nft(&["add", "rule", "inet", "ayllu", "input", "meta", "l4proto", "udp", "drop"])?;
+        nft(&["add", "rule", "inet", "ayllu", "output", "meta", "l4proto", "udp", "drop"])
+    } else {
+        nft(&[
+            "add",
+            "rule",
+            "inet",
+            "ayllu",
+            "input",
+            "meta",
+            "l4proto",
+            "udp",
+            "numgen",
+            "random",
+            "mod",
+            "100",
+            "<",
+            &loss.to_string(),
+            "drop",
+        ])
+    }
+}
+
+/// The fraction of status lines (of the live nodes, from `from` on) at which some target is
+/// claimed by two nodes, taking each node's latest line at that instant.
+fn double_claims(nodes: &[&Proc], from: Instant) -> (f64, usize) {
+    let lines: Vec<Vec<(Instant, Json)>> = nodes.iter().map(|p| p.lines()).collect();
+    let instants: Vec<Instant> = lines.iter().flatten().map(|(t, _)| *t).filter(|t| *t >= from).collect();
+    let mut doubled = 0;
+    for &at in &instants {
+        let mut count = [0u32; 5];
+        for node in &lines {
+            if let Some((_, j)) = node.iter().rev().find(|(t, _)| *t <= at) {
+                for c in claims(j) {
+                    if let Some(n) = count.get_mut(c as usize) {
+                        *n += 1;
+                    }
+                }
+            }
+        }
+        if count.iter().any(|&n| n > 1) {
+            doubled += 1;
+        }
+    }
+    (doubled as f64 / instants.len().max(1) as f64, instants.len())
+}
+
+#[test]
+fn three_processes_with_loss_a_partition_and_a_kill_keep_the_arbitration_properties() {
+    // Issue "open teams": the paper's team in namespaces with 30 % of every node's incoming UDP
+    // dropped by the kernel's packet filter, then node 1 cut off, then healed and node 3
+    // killed. Checked from the recorded claims, with limits from the BLE periods (Bounds):
+    // * settled despite the loss, and double claims rare (a claim lost twice in a row lets a
+    //   peer claim for a moment: at most a fifth of the instants);
+    // * a node that cannot hear its peers loses its hold on them within its lease: n2 takes
+    //   target 1 within the take-over bound after n1 is cut off;
+    // * a killed claimer's task is re-claimed within the bound: n2 claims target 3 after n3 dies.
+    const LOSS: u32 = 30;
+    let net = match Netns::create("ft", 83, 3) {
+        Ok(net) => net,
+        Err(reason) => {
+            eprintln!("SKIPPED: network namespaces unavailable: {reason}");
+            return;
+        }
+    };
+    if let Err(reason) = (0..3).try_for_each(|i| filter(&net, i, LOSS)) {
+        eprintln!("SKIPPED: nftables unavailable in the namespaces (scripts/install-test-tools installs it): {reason}");
+        return;
+    }
+    let bounds = Bounds::new();
+    let mut nodes: Vec<Proc> = (1..=3)
+        .map(|i| {
+            let url = format!("udp://10.83.0.{i}:7400?broadcast=10.83.0.255:7400");
+            let mut cmd = net.command(i - 1, BIN);
+            cmd.args(node_args_for(i as u32, &url, 90));
+            Proc::spawn(&format!("n{i}"), cmd)
+        })
+        .collect();
+    for n in &mut nodes {
+        n.wait_ready();
+    }
+    // Settled despite the loss.
+    let settled = wait_for(bounds.settle, Duration::from_millis(50), || {
+        let live: Vec<&Proc> = nodes.iter().collect();
+        state_is(&live, &[(1, 1), (2, 2), (3, 3)], &[1, 2, 3, 3]).ok()
+    });
+    assert!(settled.is_some(), "never settled with {LOSS} % loss\n{}", diagnostics(&nodes));
+    let from = Instant::now();
+    std::thread::sleep(bounds.cycle * 5);
+    let (doubled, samples) = double_claims(&nodes.iter().collect::<Vec<_>>(), from);
+    eprintln!("{LOSS} % loss: a target claimed twice at {:.1} % of {samples} instants", doubled * 100.0);
+    assert!(
+        samples >= 10 && doubled <= 0.2,
+        "double claims at {:.0} % of instants\n{}",
+        doubled * 100.0,
+        diagnostics(&nodes)
+    );
+
+    // Node 1 cut off: its claims stop reaching n2, whose inhibition lapses within the lease.
+    partition(&net, 0, true, LOSS).unwrap();
+    let cut_at = Instant::now();
+    let took = wait_for(bounds.takeover + bounds.margin * 2, Duration::from_millis(20), || {
+        nodes[1].lines().into_iter().find(|(t, j)| *t > cut_at && drive(j) == 1).map(|(t, _)| t - cut_at)
+    });
+    let took = took.unwrap_or_else(|| panic!("n2 never took target 1 from the cut-off n1\n{}", diagnostics(&nodes)));
+    eprintln!(
+        "partition: n2 driven by layer 1 {:.3}s after n1 was cut off (bound {:?})",
+        took.as_secs_f64(),
+        bounds.takeover
+    );
+    assert!(took <= bounds.takeover + bounds.margin, "took {took:?}");
+
+    // Healed, then node 3 killed: its targets are re-claimed (n2 sees target 3).
+    partition(&net, 0, false, LOSS).unwrap();
+    std::thread::sleep(bounds.takeover);
+    let killed_at = Instant::now();
+    nodes[2].kill();
+    let took = wait_for(bounds.takeover + bounds.margin * 2, Duration::from_millis(20), || {
+        nodes[1].lines().into_iter().find(|(t, j)| *t > killed_at && claims(j).contains(&3)).map(|(t, _)| t - killed_at)
+    });
+    let took = took.unwrap_or_else(|| panic!("target 3 never re-claimed after n3 died\n{}", diagnostics(&nodes)));
+    eprintln!("kill: n2 claims target 3 {:.3}s after n3 was killed (bound {:?})", took.as_secs_f64(), bounds.takeover);
+    assert!(took <= bounds.takeover + bounds.margin, "took {took:?}");
 }

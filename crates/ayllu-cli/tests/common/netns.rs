@@ -70,6 +70,17 @@ impl Netns {
         format!("10.{}.0.255", self.subnet)
     }
 
+    /// Run `program args...` inside namespace `i` to completion (e.g. `nft` rules for loss and
+    /// partitions); `Err` with its stderr if it fails or cannot start.
+    pub fn exec(&self, i: usize, program: &str, args: &[&str]) -> Result<(), String> {
+        let out = self.command(i, program).args(args).output().map_err(|e| format!("running {program}: {e}"))?;
+        if out.status.success() {
+            Ok(())
+        } else {
+            Err(format!("{program} {}: {}", args.join(" "), String::from_utf8_lossy(&out.stderr).trim()))
+        }
+    }
+
     /// `program args...` run inside namespace `i` (`ip netns exec` execs it: same pid).
     pub fn command(&self, i: usize, program: &str) -> Command {
         let mut cmd = Command::new("ip");
