@@ -2,7 +2,7 @@
 # CI (.ci/run) runs `make lint` and `make test`.
 CARGO ?= cargo
 
-.PHONY: demo test lint bench bench-net bench-sim fuzz fmt
+.PHONY: demo test lint bench bench-net bench-sim fuzz fuzz-long soak fmt
 
 ## Run the main demo: W-CMOMMT in the simulator (the paper's setting, a sweep, a robot killed
 ## halfway) for BLE and every baseline; prints a short summary (BLE against each baseline, whether
@@ -50,10 +50,22 @@ bench-net:
 bench-sim:
 	$(CARGO) bench -p ayllu-sim --bench speed
 
+## The faulted team (30 % loss, partitions, kills and restarts, in network namespaces) for
+## MINUTES, checking take-overs, memory, descriptors and double claims (needs root, ip, nft).
+MINUTES ?= 60
+soak:
+	scripts/install-test-tools
+	SOAK_MINUTES=$(MINUTES) $(CARGO) test --release -p ayllu-cli --test cross_subsumption_processes soak -- --ignored --nocapture
+
 ## Fuzz every decoder target for SECONDS each (needs a nightly toolchain; installs cargo-fuzz).
 SECONDS ?= 60
 fuzz:
 	fuzz/run $(SECONDS)
+
+## Every fuzz target for RUNS executions each (default 10 million; hours for node_receive).
+RUNS ?= 10000000
+fuzz-long:
+	FUZZ_RUNS=$(RUNS) fuzz/run
 
 fmt:
 	$(CARGO) fmt --all

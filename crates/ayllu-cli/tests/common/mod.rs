@@ -106,6 +106,19 @@ impl Proc {
         }
     }
 
+    /// The child's process id (for /proc: memory, open descriptors).
+    pub fn pid(&self) -> u32 {
+        self.child.id()
+    }
+
+    /// Resident memory (KiB) and open file descriptors of the child, from /proc.
+    pub fn resources(&self) -> Option<(u64, usize)> {
+        let status = std::fs::read_to_string(format!("/proc/{}/status", self.pid())).ok()?;
+        let rss = status.lines().find_map(|l| l.strip_prefix("VmRSS:"))?.trim().trim_end_matches(" kB").trim();
+        let fds = std::fs::read_dir(format!("/proc/{}/fd", self.pid())).ok()?.count();
+        Some((rss.parse().ok()?, fds))
+    }
+
     /// SIGKILL (a robot that dies without a word) and reap.
     pub fn kill(&mut self) {
         if !self.killed {
