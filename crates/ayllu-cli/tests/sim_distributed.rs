@@ -203,6 +203,17 @@ fn check_team(label: &str, procs: &[Proc]) {
     assert!(overlap <= 0.5, "{label}: two robots claimed one target at {:.0}% of the last 10 s", overlap * 100.0);
 }
 
+/// Once the server is done, every robot stops by itself (its body falls silent: forgotten
+/// after three HELLO periods), cleanly (exit 0), instead of outliving the world.
+fn robots_stop_after_the_server(label: &str, procs: &mut [Proc]) {
+    for r in procs[1..].iter_mut() {
+        let status = wait_for(Duration::from_secs(30), Duration::from_millis(100), || r.exited());
+        let status = status.unwrap_or_else(|| panic!("{label}: {} outlived its server: {}", r.name, r.stderr()));
+        assert!(status.success(), "{label}: {} ended with {status}: {}", r.name, r.stderr());
+        assert!(r.stderr().contains("server stopped"), "{label}: {}", r.stderr());
+    }
+}
+
 #[test]
 fn a_served_world_and_three_robot_processes_on_loopback() {
     // Warm the in-process references first (a few seconds in a debug build), so they do not
@@ -217,6 +228,7 @@ fn a_served_world_and_three_robot_processes_on_loopback() {
     let mut procs = vec![Proc::spawn("server", cmd)];
     procs.extend(robots);
     check_team("loopback", &procs);
+    robots_stop_after_the_server("loopback", &mut procs);
 }
 
 #[test]
@@ -245,4 +257,5 @@ fn a_served_world_and_three_robot_processes_in_network_namespaces() {
         procs.push(Proc::spawn(&format!("robot{k}"), cmd));
     }
     check_team("netns broadcast", &procs);
+    robots_stop_after_the_server("netns broadcast", &mut procs);
 }

@@ -106,6 +106,11 @@ impl Proc {
         }
     }
 
+    /// The child's exit status, if it has exited (reaped here).
+    pub fn exited(&mut self) -> Option<std::process::ExitStatus> {
+        self.child.try_wait().ok().flatten()
+    }
+
     /// The child's process id (for /proc: memory, open descriptors).
     pub fn pid(&self) -> u32 {
         self.child.id()
