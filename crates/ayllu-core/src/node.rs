@@ -33,6 +33,9 @@ use crate::value::Value;
 const SEQ_TABLE_MAX: usize = 16_384;
 /// How many answered control requests are remembered for idempotent replies (N2).
 const ANSWERED_MAX: usize = 1_024;
+/// And how many bytes they may take together (estimated, [`answer_bytes`]): a thousand LIST
+/// answers of a large node held 262 MB for good; the oldest answers go first.
+const ANSWERED_BYTES: usize = 2 << 20;
 /// Control requests are retried this often until answered...
 const RETRY_INTERVAL: Duration = Duration::from_millis(200);
 /// ...and given up after this many sends.
@@ -227,6 +230,8 @@ pub struct NodeCore {
     seq_base: u64,
     answered: HashMap<(NodeId, u64), Result<ReplyBody, String>>,
     answered_order: VecDeque<(NodeId, u64)>,
+    /// Estimated bytes of `answered`.
+    answered_bytes: usize,
     pub(crate) warnings: Vec<String>,
     pub(crate) transport_counters: Vec<(String, u64)>,
     access: Access,
@@ -264,6 +269,7 @@ impl NodeCore {
             seq_base: 0,
             answered: HashMap::new(),
             answered_order: VecDeque::new(),
+            answered_bytes: 0,
             warnings: Vec::new(),
             transport_counters: Vec::new(),
             access: Access::default(),
@@ -1053,13 +1059,19 @@ impl NodeCore {
                         self.counters.add(if refused { DropCause::NotAllowed } else { DropCause::BadRequest });
                     }
                     let result = result.map_err(|e| e.to_string());
-                    if self.answered_order.len() >= ANSWERED_MAX {
+                    let bytes = answer_bytes(&result);
+                    while self.answered_order.len() >= ANSWERED_MAX
+                        || (self.answered_bytes + bytes > ANSWERED_BYTES && !self.answered_order.is_empty())
+                    {
                         if let Some(old) = self.answered_order.pop_front() {
-                            self.answered.remove(&old);
+                            if let Some(gone) = self.answered.remove(&old) {
+                                self.answered_bytes -= answer_bytes(&gone);
+                            }
                         }
                     }
                     self.answered.insert((from, c.id), result.clone());
                     self.answered_order.push_back((from, c.id));
+                    self.answered_bytes += bytes;
                     result
                 }
             }
@@ -1456,6 +1468,43 @@ pub(crate) fn current(cell: &PortCell, now: Instant) -> &Value {
 /// piece (a tuple is hashed field by field, which costs more on every message received).
 fn incoming_key(from: NodeId, conn: ConnectionId) -> u128 {
     (u128::from(from.0) << 64) | u128::from(conn.0)
+}
+
+/// A cheap upper estimate of what a remembered answer holds in memory, for the byte bound of
+/// the answer memory (it need not be exact, only grow with the answer).
+fn answer_bytes(result: &Result<ReplyBody, String>) -> usize {
+    const BASE: usize = 64;
+    let value = |v: &Value| match v {
+        Value::Text(t) => t.len(),
+        Value::Bytes(b) => b.len(),
+        Value::Vector(x) => x.len() * 8,
+        _ => 8,
+    };
+    BASE + match result {
+        Err(e) => e.len(),
+        Ok(ReplyBody::Connection(_)) => 8,
+        Ok(ReplyBody::Value(v)) => value(v),
+        Ok(ReplyBody::OtherReport(text)) => text.len(),
+        Ok(ReplyBody::Port(r)) => {
+            512 + r.windows.len() * 64 + (r.incoming.len() + r.outgoing.len()) * 256 + r.triggers.len() * 128
+        }
+        Ok(ReplyBody::Node(r)) => {
+            let behaviors: usize = r
+                .behaviors
+                .iter()
+                .map(|b| {
+                    256 + b.ports.iter().map(|p| 96 + p.name.len() + value(&p.value)).sum::<usize>()
+                        + b.slots.iter().map(|(n, v)| 64 + n.len() + value(v)).sum::<usize>()
+                        + b.monostables.len() * 64
+                        + b.processes.len() * 128
+                })
+                .sum();
+            512 + behaviors
+                + r.connections.len() * 256
+                + r.transport.len() * 64
+                + r.warnings.iter().map(|w| 32 + w.len()).sum::<usize>()
+        }
+    }
 }
 
 /// Whether `m` carries the very name strings `r` was resolved from (pointer comparison).

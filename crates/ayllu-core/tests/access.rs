@@ -167,3 +167,32 @@ fn a_lost_requester_takes_its_connections_with_it() {
     assert!(after.iter().all(|(_, by)| *by != Some(NodeId(7))));
     assert!(after.iter().any(|(_, by)| by.is_none()), "made here: stays");
 }
+
+#[test]
+fn remembered_answers_are_bounded_in_bytes_not_only_in_count() {
+    // N2 answers repeats from memory; a thousand LIST answers of a large node held 262 MB. The
+    // memory is bounded in bytes (2 MiB): with big reports, old answers are forgotten long
+    // before the count bound, and a repeat is answered afresh.
+    let mut n = node();
+    let mut big = BehaviorClass::new("Big");
+    for p in 0..40 {
+        big.port(PortSpec::new(&format!("P{p}"), 0i64)).unwrap();
+    }
+    n.define(big).unwrap();
+    for b in 0..100 {
+        n.create("Big", &format!("B{b}")).unwrap();
+    }
+    let behaviors = |r: Result<ReplyBody, String>| match r {
+        Ok(ReplyBody::Node(report)) => report.behaviors.len(),
+        other => panic!("{other:?}"),
+    };
+    assert_eq!(behaviors(ask(&mut n, ms(0), 7, 1, ControlBody::List)), 101);
+    n.create("Relay", "NEW").unwrap();
+    // A repeat while remembered: the same answer as before (idempotent).
+    assert_eq!(behaviors(ask(&mut n, ms(1), 7, 1, ControlBody::List)), 101);
+    // Twenty more large answers push it out of the byte budget (the count bound is 1024).
+    for id in 2..22 {
+        ask(&mut n, ms(id), 7, id, ControlBody::List).unwrap();
+    }
+    assert_eq!(behaviors(ask(&mut n, ms(30), 7, 1, ControlBody::List)), 102, "answered afresh");
+}
