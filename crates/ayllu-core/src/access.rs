@@ -4,8 +4,9 @@
 //! node can narrow that: [`Access`] says which nodes may write its ports along connections and
 //! which may change its structure by request (CONNECT, DISCONNECT); reads (LIST, WHY, READ)
 //! stay open. [`Limits`] bound what the network can make a node hold: connections created by
-//! request (in all and per requesting node) and the period of any window a message opens.
-//! What is refused is counted (`not_allowed`, `too_long`, `bad_request`) and never applied;
+//! request (in all and per requesting node), the period of any window a message opens,
+//! and the rate of control requests per requesting node. What is refused is counted
+//! (`not_allowed`, `too_long`, `rate_limited`, `bad_request`) and never applied;
 //! requests get an error that says which rule refused them.
 //!
 //! Connections created by request are *leased* to their requester: they are removed when the
@@ -58,10 +59,23 @@ pub struct Limits {
     /// The longest window a message from the network may open; a longer one is refused and
     /// counted as `too_long` (not clamped in silence).
     pub max_remote_period: Duration,
+    /// Control requests (CONNECT, DISCONNECT, LIST, WHY, READ) answered per second from any
+    /// one node, on average; more are dropped unanswered and counted `rate_limited`. Replies can
+    /// be much larger than requests (a LIST), so this bounds what one requester can make a node
+    /// send.
+    pub requests_per_second: u32,
+    /// How many requests one node may send at once above that rate.
+    pub requests_burst: u32,
 }
 
 impl Default for Limits {
     fn default() -> Self {
-        Limits { remote_connections: 256, remote_connections_per_node: 32, max_remote_period: Duration::from_secs(600) }
+        Limits {
+            remote_connections: 256,
+            remote_connections_per_node: 32,
+            max_remote_period: Duration::from_secs(600),
+            requests_per_second: 50,
+            requests_burst: 100,
+        }
     }
 }

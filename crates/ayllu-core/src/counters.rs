@@ -43,10 +43,13 @@ pub enum DropCause {
     NotAllowed,
     /// A window from the network longer than the node's limit (`Limits::max_remote_period`).
     TooLong,
+    /// A control request over its sender's rate (`Limits::requests_per_second`): dropped
+    /// unanswered.
+    RateLimited,
 }
 
 impl DropCause {
-    pub const ALL: [DropCause; 16] = [
+    pub const ALL: [DropCause; 17] = [
         DropCause::Suppressed,
         DropCause::OverriddenIn,
         DropCause::Inhibited,
@@ -63,6 +66,7 @@ impl DropCause {
         DropCause::BadRequest,
         DropCause::NotAllowed,
         DropCause::TooLong,
+        DropCause::RateLimited,
     ];
     pub const COUNT: usize = DropCause::ALL.len();
 
@@ -84,6 +88,7 @@ impl DropCause {
             DropCause::BadRequest => "bad_request",
             DropCause::NotAllowed => "not_allowed",
             DropCause::TooLong => "too_long",
+            DropCause::RateLimited => "rate_limited",
         }
     }
 }

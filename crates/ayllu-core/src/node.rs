@@ -111,6 +111,9 @@ pub(crate) struct ProcState {
 /// such a loop runs at most 1000 times a second instead of spinning a core (D7.3).
 pub const RETRIGGER_INTERVAL: Duration = Duration::from_millis(1);
 
+/// Senders whose request rate is tracked, at most (see `Limits::requests_per_second`).
+pub const RATE_BUCKETS: usize = 1_024;
+
 /// Warnings kept in a node's report, at most (see [`NodeCore::warn`]).
 pub const MAX_WARNINGS: usize = 64;
 
@@ -236,6 +239,8 @@ pub struct NodeCore {
     pub(crate) transport_counters: Vec<(String, u64)>,
     access: Access,
     limits: Limits,
+    /// Control-request token buckets by sender: tokens left and when last refilled.
+    request_buckets: HashMap<NodeId, (f64, Instant)>,
 }
 
 impl NodeCore {
@@ -274,6 +279,7 @@ impl NodeCore {
             transport_counters: Vec::new(),
             access: Access::default(),
             limits: Limits::default(),
+            request_buckets: HashMap::new(),
         }
     }
 
@@ -620,6 +626,29 @@ impl NodeCore {
             let _ = self.disconnect(ConnectionId(id));
         }
         released
+    }
+
+    /// Take one token from `from`'s request bucket (`Limits::requests_per_second`, burst
+    /// `requests_burst`); `false` when it is empty. At most [`RATE_BUCKETS`] senders are
+    /// tracked; the one idle longest is forgotten first (a forgotten sender starts full).
+    fn admit_request(&mut self, from: NodeId) -> bool {
+        let rate = f64::from(self.limits.requests_per_second);
+        let burst = f64::from(self.limits.requests_burst.max(1));
+        let now = self.now;
+        if !self.request_buckets.contains_key(&from) && self.request_buckets.len() >= RATE_BUCKETS {
+            if let Some(idle) = self.request_buckets.iter().min_by_key(|(_, (_, t))| *t).map(|(n, _)| *n) {
+                self.request_buckets.remove(&idle);
+            }
+        }
+        let (tokens, last) = self.request_buckets.entry(from).or_insert((burst, now));
+        let refill = (now - *last).as_secs_f64() * rate;
+        *tokens = (*tokens + refill).min(burst);
+        *last = now;
+        if *tokens < 1.0 {
+            return false;
+        }
+        *tokens -= 1.0;
+        true
     }
 
     /// Set who may write this node's ports and change its structure from the network.
@@ -1050,6 +1079,11 @@ impl NodeCore {
                 return;
             }
             body => {
+                if !self.admit_request(from) {
+                    // Unanswered: an answer would be the very traffic the limit is for.
+                    self.counters.add(DropCause::RateLimited);
+                    return;
+                }
                 if let Some(result) = self.answered.get(&(from, c.id)) {
                     result.clone()
                 } else {

@@ -196,3 +196,26 @@ fn remembered_answers_are_bounded_in_bytes_not_only_in_count() {
     }
     assert_eq!(behaviors(ask(&mut n, ms(30), 7, 1, ControlBody::List)), 102, "answered afresh");
 }
+
+#[test]
+fn requests_over_a_senders_rate_are_dropped_unanswered() {
+    // D9.3: a burst of 100 requests, then 50 a second, per sender; beyond that no answer (an
+    // answer is the traffic the limit bounds) and a count. Other senders are not affected.
+    let mut n = node();
+    let read = || ControlBody::Read { behavior: "R".into(), port: "In".into() };
+    let answered = |n: &mut NodeCore, t: Instant, from: u32, ids: std::ops::Range<u64>| {
+        let mut got = 0;
+        for id in ids {
+            n.receive(t, NodeId(from), Message::Control(ControlMessage { id, body: read() }));
+            while let Some(out) = n.pop_outgoing() {
+                got += usize::from(matches!(out.message, Message::Control(_)));
+            }
+        }
+        got
+    };
+    assert_eq!(answered(&mut n, ms(0), 7, 0..150), 100);
+    assert_eq!(n.counters().get(DropCause::RateLimited), 50);
+    assert_eq!(answered(&mut n, ms(0), 8, 0..10), 10, "another sender has its own rate");
+    assert_eq!(answered(&mut n, ms(1000), 7, 150..200), 50, "50 more after one second");
+    assert_eq!(answered(&mut n, ms(1000), 7, 200..201), 0);
+}
