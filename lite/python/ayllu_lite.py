@@ -1548,6 +1548,10 @@ def parse_url(url: str) -> dict[str, Any]:
             out["hello_interval_ms"] = int(v)
         elif k == "name":
             out["name"] = v
+        elif k == "state":
+            # Replay marks kept across restarts (D-N5.3) belong to full nodes; a lite client
+            # sharing the same AYLLU_URL accepts the option and keeps its windows in memory.
+            pass
         else:
             raise ValueError(f"unknown option `{k}`")
     return out

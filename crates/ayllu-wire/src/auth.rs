@@ -78,6 +78,12 @@ impl ReplayWindow {
         ReplayWindow { newest: None, seen: 0 }
     }
 
+    /// A window restored from a saved high-water mark (a restart): everything up to and
+    /// including `newest` counts as seen, so only newer numbers are accepted.
+    pub const fn after(newest: u64) -> Self {
+        ReplayWindow { newest: Some(newest), seen: u64::MAX }
+    }
+
     /// The newest sequence number accepted so far.
     pub fn newest(&self) -> Option<u64> {
         self.newest

@@ -77,6 +77,44 @@ impl Tally {
     }
 }
 
+impl<S: DatagramSocket> Drop for UdpTransport<S> {
+    /// A node that stops cleanly saves its replay marks now (a crash loses at most the last
+    /// second's: D-N5.3).
+    fn drop(&mut self) {
+        self.next_save = Instant::ZERO;
+        let now = self.now;
+        self.save_marks(now);
+    }
+}
+
+/// The replay high-water marks saved in `path` (`NODE SEQ` lines) as windows that accept only
+/// newer numbers. A missing file is a first start; unreadable lines are skipped with a warning.
+fn load_marks(path: &std::path::Path, warnings: &mut Vec<String>) -> BTreeMap<NodeId, (ReplayWindow, Instant)> {
+    let mut marks = BTreeMap::new();
+    let text = match std::fs::read_to_string(path) {
+        Ok(t) => t,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return marks,
+        Err(e) => {
+            warnings.push(format!("cannot read replay marks from {}: {e}", path.display()));
+            return marks;
+        }
+    };
+    let mut bad = 0;
+    for line in text.lines().take(MAX_REPLAY_SENDERS) {
+        let mut parts = line.split_whitespace();
+        match (parts.next().and_then(|n| n.parse().ok()), parts.next().and_then(|q| q.parse().ok())) {
+            (Some(n), Some(seq)) => {
+                marks.insert(NodeId(n), (ReplayWindow::after(seq), Instant::ZERO));
+            }
+            _ => bad += 1,
+        }
+    }
+    if bad > 0 {
+        warnings.push(format!("{bad} unreadable lines in replay marks {} were skipped", path.display()));
+    }
+    marks
+}
+
 /// Why discovery does not work here, and what to do instead.
 fn discovery_warning(config: &UdpConfig, error: &str) -> String {
     let at = config.discovery.map_or_else(String::new, |a| a.to_string());
@@ -129,6 +167,10 @@ pub struct UdpTransport<S: DatagramSocket = OsSocket> {
     lost: Vec<NodeId>,
     /// Replay windows by sender, with when each was last used (outlive peer entries, N5).
     replay: BTreeMap<NodeId, (ReplayWindow, Instant)>,
+    /// Replay windows changed since they were last saved to `config.state` (D-N5.3).
+    replay_dirty: bool,
+    /// When the windows may next be saved (at most once a second).
+    next_save: Instant,
     /// Messages for nodes not heard from yet (never reported as sent, see [`Sent::Held`]).
     held: VecDeque<Held>,
     /// The first datagram sequence number this transport used: datagrams carrying our id and
@@ -140,6 +182,8 @@ pub struct UdpTransport<S: DatagramSocket = OsSocket> {
     warnings: Vec<String>,
     /// Sending to the discovery address failed once (warned about once).
     discovery_failed: bool,
+    /// Saving the replay marks failed once (warned about once).
+    state_warned: bool,
     joined: Vec<String>,
     batches: Vec<(SocketAddr, DatagramWriter)>,
     inbox: VecDeque<(NodeId, Message)>,
@@ -208,6 +252,10 @@ impl<S: DatagramSocket> UdpTransport<S> {
         // Discovery is a convenience: a machine without multicast still runs the node, and
         // says why nobody is found.
         let mut warnings = Vec::new();
+        let replay = match (&config.state, config.key) {
+            (Some(path), Some(_)) => load_marks(path, &mut warnings),
+            _ => BTreeMap::new(),
+        };
         if let Some(IpAddr::V4(ip)) = config.discovery.map(|a| a.ip()) {
             if let Err(e) = socket.join_multicast(ip) {
                 warnings.push(discovery_warning(&config, &e.to_string()));
@@ -231,12 +279,15 @@ impl<S: DatagramSocket> UdpTransport<S> {
             next_expiry: Instant::MAX,
             peers: BTreeMap::new(),
             lost: Vec::new(),
-            replay: BTreeMap::new(),
+            replay,
+            replay_dirty: false,
+            next_save: Instant::ZERO,
             held: VecDeque::new(),
             seq_start: boot << 32,
             duplicates: Vec::new(),
             warnings,
             discovery_failed: false,
+            state_warned: false,
             joined: Vec::new(),
             batches: Vec::new(),
             inbox: VecDeque::new(),
@@ -303,7 +354,39 @@ impl<S: DatagramSocket> UdpTransport<S> {
             return false;
         }
         *used = now;
+        self.replay_dirty = true;
         true
+    }
+
+    /// Write the newest accepted number of every sender to `config.state`, atomically (a
+    /// temporary file renamed over the old one), if they changed and a second has passed.
+    fn save_marks(&mut self, now: Instant) {
+        let Some(path) = self.config.state.clone() else { return };
+        if !self.replay_dirty || now < self.next_save || self.config.key.is_none() {
+            return;
+        }
+        self.replay_dirty = false;
+        self.next_save = now + Duration::from_secs(1);
+        let text: String = self
+            .replay
+            .iter()
+            .filter_map(|(n, (w, _))| w.newest().map(|seq| format!("{} {seq}\n", n.0)))
+            .collect();
+        let tmp = path.with_extension("tmp");
+        let saved = std::fs::write(&tmp, text).and_then(|()| std::fs::rename(&tmp, &path));
+        match saved {
+            Ok(()) => self.count("state_saved"),
+            Err(e) => {
+                self.count("state_error");
+                if !self.state_warned {
+                    self.state_warned = true;
+                    self.warnings.push(format!(
+                        "cannot save replay marks to {}: {e}; a restart may accept replayed datagrams",
+                        path.display()
+                    ));
+                }
+            }
+        }
     }
 
     /// Whether a datagram carrying our id came from us: from our own address (or our port on
@@ -700,7 +783,11 @@ impl<S: DatagramSocket> Transport for UdpTransport<S> {
             self.announce();
             self.next_hello = now + self.config.hello_interval;
         }
+        self.save_marks(now);
         let mut next = self.next_expiry.min(self.next_hello);
+        if self.replay_dirty && self.config.state.is_some() {
+            next = next.min(self.next_save);
+        }
         if !self.held.is_empty() {
             let before = self.held.len();
             self.held.retain(|h| now < h.until);

@@ -24,6 +24,9 @@
 //!   greet each other by unicast, so no peer needs to be listed.
 //! * `ttl` (default 1, 0 to 255): the multicast TTL; 0 keeps discovery on this machine.
 //! * `hello_ms`: liveness period (N6); peers are forgotten after three silent periods.
+//! * `state=PATH` (keyed teams): a file where the node keeps, across restarts, the newest
+//!   datagram number it accepted from each sender, so that a datagram captured before a
+//!   restart is not accepted after it (N5, D-N5.3).
 //! * `mtu`: the largest datagram sent (batching fills datagrams up to it, N3).
 //!
 //! Parsing never panics; every mistake is an error naming the bad part.
@@ -69,6 +72,8 @@ pub struct UdpConfig {
     pub discovery: Option<SocketAddr>,
     /// Multicast TTL (0: this machine only).
     pub ttl: u32,
+    /// Where the replay high-water marks survive restarts (keyed teams; D-N5.3).
+    pub state: Option<std::path::PathBuf>,
     /// Liveness period (N6); a peer silent for three of its periods is forgotten.
     pub hello_interval: Duration,
     /// The largest datagram sent (N3 batches up to it).
@@ -89,6 +94,7 @@ impl UdpConfig {
             groups: Vec::new(),
             discovery: None,
             ttl: 1,
+            state: None,
             hello_interval: Duration::from_millis(1000),
             mtu: DEFAULT_MTU,
             name: String::new(),
@@ -129,6 +135,12 @@ impl UdpConfig {
                         .ok()
                         .filter(|t| *t <= 255)
                         .ok_or_else(|| bad(format!("ttl `{v}` must be a number from 0 to 255")))?;
+                }
+                "state" => {
+                    if v.is_empty() {
+                        return Err(bad("state needs a file path".into()));
+                    }
+                    config.state = Some(v.into());
                 }
                 "hello_ms" => {
                     let ms: u64 = v.parse().map_err(|_| bad(format!("hello_ms `{v}` is not a number")))?;

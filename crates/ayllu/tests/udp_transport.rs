@@ -509,3 +509,45 @@ fn n5_a_replay_after_the_senders_peer_entry_expired_is_still_refused() {
     assert_eq!(count(&team.nodes()[b], "replayed"), 1);
     assert_eq!(input(&team.nodes()[b]), Value::Int(0), "the old value was not applied again");
 }
+
+#[test]
+fn n5_a_replay_after_the_receivers_restart_is_refused_with_a_state_file() {
+    // D-N5.3: with `state=PATH`, a keyed node keeps the newest number it accepted from each
+    // sender across a restart; a datagram captured before the restart is refused after it.
+    let path = std::env::temp_dir().join(format!(
+        "ayllu-replay-marks-{}-{:?}",
+        std::process::id(),
+        std::thread::current().id()
+    ));
+    let _ = std::fs::remove_file(&path);
+    let bus = DatagramBus::new();
+    let mut team = Lockstep::new("udp-replay-after-restart");
+    let keyed_node = |team: &mut Lockstep| {
+        let mut config = UdpConfig::new(addr(2));
+        config.key = Some(KEY);
+        config.team = TEAM;
+        config.state = Some(path.clone());
+        let transport = UdpTransport::with_socket(NodeId(2), config, bus.bind(addr(2)).unwrap()).unwrap();
+        let i = team.add_node(Node::new(team.clock().clone(), transport));
+        relay(team.node(i));
+        i
+    };
+    let b = keyed_node(&mut team);
+    let mut sender = bus.bind(addr(5)).unwrap();
+    let captured =
+        encode_datagram(TEAM, NodeId(5), 10, Some(KEY), &[port_message(1, 1, "In", Value::Int(42))]).unwrap();
+    inject(&mut team, &mut sender, 2, &captured);
+    assert_eq!(input(&team.nodes()[b]), Value::Int(42));
+    team.advance(Duration::from_millis(1500), TICK); // saved within a second
+    assert!(count(&team.nodes()[b], "state_saved") >= 1);
+    drop(team.kill(NodeId(2)));
+    // The node restarts on the same address with the same state file.
+    let b = keyed_node(&mut team);
+    inject(&mut team, &mut sender, 2, &captured);
+    assert_eq!(count(&team.nodes()[b], "replayed"), 1);
+    assert_eq!(input(&team.nodes()[b]), Value::Int(0), "the captured value was not applied again");
+    let newer = encode_datagram(TEAM, NodeId(5), 11, Some(KEY), &[port_message(1, 2, "In", Value::Int(7))]).unwrap();
+    inject(&mut team, &mut sender, 2, &newer);
+    assert_eq!(input(&team.nodes()[b]), Value::Int(7), "newer datagrams are accepted");
+    let _ = std::fs::remove_file(&path);
+}
