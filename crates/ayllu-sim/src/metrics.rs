@@ -6,13 +6,17 @@
 //! * A = (1/T) Σ_t dt Σ_j o_j(t) (Parker's average number of targets observed); A/m = A / m.
 //! * A_w = (1/T) Σ_t dt Σ_j w_j o_j(t) / Σ_j w_j (priority-weighted fraction, 0..1).
 //! * top-k = (1/T) Σ_t dt (1/k) Σ_{j ≤ k} o_j(t), with k = min(robots, m) and targets sorted by
-//!   priority: how well the targets a perfect team could always cover are covered.
+//!   priority: how well the targets a perfect team could always cover are covered. It is
+//!   against the *starting* team; top-k alive uses k(t) = min(live robots, m) instead, so a team
+//!   that lost robots is judged against what it still could cover.
 //! * redundant = (1/T) Σ_t dt Σ_j max(0, n_j(t) - 1): robot-observations beyond the first.
 //! * switches/min: changes of the target driving each robot (including to and from none), per
 //!   live robot per minute.
 //! * recover: for each target observed by a robot when it is killed, the time until another
 //!   robot observes it; the mean over such targets (None when no kill, or nothing to re-cover;
-//!   a target never re-covered counts as the time left in the run).
+//!   a target never re-covered counts as the time left in the run). Robots killed at the same
+//!   instant are all dead before their lost targets are judged, so one doomed robot does not
+//!   count as re-covering another's target, and a target they shared is one task.
 //! * msgs/robot/s: radio messages sent (one per destination node, a broadcast counts once per
 //!   sender) per robot per second.
 
@@ -25,6 +29,9 @@ pub struct Metrics {
     pub a_w: f64,
     pub top_k: f64,
     pub k: u32,
+    /// top-k against the robots alive at each instant (k(t) = min(live robots, m)).
+    #[serde(default)]
+    pub top_k_alive: f64,
     pub redundant: f64,
     pub switches_per_min: f64,
     pub recover_s: Option<f64>,
@@ -45,6 +52,7 @@ pub struct Meter {
     a: f64,
     a_w: f64,
     top_k: f64,
+    top_k_alive: f64,
     redundant: f64,
     switches: u64,
     live_robot_time: f64,
@@ -65,6 +73,7 @@ impl Meter {
             a: 0.0,
             a_w: 0.0,
             top_k: 0.0,
+            top_k_alive: 0.0,
             redundant: 0.0,
             switches: 0,
             live_robot_time: 0.0,
@@ -92,9 +101,11 @@ impl Meter {
     pub fn observe(&mut self, now: f64, dt: f64, world: &World, drives: &[u32]) -> (u32, f64) {
         self.count(world);
         let total_w: f64 = self.priorities.iter().sum();
+        let alive = world.robots.iter().filter(|r| r.alive).count();
+        let k_alive = alive.min(self.priorities.len());
         let mut observed = 0u32;
         let mut weighted = 0.0;
-        let mut top = 0u32;
+        let (mut top, mut top_alive) = (0u32, 0u32);
         let mut redundant = 0u32;
         for (j, &c) in self.count.iter().enumerate() {
             if c > 0 {
@@ -102,6 +113,9 @@ impl Meter {
                 weighted += self.priorities[j];
                 if j < self.k {
                     top += 1;
+                }
+                if j < k_alive {
+                    top_alive += 1;
                 }
                 redundant += c - 1;
             }
@@ -112,6 +126,9 @@ impl Meter {
         self.a_w += dt * weighted;
         if self.k > 0 {
             self.top_k += dt * f64::from(top) / self.k as f64;
+        }
+        if k_alive > 0 {
+            self.top_k_alive += dt * f64::from(top_alive) / k_alive as f64;
         }
         self.redundant += dt * f64::from(redundant);
         for (i, r) in world.robots.iter().enumerate() {
@@ -139,11 +156,25 @@ impl Meter {
     /// Robot `i` was just killed (already marked dead in `world`): every target it observed
     /// that no other robot observes is a task to re-cover.
     pub fn killed(&mut self, now: f64, world: &World, i: usize) {
+        self.killed_together(now, world, &[i]);
+    }
+
+    /// Robots `killed` died at the same instant (all already marked dead in `world`): every
+    /// target one of them observed is one task; it is re-covered at once if a live robot
+    /// observes it, else pending until one does.
+    pub fn killed_together(&mut self, now: f64, world: &World, killed: &[usize]) {
         self.count(world);
         let range = world.config.observe_range;
         let mut lost = Vec::new();
-        world.in_view(i, range, |j, _, _| lost.push(j));
+        for &i in killed {
+            world.in_view(i, range, |j, _, _| lost.push(j));
+        }
+        lost.sort_unstable();
+        lost.dedup();
         for j in lost {
+            if self.pending.iter().any(|&(p, _)| p == j) {
+                continue; // already lost to an earlier kill, still pending
+            }
             if self.count[j] == 0 {
                 self.pending.push((j, now));
             } else {
@@ -166,6 +197,7 @@ impl Meter {
             a_w: self.a_w / t,
             top_k: self.top_k / t,
             k: self.k as u32,
+            top_k_alive: self.top_k_alive / t,
             redundant: self.redundant / t,
             switches_per_min: if self.live_robot_time > 0.0 {
                 self.switches as f64 / (self.live_robot_time / 60.0)

@@ -296,6 +296,8 @@ impl Sim {
     }
 
     fn apply_kills(&mut self, t: f64) {
+        // All robots due to die now die first; then their lost targets are judged together.
+        let mut killed = Vec::new();
         for k in 0..self.scenario.kills.len() {
             if self.kills_done[k] || self.scenario.kills[k].at > t {
                 continue;
@@ -310,8 +312,11 @@ impl Sim {
                 continue;
             }
             self.world.robots[i].alive = false;
-            self.meter.killed(t, &self.world, i);
+            killed.push(i);
             self.events.push(Event { t, kind: "kill".into(), robot: node_id(i).0 });
+        }
+        if !killed.is_empty() {
+            self.meter.killed_together(t, &self.world, &killed);
         }
     }
 

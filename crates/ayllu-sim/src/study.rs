@@ -223,6 +223,7 @@ pub fn aggregate(cell: &Cell, runs: &[Metrics]) -> Row {
             top_k: mean(|m| m.top_k),
             // The same in every run of a cell: min(robots, targets).
             k: runs.first().map_or(cell.robots.min(cell.targets) as u32, |m| m.k),
+            top_k_alive: mean(|m| m.top_k_alive),
             redundant: mean(|m| m.redundant),
             switches_per_min: mean(|m| m.switches_per_min),
             recover_s: (!recovers.is_empty()).then(|| recovers.iter().sum::<f64>() / recovers.len() as f64),
@@ -371,6 +372,7 @@ mod tests {
             a_w,
             top_k: a_w / 2.0,
             k: 3,
+            top_k_alive: a_w / 2.0,
             redundant: 0.5,
             switches_per_min: 2.0 * a_w,
             recover_s,

@@ -228,6 +228,7 @@ fn row(controller: &str, robots: u32, targets: u32, loss: f64, kill: bool) -> Ro
             a_w,
             top_k: r3((a_w * 1.1).min(1.0)),
             k: robots.min(targets),
+            top_k_alive: r3((a_w * 1.1).min(1.0)),
             redundant: r3(if controller == "Local" { 0.8 } else { 0.15 } + loss),
             switches_per_min: r3(if controller == "Random" { 6.5 } else { 1.2 + 3.0 * loss }),
             recover_s: kill.then(|| r3(4.0 + 20.0 * loss + 10.0 * (1.0 - quality(controller)))),
