@@ -143,6 +143,7 @@ pub fn run(args: &CmommtArgs) -> Result<(), Fail> {
         paper: results.paper.clone(),
         sweep: results.sweep.clone(),
         robustness: results.robustness.clone(),
+        runs: results.runs.clone(),
     };
     let index = args.out.join("index.html");
     report::write(&args.out, &report)

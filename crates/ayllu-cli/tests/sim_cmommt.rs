@@ -324,3 +324,37 @@ fn bad_arguments_and_an_unwritable_folder_fail_with_a_message() {
     ayllu(&args, LIMIT).fails(1, "writing the report into");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn every_run_is_exported_and_the_printed_means_are_recomputable_from_them() {
+    // runs.csv and runs.jsonl: one row per (table, cell, seed) of the study, with every
+    // metric; the mean of a cell's rows is the number its table prints (results.json).
+    let out = scratch("runs");
+    ayllu(&quick_args(&out, &["--json"]), LIMIT).ok();
+    let results: Json = serde_json::from_str(&std::fs::read_to_string(out.join("results.json")).unwrap()).unwrap();
+    let csv = std::fs::read_to_string(out.join("runs.csv")).unwrap();
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap_or_else(|| panic!("no {name} column"));
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    let cells: usize = ["paper", "sweep", "robustness"].iter().map(|t| results[t].as_array().unwrap().len()).sum();
+    assert_eq!(rows.len(), cells * 2, "one row per cell and seed (2 seeds)");
+    let jsonl = std::fs::read_to_string(out.join("runs.jsonl")).unwrap();
+    assert_eq!(jsonl.lines().count(), rows.len());
+    for (table, tname) in [("paper", "paper"), ("robustness", "robustness")] {
+        for row in results[table].as_array().unwrap() {
+            let controller = row["controller"].as_str().unwrap();
+            let loss = row["loss"].as_f64().unwrap();
+            let mine: Vec<f64> = rows
+                .iter()
+                .filter(|r| r[col("table")] == tname && r[col("controller")] == controller)
+                .filter(|r| r[col("loss")].parse::<f64>().unwrap() == loss)
+                .map(|r| r[col("a_w")].parse().unwrap())
+                .collect();
+            assert_eq!(mine.len(), 2, "{table} {controller} {loss}");
+            let mean = mine.iter().sum::<f64>() / 2.0;
+            let printed = row["metrics"]["a_w"].as_f64().unwrap();
+            assert!((mean - printed).abs() < 1e-12, "{table} {controller}: {mean} vs {printed}");
+        }
+    }
+}

@@ -18,6 +18,8 @@
 //! * `results.md`: the three tables in Markdown, with the columns of [`text_table`].
 //! * `tables.txt`: what `ayllu sim cmommt --full` prints: the summary, then the three tables as
 //!   fixed-width text ([`tables_text`]).
+//! * `runs.csv` and `runs.jsonl`: every run of the study, one row each ([`runs_csv`],
+//!   [`RunRow`]), so that every printed mean can be recomputed and analysed elsewhere.
 //!
 //! Everything is a pure function of the `Report`: the same report writes the same bytes.
 
@@ -36,7 +38,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use crate::recording::CoverageSeries;
-use crate::study::Row;
+use crate::study::{Row, RunRow};
 
 pub use replay::{decode, encode, Replay, State};
 pub use summary::{compare, paper_claim, Comparison, Verdict};
@@ -59,6 +61,9 @@ pub struct Report {
     pub sweep: Vec<Row>,
     /// A robot killed halfway, at 0, 10 and 30 % loss, every controller.
     pub robustness: Vec<Row>,
+    /// Every run's metrics (written as `runs.csv` and `runs.jsonl`).
+    #[serde(default)]
+    pub runs: Vec<RunRow>,
 }
 
 /// Write the report into `dir` (created if missing); returns the files written.
@@ -80,7 +85,51 @@ pub fn write(dir: &Path, report: &Report) -> io::Result<Vec<PathBuf>> {
     put("results.json", &json)?;
     put("results.md", &tables::markdown(report))?;
     put("tables.txt", &format!("{}\n{}", summary_text(report), tables_text(report)))?;
+    put("runs.csv", &runs_csv(&report.runs))?;
+    let mut jsonl = String::new();
+    for r in &report.runs {
+        jsonl.push_str(&serde_json::to_string(r).map_err(io::Error::other)?);
+        jsonl.push('\n');
+    }
+    put("runs.jsonl", &jsonl)?;
     Ok(written)
+}
+
+/// Every run as CSV: a header, then one line per run with its place (table, controller,
+/// robots, targets, loss, kill, seed, duration) and every metric (empty `recover_s` when the
+/// run had nothing to re-cover). Numbers are written in full (shortest round trip).
+pub fn runs_csv(runs: &[RunRow]) -> String {
+    let mut out = String::from(
+        "table,controller,robots,targets,loss,kill,seed,duration,a,a_per_m,a_w,top_k,k,top_k_alive,redundant,\
+         switches_per_min,recover_s,unrecovered,msgs_per_robot_s\n",
+    );
+    for r in runs {
+        let m = &r.metrics;
+        let recover = m.recover_s.map_or(String::new(), |x| x.to_string());
+        out.push_str(&format!(
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
+            r.table,
+            r.controller,
+            r.robots,
+            r.targets,
+            r.loss,
+            r.kill,
+            r.seed,
+            r.duration,
+            m.a,
+            m.a_per_m,
+            m.a_w,
+            m.top_k,
+            m.k,
+            m.top_k_alive,
+            m.redundant,
+            m.switches_per_min,
+            recover,
+            m.unrecovered,
+            m.msgs_per_robot_s
+        ));
+    }
+    out
 }
 
 /// The rows as a fixed-width text table for a terminal: a header line, then one line per row.

@@ -36,6 +36,41 @@ pub struct Row {
     pub a_w_sd: f64,
 }
 
+/// One run of a study: where it sits (table, cell, seed) and its metrics, for per-run exports
+/// (`runs.csv`, `runs.jsonl`): every mean a table prints is recomputable from these rows.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RunRow {
+    /// `paper`, `sweep` or `robustness`.
+    pub table: String,
+    /// The controller's name, as in the tables.
+    pub controller: String,
+    /// Robots at the start.
+    pub robots: u32,
+    /// Targets.
+    pub targets: u32,
+    /// Radio loss probability per message and receiver.
+    pub loss: f64,
+    /// Whether a robot was killed halfway.
+    pub kill: bool,
+    /// The run's seed.
+    pub seed: u64,
+    /// Seconds of virtual time.
+    pub duration: f64,
+    /// The run's metrics (docs/cmommt.md).
+    pub metrics: Metrics,
+}
+
+impl Table {
+    /// The table's name in exports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Table::Paper => "paper",
+            Table::Sweep => "sweep",
+            Table::Robustness => "robustness",
+        }
+    }
+}
+
 /// A controller in one setting, to be run with seeds 1..=`seeds`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Cell {
@@ -192,6 +227,9 @@ pub struct Results {
     pub paper: Vec<Row>,
     pub sweep: Vec<Row>,
     pub robustness: Vec<Row>,
+    /// Every run, in the plan's order (table, cell, seed).
+    #[serde(default)]
+    pub runs: Vec<RunRow>,
 }
 
 /// One cell's row from its runs' metrics (in seed order): means of every metric; `recover_s`
@@ -348,6 +386,21 @@ pub fn run_plan_recording<R: Send>(
             kept.push((t, c.clone(), seed, k));
         }
     }
+    let run_rows: Vec<RunRow> = runs
+        .iter()
+        .zip(&metrics)
+        .map(|(&(t, c, seed), m)| RunRow {
+            table: t.name().to_owned(),
+            controller: c.controller.name().to_owned(),
+            robots: c.robots as u32,
+            targets: c.targets as u32,
+            loss: c.loss,
+            kill: c.kill,
+            seed,
+            duration: c.duration,
+            metrics: m.clone(),
+        })
+        .collect();
     let mut rest = metrics.as_slice();
     let mut rows = cells.iter().map(|cell| {
         let (runs, tail) = rest.split_at(cell.seeds as usize);
@@ -358,7 +411,7 @@ pub fn run_plan_recording<R: Send>(
     let paper = take(plan.paper.len());
     let sweep = take(plan.sweep.len());
     let robustness = take(plan.robustness.len());
-    Ok((Results { paper, sweep, robustness }, kept))
+    Ok((Results { paper, sweep, robustness, runs: run_rows }, kept))
 }
 
 #[cfg(test)]

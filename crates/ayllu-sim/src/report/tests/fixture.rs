@@ -265,5 +265,6 @@ pub fn report() -> Report {
         paper: CONTROLLERS.iter().map(|c| row(c, 3, 4, 0.0, false)).collect(),
         sweep,
         robustness,
+        runs: Vec::new(),
     }
 }
