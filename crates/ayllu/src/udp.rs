@@ -606,14 +606,20 @@ impl<S: DatagramSocket> UdpTransport<S> {
     /// worthless (N1).
     fn hold(&mut self, to: NodeId, message: Message) -> Sent {
         let until = self.now + self.config.hello_interval * HOLD_PERIODS;
-        if let Message::Port(p) = &message {
-            let conn = p.conn;
-            let same = |h: &Held| h.to == to && matches!(&h.message, Message::Port(q) if q.conn == conn);
-            if let Some(h) = self.held.iter_mut().find(|h| same(h)) {
-                *h = Held { to, until, message };
-                self.count("held_superseded");
-                return Sent::Held;
-            }
+        // The newest of one connection's port messages replaces the older (N1); a retried
+        // request (same id, N2) replaces its earlier copy instead of queueing again.
+        let same = |h: &Held| {
+            h.to == to
+                && match (&h.message, &message) {
+                    (Message::Port(a), Message::Port(b)) => a.conn == b.conn,
+                    (Message::Control(a), Message::Control(b)) => a.id == b.id,
+                    _ => false,
+                }
+        };
+        if let Some(i) = self.held.iter().position(same) {
+            self.held[i] = Held { to, until, message };
+            self.count("held_superseded");
+            return Sent::Held;
         }
         if self.held.len() >= MAX_HELD {
             self.held.pop_front();

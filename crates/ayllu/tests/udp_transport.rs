@@ -551,3 +551,21 @@ fn n5_a_replay_after_the_receivers_restart_is_refused_with_a_state_file() {
     assert_eq!(input(&team.nodes()[b]), Value::Int(7), "newer datagrams are accepted");
     let _ = std::fs::remove_file(&path);
 }
+
+#[test]
+fn a_request_retried_before_the_greeting_is_held_once() {
+    // N2 retries a request every 200 ms; while its node has not greeted, each retry replaces
+    // the held copy instead of queueing again, so the node gets one copy when it greets.
+    let bus = DatagramBus::new();
+    let mut team = Lockstep::new("udp-held-request");
+    let a = node(&mut team, &bus, 1, None, TEAM);
+    let id = team.node(a).core_mut().request(NodeId(2), ayllu::ControlBody::List).unwrap();
+    team.advance(Duration::from_millis(250), TICK);
+    let n = &team.nodes()[a];
+    assert_eq!(count(n, "held"), 1, "{:?}", n.transport_counters());
+    assert!(count(n, "held_superseded") >= 1, "the retry replaced the held copy");
+    let b = node(&mut team, &bus, 2, None, TEAM);
+    team.advance(Duration::from_millis(300), TICK);
+    assert!(matches!(team.nodes()[a].core().request_status(id), Some(ayllu::RequestStatus::Done(_))));
+    let _ = b;
+}
