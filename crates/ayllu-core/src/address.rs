@@ -38,17 +38,28 @@ impl fmt::Display for ConnectionId {
 #[derive(Copy, Clone, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Default)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Source {
+    /// The node the value came from, or whose connection holds the window.
     pub node: NodeId,
+    /// The raw [`ConnectionId`] on `node`; 0 means a process of the port's own behavior (or the
+    /// application writing on its behalf), which holds no pass.
     pub conn: u64,
 }
 
 impl Source {
+    /// The source of a behavior's own writes on `node` (its processes, or
+    /// [`NodeCore::write`](crate::NodeCore::write)): connection 0, so it wins Max/Min ties
+    /// against every connection of the same node (D3.4).
     pub const fn internal(node: NodeId) -> Source {
         Source { node, conn: 0 }
     }
+    /// The source of values arriving along connection `id` owned by `node`. With the node id it
+    /// names a pass holder across nodes, so two nodes overriding one port hold separate passes
+    /// (D10.3).
     pub const fn connection(node: NodeId, id: ConnectionId) -> Source {
         Source { node, conn: id.0 }
     }
+    /// Whether this is a behavior's own write rather than a connection: own writes are never
+    /// suppressed and never hold an override pass (D6.5).
     pub const fn is_internal(&self) -> bool {
         self.conn == 0
     }
@@ -69,23 +80,53 @@ impl fmt::Display for Source {
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum Endpoint {
     /// `(behavior, port)` on this node.
-    Local { behavior: Arc<str>, port: Arc<str> },
+    Local {
+        /// Behavior instance name (`OBS1`).
+        behavior: Arc<str>,
+        /// Port name (`Rotate`).
+        port: Arc<str>,
+    },
     /// `(node, behavior, port)` on a named node (possibly this one).
-    Node { node: NodeId, behavior: Arc<str>, port: Arc<str> },
+    Node {
+        /// The node that owns the port; messages reach it through the transport (D-S10.2).
+        node: NodeId,
+        /// Behavior instance name on that node.
+        behavior: Arc<str>,
+        /// Port name.
+        port: Arc<str>,
+    },
     /// `(group, behavior, port)` on every node of a broadcast group except the sender.
-    Group { group: Arc<str>, behavior: Arc<str>, port: Arc<str> },
+    Group {
+        /// Broadcast group name (the paper's `Peers`); nodes join with
+        /// [`NodeCore::join`](crate::NodeCore::join).
+        group: Arc<str>,
+        /// Behavior instance name, the same on every member (the same layer, S11).
+        behavior: Arc<str>,
+        /// Port name.
+        port: Arc<str>,
+    },
 }
 
 impl Endpoint {
+    /// `(behavior, port)` on this node: the usual source of
+    /// [`NodeCore::connect`](crate::NodeCore::connect), and a local destination.
     pub fn local(behavior: &str, port: &str) -> Endpoint {
         Endpoint::Local { behavior: behavior.into(), port: port.into() }
     }
+    /// `(node, behavior, port)` on node `node` (S10); this node's own id is treated as local.
+    /// As a source on another node it is only valid for
+    /// [`NodeCore::request_connect`](crate::NodeCore::request_connect), which asks that node
+    /// to make the connection (D10.1).
     pub fn node(node: NodeId, behavior: &str, port: &str) -> Endpoint {
         Endpoint::Node { node, behavior: behavior.into(), port: port.into() }
     }
+    /// `(group, behavior, port)`: that port on every node that joined `group`, except the sender
+    /// (the paper's broadcast connection). A destination only: as a source it is refused with
+    /// [`Error::GroupSource`](crate::Error::GroupSource).
     pub fn group(group: &str, behavior: &str, port: &str) -> Endpoint {
         Endpoint::Group { group: group.into(), behavior: behavior.into(), port: port.into() }
     }
+    /// The behavior name, whatever the kind of endpoint.
     pub fn behavior(&self) -> &str {
         match self {
             Endpoint::Local { behavior, .. } | Endpoint::Node { behavior, .. } | Endpoint::Group { behavior, .. } => {
@@ -93,6 +134,7 @@ impl Endpoint {
             }
         }
     }
+    /// The port name, whatever the kind of endpoint.
     pub fn port(&self) -> &str {
         match self {
             Endpoint::Local { port, .. } | Endpoint::Node { port, .. } | Endpoint::Group { port, .. } => port,

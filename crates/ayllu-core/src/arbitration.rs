@@ -19,8 +19,14 @@ use crate::time::Instant;
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum WindowKind {
+    /// Opened by a Suppress connection: no connection may write the port, pass holders included
+    /// (D6.4); the behavior's own writes still may (D6.5).
     Suppress,
+    /// Opened by an Inhibit connection: nothing propagates out of the port, pass holders
+    /// included; what arrives is still stored (D6.4, D6.6).
     Inhibit,
+    /// Opened by a WriteInhibit connection (a BLE claim, S11): the behavior's own writes are
+    /// stored but do not propagate; values arriving along connections still do.
     WriteInhibit,
     /// The holder has the only pass to *write* the port.
     OverrideIn,
@@ -29,6 +35,7 @@ pub enum WindowKind {
 }
 
 impl WindowKind {
+    /// The kind as reports and `ayllu why` print it (`override-in`).
     pub fn name(self) -> &'static str {
         match self {
             WindowKind::Suppress => "suppress",
@@ -44,9 +51,12 @@ impl WindowKind {
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Window {
+    /// What the window blocks.
     pub kind: WindowKind,
     /// The connection that opened it (and holds the pass, for overrides).
     pub holder: Source,
+    /// When the window closes, on this node's clock: it is open while `now < end`. Refreshed by
+    /// its holder's messages, never shortened (D6.1).
     pub end: Instant,
 }
 

@@ -38,9 +38,12 @@ impl Port {
     pub const BEST: Port = Port(2);
 }
 
-/// The names of the implicit BLE ports.
+/// The name of the implicit BLE port [`Port::LOCAL`] (rule S11). Reserved: declaring a
+/// register of this name fails with [`Error::ReservedName`].
 pub const LOCAL: &str = "Local";
+/// The name of the implicit BLE port [`Port::INHIBIT`] (rule S11); reserved like [`LOCAL`].
 pub const INHIBIT: &str = "Inhibit";
+/// The name of the implicit BLE port [`Port::BEST`] (rule S11); reserved like [`LOCAL`].
 pub const BEST: &str = "Best";
 
 /// When a process runs.
@@ -62,8 +65,11 @@ pub type ProcessFn = Arc<dyn Fn(&mut Ctx<'_>) + Send + Sync>;
 /// A declared process.
 #[derive(Clone)]
 pub struct ProcessSpec {
+    /// Unique within the behavior; reports and `why` name the process by it.
     pub name: String,
+    /// When it runs (rule S7).
     pub trigger: Trigger,
+    /// The code it runs, shared by every instance of the class.
     pub body: ProcessFn,
 }
 
@@ -76,11 +82,56 @@ impl fmt::Debug for ProcessSpec {
 /// A slot declaration.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SlotSpec {
+    /// Unique among the behavior's registers (ports, slots, monostables).
     pub name: String,
+    /// The initial value; its type is the slot's type for good (rule S1).
     pub default: Value,
 }
 
 /// A behavior class: interface plus processes.
+///
+/// Build it once, [`NodeCore::define`](crate::NodeCore::define) it on a node, then
+/// [`NodeCore::create`](crate::NodeCore::create) as many instances as needed. Declaring a
+/// register returns the handle its processes use; processes run only inside
+/// [`NodeCore::poll`](crate::NodeCore::poll) (rule S7).
+///
+/// ```
+/// use ayllu_core::*;
+///
+/// let mut c = BehaviorClass::new("Avoid");
+/// let range = c.port(PortSpec::new("Range", 10.0))?; // metres, written by a sonar
+/// let turn = c.port(PortSpec::new("Turn", 0.0))?; // rad/s, to the motors
+/// let seen = c.slot("Seen", 0i64)?; // internal count, not connectable
+/// let backing = c.monostable("Backing")?; // true for a while after a trigger (S2)
+/// // Triggered: runs when Range accepts a value; an obstacle closer than 0.5 m starts a
+/// // 2 s turn (a second trigger while high only extends it).
+/// c.on_write("React", range, move |ctx| {
+///     if ctx.float(range).is_some_and(|r| r < 0.5) {
+///         ctx.trigger(backing, Duration::from_secs(2));
+///         let n = ctx.slot(seen).as_int().unwrap_or(0);
+///         ctx.set_slot(seen, n + 1).unwrap();
+///     }
+/// })?;
+/// // Periodic: 10 Hz, phase-locked to the behavior's creation.
+/// c.every_hz("Steer", 10.0, move |ctx| {
+///     let w = if ctx.is_high(backing) { 1.0 } else { 0.0 };
+///     ctx.write(turn, w).unwrap();
+/// })?;
+/// assert_eq!(c.port_handle("Turn"), Some(turn));
+/// assert_eq!(c.ports()[0].name, LOCAL); // the BLE ports come first
+/// assert!(matches!(c.slot("Best", 0.0), Err(Error::ReservedName { .. })));
+///
+/// let mut node = NodeCore::new(NodeId(1));
+/// node.define(c)?;
+/// node.create("Avoid", "A")?;
+/// let (r, t) = (node.port("A", "Range")?, node.port("A", "Turn")?);
+/// node.write(Instant::from_millis(50), r, 0.3)?;
+/// node.poll(Instant::from_millis(50)); // React, then Steer's first activation
+/// assert_eq!(node.read(t)?, Value::Float(1.0));
+/// assert!(node.monostable_at(Instant::from_millis(2049), "A", "Backing")?);
+/// assert!(!node.monostable_at(Instant::from_millis(2050), "A", "Backing")?);
+/// # Ok::<(), Error>(())
+/// ```
 #[derive(Clone, Debug)]
 pub struct BehaviorClass {
     pub(crate) name: String,
@@ -106,6 +157,7 @@ impl BehaviorClass {
         }
     }
 
+    /// The class name, as [`NodeCore::create`](crate::NodeCore::create) takes it.
     pub fn name(&self) -> &str {
         &self.name
     }
@@ -134,7 +186,10 @@ impl BehaviorClass {
         u16::try_from(len).map_err(|_| Error::TooManyRegisters { behavior: self.name.clone() })
     }
 
-    /// Declare a port.
+    /// Declare a port. Refused: an empty, reserved ([`Error::ReservedName`]) or taken name
+    /// ([`Error::DuplicateName`]), and a spec its kind cannot honour
+    /// ([`Error::KindNotSupported`], [`Error::ZeroWindow`], [`Error::WindowOnNormalPort`],
+    /// [`Error::VectorShape`]).
     pub fn port(&mut self, spec: PortSpec) -> Result<Port, Error> {
         self.check_new_name("port", &spec.name)?;
         spec.validate()?;
@@ -159,7 +214,9 @@ impl BehaviorClass {
         Ok(Mono(ix))
     }
 
-    /// Declare a process with any trigger.
+    /// Declare a process with any trigger. Refused: an empty or taken process name, a zero
+    /// period ([`Error::ZeroProcessPeriod`]), a port or monostable handle this class did not
+    /// declare ([`Error::UnknownPort`]).
     pub fn process(
         &mut self,
         name: &str,
@@ -173,7 +230,8 @@ impl BehaviorClass {
     }
 
     /// Declare a periodic process at `hz` activations per second (the paper's
-    /// `ratepersecond`).
+    /// `ratepersecond`). A rate that is not finite and above zero is refused with
+    /// [`Error::InvalidRate`] (D7.4).
     pub fn every_hz(
         &mut self,
         name: &str,
@@ -208,21 +266,28 @@ impl BehaviorClass {
     pub fn port_handle(&self, name: &str) -> Option<Port> {
         self.ports.iter().position(|p| p.name == name).map(|i| Port(i as u16))
     }
+    /// The handle of a declared slot, by name.
     pub fn slot_handle(&self, name: &str) -> Option<Slot> {
         self.slots.iter().position(|p| p.name == name).map(|i| Slot(i as u16))
     }
+    /// The handle of a declared monostable, by name.
     pub fn mono_handle(&self, name: &str) -> Option<Mono> {
         self.monos.iter().position(|p| p == name).map(|i| Mono(i as u16))
     }
+    /// Every port in handle order: the BLE ports `Local`, `Inhibit`, `Best` (handles 0–2), then
+    /// the declared ones.
     pub fn ports(&self) -> &[PortSpec] {
         &self.ports
     }
+    /// Every slot in handle order.
     pub fn slots(&self) -> &[SlotSpec] {
         &self.slots
     }
+    /// The monostables' names in handle order.
     pub fn monostables(&self) -> &[String] {
         &self.monos
     }
+    /// The processes in declaration order, which is their order within a poll (D7.1).
     pub fn processes(&self) -> &[ProcessSpec] {
         &self.processes
     }

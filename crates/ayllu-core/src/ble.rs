@@ -26,6 +26,46 @@ use crate::process::Ctx;
 use crate::time::{Duration, Instant};
 
 /// How a behavior joins a BLE group.
+///
+/// Start from [`BleConfig::new`], which picks an inhibit period that outlasts the gap between
+/// two claims (D11.2), and pass it to [`NodeCore::ble_join`]:
+///
+/// ```
+/// use ayllu_core::*;
+///
+/// let mut node = NodeCore::new(NodeId(1));
+/// let mut obs = BehaviorClass::new("Observer");
+/// obs.port(PortSpec::new("Rotate", 0.0))?;
+/// node.define(obs)?;
+/// node.create("Observer", "OBS1")?;
+///
+/// // Claim at 1 Hz; the peers' `OBS1.Rotate` is write-inhibited for 2.3 s per claim.
+/// let config = BleConfig::new("Peers", "Rotate", 1.0)?;
+/// assert_eq!(config.inhibit_period, Duration::from_millis(2300)); // 2 x 1 s + 50 ms + 250 ms
+/// let joined = node.ble_join("OBS1", &config)?;
+/// assert!(joined.warnings.is_empty());
+/// assert!(node.groups().iter().any(|g| &**g == "Peers"));
+///
+/// // The first cycle only listens (D11.3). Then eligibility written within the last cycle
+/// // that beats every peer's (none here: `Best` is empty) is a claim.
+/// node.poll(Instant::ZERO);
+/// let local = node.port("OBS1", LOCAL)?;
+/// node.write(Instant::from_millis(1500), local, 0.8)?;
+/// node.poll(Instant::from_secs(2));
+/// let status = node.ble_status("OBS1")?.unwrap();
+/// assert!(status.claiming);
+/// assert_eq!(status.claims, 1);
+/// assert_eq!(status.local, Some(0.8));
+/// // Eligibility and the claim went out to the group for the transport to deliver.
+/// let out: Vec<Outgoing> = std::iter::from_fn(|| node.pop_outgoing()).collect();
+/// assert!(out.iter().all(|o| o.to == Destination::Group("Peers".into())));
+///
+/// // The paper's Fig. 2 inhibits for 0.5 s at 1 Hz: accepted, with a warning.
+/// node.create("Observer", "OBS2")?;
+/// let short = BleConfig::new("Peers", "Rotate", 1.0)?.inhibit_period(Duration::from_millis(500));
+/// assert_eq!(node.ble_join("OBS2", &short)?.warnings.len(), 1);
+/// # Ok::<(), Error>(())
+/// ```
 #[derive(Clone, Debug, PartialEq)]
 pub struct BleConfig {
     /// The broadcast group of peers (the paper's `Peers`).
@@ -42,7 +82,8 @@ pub struct BleConfig {
 
 impl BleConfig {
     /// A config with the recommended inhibit period: twice the claim period plus delay, plus
-    /// a quarter period of margin.
+    /// a quarter period of margin (with the default delay of 50 ms). A claim rate that is not
+    /// finite and above zero is refused with [`Error::InvalidRate`].
     pub fn new(group: &str, output: &str, claim_rate_hz: f64) -> Result<BleConfig, Error> {
         let period = Duration::try_from_hz(claim_rate_hz)?;
         let network_delay = Duration::from_millis(50);
@@ -54,10 +95,14 @@ impl BleConfig {
             network_delay,
         })
     }
+    /// Use `d` as the inhibit period instead of the recommended one. Shorter than
+    /// [`minimum_inhibit_period`] is accepted but warned about by [`NodeCore::ble_join`] (D11.2).
     pub fn inhibit_period(mut self, d: Duration) -> Self {
         self.inhibit_period = d;
         self
     }
+    /// Set the network delay the period check allows for (default 50 ms). It does not recompute
+    /// `inhibit_period`, which [`BleConfig::new`] derived from the default delay.
     pub fn network_delay(mut self, d: Duration) -> Self {
         self.network_delay = d;
         self
@@ -116,11 +161,15 @@ pub(crate) struct BleState {
 #[derive(Clone, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct BleStatus {
+    /// The member behavior (the layer, e.g. `OBS1`).
     pub behavior: String,
+    /// Its BLE group.
     pub group: String,
     /// This node claimed the task within the last inhibit period.
     pub claiming: bool,
+    /// When this node last claimed the task (its own clock), if ever.
     pub last_claim: Option<Instant>,
+    /// How many times this node has claimed since it joined.
     pub claims: u64,
     /// Eligibility at the last select, if `Local` was fresh.
     pub local: Option<f64>,
@@ -131,7 +180,13 @@ pub struct BleStatus {
 }
 
 impl NodeCore {
-    /// Make `behavior` a member of a BLE peer group (see module docs). One call per behavior.
+    /// Make `behavior` a member of a BLE peer group (see module docs and the example on
+    /// [`BleConfig`]). One call per behavior.
+    ///
+    /// Refused: an invalid claim rate ([`Error::InvalidRate`]), a zero inhibit period
+    /// ([`Error::ZeroPeriod`]), an empty group name, an unknown behavior or output port, a
+    /// behavior already in a group ([`Error::Ble`]). A too short inhibit period is accepted
+    /// and warned about (D11.2).
     pub fn ble_join(&mut self, behavior: &str, config: &BleConfig) -> Result<BleGroup, Error> {
         let claim_period = Duration::try_from_hz(config.claim_rate_hz)?;
         if config.inhibit_period.is_zero() {

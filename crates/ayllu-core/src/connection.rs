@@ -10,6 +10,41 @@ use crate::address::ConnectionId;
 use crate::time::Duration;
 
 /// What a connection does to its destination port `d` when a message `m` arrives.
+///
+/// Each timed kind opens or refreshes a window on `d` for its period, measured on the node
+/// that owns `d` from when the message is applied (rule S6, S8); the period must be above zero
+/// ([`Error::ZeroPeriod`](crate::Error::ZeroPeriod), D6.8).
+///
+/// Brooks's subsumption, a joystick overriding a planner's speed command for 1 s after each
+/// stick message:
+///
+/// ```
+/// use ayllu_core::*;
+///
+/// let mut node = NodeCore::new(NodeId(1));
+/// for (class, port) in [("Planner", "Cmd"), ("Joystick", "Stick"), ("Motor", "Speed")] {
+///     let mut c = BehaviorClass::new(class);
+///     c.port(PortSpec::new(port, 0.0))?; // m/s
+///     node.define(c)?;
+///     node.create(class, class)?;
+/// }
+/// let speed = Endpoint::local("Motor", "Speed");
+/// let opts = ConnectOptions::default();
+/// node.connect(&Endpoint::local("Planner", "Cmd"), &speed, ConnectionKind::Normal, opts)?;
+/// let hold = ConnectionKind::OverrideIn(Duration::from_secs(1));
+/// node.connect(&Endpoint::local("Joystick", "Stick"), &speed, hold, opts)?;
+/// let (cmd, stick, motor) =
+///     (node.port("Planner", "Cmd")?, node.port("Joystick", "Stick")?, node.port("Motor", "Speed")?);
+///
+/// node.write(Instant::from_millis(0), cmd, 0.5)?;
+/// node.write(Instant::from_millis(100), stick, 0.0)?; // operator stops the robot
+/// node.write(Instant::from_millis(600), cmd, 0.7)?; // blocked: no pass until 1.1 s
+/// assert_eq!(node.read(motor)?, Value::Float(0.0));
+/// assert_eq!(node.why("Motor", "Speed")?.counters.get(DropCause::OverriddenIn), 1);
+/// node.write(Instant::from_millis(1100), cmd, 0.8)?; // the window has closed
+/// assert_eq!(node.read(motor)?, Value::Float(0.8));
+/// # Ok::<(), Error>(())
+/// ```
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum ConnectionKind {
@@ -31,6 +66,7 @@ pub enum ConnectionKind {
 }
 
 impl ConnectionKind {
+    /// The window a timed kind opens on its destination; `None` for Normal, which opens none.
     pub fn period(self) -> Option<Duration> {
         match self {
             ConnectionKind::Normal => None,
@@ -45,6 +81,8 @@ impl ConnectionKind {
     pub fn writes(self) -> bool {
         matches!(self, ConnectionKind::Normal | ConnectionKind::OverrideIn(_) | ConnectionKind::OverrideOut(_))
     }
+    /// The kind's name without its period, as reports and the CLI print it (`override-in`);
+    /// [`ConnectionKind::from_name`] reads it back.
     pub fn name(self) -> &'static str {
         match self {
             ConnectionKind::Normal => "normal",
@@ -89,10 +127,15 @@ pub struct ConnectOptions {
 #[derive(Clone, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct ConnectionInfo {
+    /// Unique on the node that owns the connection, never reused.
     pub id: ConnectionId,
+    /// The port values come from: always on the owning node.
     pub source: crate::address::Endpoint,
+    /// Where they go: a local port, a port on a named node, or a group.
     pub destination: crate::address::Endpoint,
+    /// What the connection does at the destination, with its period (rule S6).
     pub kind: ConnectionKind,
+    /// The priority of its messages at a Priority port (D3.3); 0 by default.
     pub priority: i32,
     /// Messages sent along this connection so far.
     pub sent: u64,

@@ -49,6 +49,7 @@ pub enum DropCause {
 }
 
 impl DropCause {
+    /// Every cause, in counter order (the index into [`Counters`]).
     pub const ALL: [DropCause; 17] = [
         DropCause::Suppressed,
         DropCause::OverriddenIn,
@@ -68,8 +69,11 @@ impl DropCause {
         DropCause::TooLong,
         DropCause::RateLimited,
     ];
+    /// The number of causes.
     pub const COUNT: usize = DropCause::ALL.len();
 
+    /// The counter's name as docs/semantics.md, reports and `ayllu why` spell it
+    /// (`overridden_in`).
     pub fn name(self) -> &'static str {
         match self {
             DropCause::Suppressed => "suppressed",
@@ -107,13 +111,16 @@ pub struct Counters {
 }
 
 impl Counters {
+    /// Count one more message under `cause` (saturating, never wraps).
     pub fn add(&mut self, cause: DropCause) {
         let c = &mut self.counts[cause as usize];
         *c = c.saturating_add(1);
     }
+    /// How many messages were counted under `cause`.
     pub fn get(&self, cause: DropCause) -> u64 {
         self.counts[cause as usize]
     }
+    /// All causes together (saturating).
     pub fn total(&self) -> u64 {
         self.counts.iter().fold(0u64, |a, b| a.saturating_add(*b))
     }

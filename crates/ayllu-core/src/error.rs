@@ -9,86 +9,123 @@ use crate::counters::DropCause;
 use crate::port::PortKind;
 use crate::value::ValueType;
 
+/// Why an API call was refused. `Display` says what to fix, in words a user can act on;
+/// trouble from the network is never an `Error` but a counted [`DropCause`].
 #[derive(Clone, Debug, PartialEq)]
 pub enum Error {
     /// No behavior class of this name was defined on this node.
     UnknownClass {
+        /// The class name asked for.
         class: String,
     },
     /// No behavior instance of this name exists on this node.
     UnknownBehavior {
+        /// The behavior name asked for, or `(removed behavior #id)` for a
+        /// [`PortRef`](crate::PortRef) to a removed behavior (S9).
         behavior: String,
     },
     /// The behavior exists but has no port (or slot/monostable) of this name.
     UnknownPort {
+        /// The behavior that was searched.
         behavior: String,
+        /// The register name (or `#index` for a handle from another class) that it lacks.
         port: String,
     },
     /// The name is a slot: internal to its behavior, never connectable (rule S2).
     NotAPort {
+        /// The behavior that owns the slot.
         behavior: String,
+        /// The slot's name.
         name: String,
     },
+    /// No connection with this id is owned by this node (never made, or already removed).
     UnknownConnection {
+        /// The raw [`ConnectionId`](crate::ConnectionId) asked for.
         id: u64,
     },
+    /// The behavior has no process of this name.
     UnknownProcess {
+        /// The behavior that was searched.
         behavior: String,
+        /// The process name asked for.
         process: String,
     },
     /// A class, behavior, register, process or group name used twice.
     DuplicateName {
+        /// What kind of thing the name is for (`behavior class`, `register`, ...).
         what: &'static str,
+        /// The name, qualified by its behavior where it has one (`OBS1.Rotate`).
         name: String,
     },
+    /// A class, behavior, register, process or group was given an empty name.
     EmptyName {
+        /// What kind of thing needed the name.
         what: &'static str,
     },
     /// A value of one type offered to a register or connection of another (rule S1).
     TypeMismatch {
+        /// The register or connection that refused (`port OBS1.Rotate`).
         what: String,
+        /// The type it was declared with.
         expected: ValueType,
+        /// The type that was offered.
         found: ValueType,
     },
     /// A port kind that cannot hold this type (e.g. a Max port of text).
     KindNotSupported {
+        /// The port kind declared.
         kind: PortKind,
+        /// The type of the port's default, which that kind cannot merge (rule S3).
         ty: ValueType,
     },
     /// A special connection needs a period, and it must be above zero.
     ZeroPeriod {
+        /// The kind, with its zero period.
         kind: ConnectionKind,
     },
+    /// A duration given in seconds was negative
+    /// ([`Duration::try_from_secs_f64`](crate::Duration::try_from_secs_f64), D6.8).
     NegativePeriod {
+        /// The seconds given.
         seconds: f64,
     },
+    /// A duration given in seconds was NaN, infinite, or beyond what nanoseconds in a `u64` hold
+    /// (about 584 years).
     InvalidDuration {
+        /// The seconds given.
         seconds: f64,
     },
     /// Rates must be finite and above zero.
     InvalidRate {
+        /// The rate given, in hertz.
         hz: f64,
     },
     /// A periodic process declared with a period of zero.
     ZeroProcessPeriod {
+        /// The process, as `behavior.process`.
         process: String,
     },
     /// A declared window or lifespan of zero would empty the port at the instant it is written.
     ZeroWindow {
+        /// The port's name.
         port: String,
     },
     /// A window only makes sense for aggregating ports (Max, Min, Sum, Priority).
     WindowOnNormalPort {
+        /// The port's name.
         port: String,
     },
     /// A vector Sum port takes its shape from its default, which must not be empty.
     VectorShape {
+        /// The port's name.
         port: String,
     },
     /// The name belongs to a register every behavior has (the BLE ports `Local`, `Inhibit`,
     /// `Best`).
     ReservedName {
+        /// The refused name, as `behavior.name`.
         name: String,
+        /// Why it is reserved.
         reason: &'static str,
     },
     /// `(group, behavior, port)` cannot be a connection's source: ask each node of the group
@@ -96,10 +133,12 @@ pub enum Error {
     GroupSource,
     /// The source of a connection must be on this node or on a named other node.
     NotLocal {
+        /// What had to be local, in words.
         what: String,
     },
     /// Too many registers in one behavior (the limit keeps handles to 16 bits).
     TooManyRegisters {
+        /// The behavior (or class) that declared too many.
         behavior: String,
     },
     /// The node's access rules or limits refuse a request from the network (`Access`,
@@ -110,12 +149,15 @@ pub enum Error {
     },
     /// A BLE group needs the behavior to have the named output port.
     Ble {
+        /// What is wrong, in words.
         reason: String,
     },
     /// A port of the right type refused a value by its merge rule (NaN into Max/Min/Sum, a
     /// vector of another length into a vector Sum).
     Refused {
+        /// The port that refused (`port OBS1.Best`).
         what: String,
+        /// The merge rule that refused it: `not_a_number` or `shape_mismatch` (D3.5, D3.6).
         cause: DropCause,
     },
 }

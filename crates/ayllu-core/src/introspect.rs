@@ -21,31 +21,80 @@ use crate::value::{Value, ValueType};
 #[derive(Clone, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct WindowReport {
+    /// What the window blocks (rule S6).
     pub kind: WindowKind,
     /// The connection that opened it (and holds the pass, for overrides).
     pub holder: Source,
+    /// When it closes, on the node's clock (it is open while `now < ends`).
     pub ends: Instant,
+    /// `ends - now`: how much longer it blocks, unless its holder refreshes it (D6.1).
     pub remaining: Duration,
 }
 
 /// Everything about one port: value, provenance, freshness, windows, counters, wiring.
+///
+/// The answer of [`NodeCore::why`]; its `Display` is what `ayllu why` prints. A bumper that
+/// suppresses a motor's input for 2 s, asked about half a second later:
+///
+/// ```
+/// use ayllu_core::*;
+///
+/// let mut node = NodeCore::new(NodeId(1));
+/// for (class, port) in [("Planner", "Cmd"), ("Bumper", "Hit"), ("Motor", "Speed")] {
+///     let mut c = BehaviorClass::new(class);
+///     c.port(PortSpec::new(port, 0.0))?;
+///     node.define(c)?;
+///     node.create(class, class)?;
+/// }
+/// let (speed, opts) = (Endpoint::local("Motor", "Speed"), ConnectOptions::default());
+/// node.connect(&Endpoint::local("Planner", "Cmd"), &speed, ConnectionKind::Normal, opts)?;
+/// let stop = ConnectionKind::Suppress(Duration::from_secs(2));
+/// node.connect(&Endpoint::local("Bumper", "Hit"), &speed, stop, opts)?;
+/// let (hit, cmd) = (node.port("Bumper", "Hit")?, node.port("Planner", "Cmd")?);
+/// node.write(Instant::ZERO, hit, 1.0)?;
+/// node.write(Instant::from_millis(500), cmd, 0.4)?; // refused by the suppression
+///
+/// let report = node.why("Motor", "Speed")?;
+/// assert_eq!(report.input_blocked, Some(DropCause::Suppressed));
+/// assert_eq!(report.internal_output_blocked, None); // its own writes would still go out
+/// assert_eq!(report.windows[0].kind, WindowKind::Suppress);
+/// assert_eq!(report.windows[0].remaining, Duration::from_millis(1500));
+/// assert_eq!(report.counters.get(DropCause::Suppressed), 1);
+/// assert_eq!((report.fresh, report.supplier), (false, None)); // nothing ever got through
+/// assert_eq!(report.incoming.len(), 2);
+/// assert!(report.to_string().contains("input     BLOCKED (suppressed)"));
+/// // Asked about a later instant, the window has closed (D8.2).
+/// assert_eq!(node.why_at(Instant::from_secs(2), "Motor", "Speed")?.input_blocked, None);
+/// # Ok::<(), Error>(())
+/// ```
 #[derive(Clone, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct PortReport {
+    /// The node that answered.
     pub node: NodeId,
+    /// The instant the report describes (D8.2): windows and lifespans ended by then count as ended.
     pub now: Instant,
+    /// The behavior instance.
     pub behavior: String,
+    /// The port's name.
     pub port: String,
+    /// How the port merges values (rule S3).
     pub kind: PortKind,
+    /// The port's value type, fixed by its default (rule S1).
     pub ty: ValueType,
     /// The readable value (the default while an aggregating port is empty).
     pub value: Value,
+    /// Whether `value` is fresh (rule S4); a never-written or empty port is not.
     pub fresh: bool,
     /// Aggregating ports only: no value in the current window.
     pub empty: bool,
+    /// When the port last accepted a value; refused and absorbed values do not count.
     pub last_accepted: Option<Instant>,
+    /// Who supplied the value it holds (D3.4); `None` while empty or never written.
     pub supplier: Option<Source>,
+    /// Values the port has accepted since its behavior was created.
     pub accepted: u64,
+    /// Every open window, soonest-ending first.
     pub windows: Vec<WindowReport>,
     /// Why a connection without a pass could not write the port now (`None`: it could).
     pub input_blocked: Option<DropCause>,
@@ -53,6 +102,7 @@ pub struct PortReport {
     pub internal_output_blocked: Option<DropCause>,
     /// Why a value arriving along a connection without a pass would not propagate now.
     pub connection_output_blocked: Option<DropCause>,
+    /// This port's blocked and refused messages, by cause.
     pub counters: Counters,
     /// Local connections into this port.
     pub incoming: Vec<ConnectionInfo>,
@@ -68,8 +118,11 @@ pub struct PortReport {
 #[derive(Clone, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct ProcessReport {
+    /// The process's name within its behavior.
     pub name: String,
+    /// When it runs (rule S7).
     pub trigger: Trigger,
+    /// Times it has run.
     pub runs: u64,
     /// Periodic activations skipped because the process was late.
     pub overruns: u64,
@@ -77,6 +130,7 @@ pub struct ProcessReport {
     /// (it triggers itself) and was held back by `RETRIGGER_INTERVAL` (D7.3).
     #[cfg_attr(feature = "serde", serde(default))]
     pub retriggered: u64,
+    /// Periodic processes: the next activation on the node's clock; `None` for triggered ones.
     pub next_due: Option<Instant>,
 }
 
@@ -84,10 +138,15 @@ pub struct ProcessReport {
 #[derive(Clone, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct RegisterReport {
+    /// The port's name.
     pub name: String,
+    /// How it merges values (rule S3).
     pub kind: PortKind,
+    /// Its value type (rule S1).
     pub ty: ValueType,
+    /// Its readable value (the default while an aggregating port is empty).
     pub value: Value,
+    /// Whether that value is fresh (rule S4).
     pub fresh: bool,
 }
 
@@ -95,12 +154,17 @@ pub struct RegisterReport {
 #[derive(Clone, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct BehaviorReport {
+    /// The instance name (`OBS1`).
     pub name: String,
+    /// The class it was created from.
     pub class: String,
+    /// Its ports in handle order, the BLE ports first.
     pub ports: Vec<RegisterReport>,
+    /// Its slots and their values.
     pub slots: Vec<(String, Value)>,
     /// Monostables and whether each is high now.
     pub monostables: Vec<(String, bool)>,
+    /// Its processes, in declaration order (instance-specific ones, such as `BLE_Select`, last).
     pub processes: Vec<ProcessReport>,
 }
 
@@ -108,19 +172,28 @@ pub struct BehaviorReport {
 #[derive(Clone, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct NodeReport {
+    /// The node that answered.
     pub node: NodeId,
+    /// The node's time when the report was taken.
     pub now: Instant,
+    /// The broadcast groups it has joined.
     pub groups: Vec<String>,
+    /// Every behavior, sorted by name.
     pub behaviors: Vec<BehaviorReport>,
+    /// Every connection this node owns (those whose source is here).
     pub connections: Vec<ConnectionInfo>,
+    /// Node-wide blocked and refused messages, by cause.
     pub counters: Counters,
     /// The transport's counters by cause (datagrams sent/received, drops before the core).
     pub transport: Vec<(String, u64)>,
+    /// Warnings raised so far (see [`NodeCore::warnings`]).
     pub warnings: Vec<String>,
 }
 
 impl NodeCore {
-    /// Why `behavior.port` holds what it holds and passes what it passes.
+    /// Why `behavior.port` holds what it holds and passes what it passes, as of
+    /// [`NodeCore::now`] (see the example on [`PortReport`]). Errors: an unknown behavior or
+    /// port, or a slot ([`Error::NotAPort`]).
     pub fn why(&self, behavior: &str, port: &str) -> Result<PortReport, Error> {
         self.why_at(self.now(), behavior, port)
     }

@@ -38,6 +38,8 @@
 //! assert_eq!(node.read(node.port("M", "In").unwrap()).unwrap(), Value::Int(42));
 //! ```
 
+#![warn(missing_docs)]
+
 pub mod access;
 pub mod address;
 pub mod arbitration;

@@ -16,6 +16,7 @@ use crate::value::Value;
 /// Where an outgoing message goes.
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
 pub enum Destination {
+    /// One node, by id; the transport sends it where that node was last heard from (D-S10.2).
     Node(NodeId),
     /// Every member of the group except the sender.
     Group(Arc<str>),
@@ -28,10 +29,15 @@ pub struct PortMessage {
     pub conn: ConnectionId,
     /// Increases by one per message on this connection (N1).
     pub seq: u64,
+    /// The destination behavior on the receiver.
     pub behavior: Arc<str>,
+    /// The destination port.
     pub port: Arc<str>,
+    /// The connection's kind and period; the receiver applies it on its own clock (S8).
     pub kind: ConnectionKind,
+    /// The connection's priority, for a Priority port (D3.3).
     pub priority: i32,
+    /// The source port's value after its merge (S5).
     pub value: Value,
 }
 
@@ -40,30 +46,55 @@ pub struct PortMessage {
 pub struct ControlMessage {
     /// Chosen by the requester, unique among its requests; a reply repeats it.
     pub id: u64,
+    /// The request, or the reply to request `id`.
     pub body: ControlBody,
 }
 
+/// What a control request asks of a node (N2), or the reply to one. Requests are retried
+/// until answered, and a receiver answers a repeat from memory, so each is applied once.
 #[derive(Clone, Debug, PartialEq)]
 pub enum ControlBody {
     /// Create a connection from a port of the receiver to `destination` (a `Node` or `Group`
     /// endpoint; never `Local`, which would be ambiguous across nodes).
     Connect {
+        /// The receiver's behavior the connection starts from.
         source_behavior: Arc<str>,
+        /// Its port.
         source_port: Arc<str>,
+        /// Where the connection goes.
         destination: Endpoint,
+        /// The connection's kind and period (rule S6).
         kind: ConnectionKind,
+        /// The priority of its messages at a Priority port (D3.3).
         priority: i32,
     },
     /// Remove a connection owned by the receiver.
-    Disconnect { conn: ConnectionId },
+    Disconnect {
+        /// The connection's id on the receiver (as CONNECT's reply gave it).
+        conn: ConnectionId,
+    },
     /// Describe the whole node (answered with [`ReplyBody::Node`]).
     List,
     /// Explain one port (answered with [`ReplyBody::Port`]).
-    Why { behavior: Arc<str>, port: Arc<str> },
+    Why {
+        /// The behavior on the receiver.
+        behavior: Arc<str>,
+        /// The port to explain.
+        port: Arc<str>,
+    },
     /// Read one port's value (answered with [`ReplyBody::Value`]).
-    Read { behavior: Arc<str>, port: Arc<str> },
+    Read {
+        /// The behavior on the receiver.
+        behavior: Arc<str>,
+        /// The port to read.
+        port: Arc<str>,
+    },
     /// The answer to request `id`, or why it could not be carried out.
-    Reply { result: Result<ReplyBody, String> },
+    Reply {
+        /// What the request returned, or the receiver's error text (e.g. the access rule that
+        /// refused it, D9.2).
+        result: Result<ReplyBody, String>,
+    },
 }
 
 /// What a successful request returns.
@@ -72,8 +103,11 @@ pub enum ControlBody {
 pub enum ReplyBody {
     /// CONNECT: the new connection; DISCONNECT: the removed one.
     Connection(ConnectionId),
+    /// READ: the port's readable value (its default while an aggregating port is empty).
     Value(Value),
+    /// LIST: the whole node.
     Node(Box<NodeReport>),
+    /// WHY: the port explained.
     Port(Box<PortReport>),
     /// A report of a shape this implementation does not model, as its JSON text: an AylluLite
     /// node answers LIST with `{"node":N,"lite":true,"behaviors":[{"name":B,"ports":[P..]}]}`
@@ -81,15 +115,20 @@ pub enum ReplyBody {
     OtherReport(String),
 }
 
+/// Everything one node says to another, before any byte encoding.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Message {
+    /// A value along a connection: best effort, newest wins (N1).
     Port(PortMessage),
+    /// A request or reply: retried until answered (N2).
     Control(ControlMessage),
 }
 
 /// A message the core wants sent; the runtime hands it to a transport.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Outgoing {
+    /// Who should receive it.
     pub to: Destination,
+    /// What to send.
     pub message: Message,
 }

@@ -51,6 +51,7 @@ pub struct PortRef {
 }
 
 impl PortRef {
+    /// The port's handle within its behavior, as the class's processes know it.
     pub fn port(&self) -> Port {
         self.port
     }
@@ -70,8 +71,15 @@ pub struct RequestId(pub u64);
 /// Where a control request stands.
 #[derive(Clone, Debug, PartialEq)]
 pub enum RequestStatus {
-    Pending { sends: u32 },
+    /// Not answered yet; resent every 200 ms until answered or 25 sends (N2).
+    Pending {
+        /// Times sent so far.
+        sends: u32,
+    },
+    /// Answered: what the request returned.
     Done(ReplyBody),
+    /// The receiver refused it (its error text, e.g. the rule that refused it), or no answer
+    /// came after 25 sends.
     Failed(String),
 }
 
@@ -201,6 +209,47 @@ struct Request {
 }
 
 /// One node's behaviors, connections and scheduler. See the module docs.
+///
+/// The runtime (`ayllu::Node`) wraps it with a clock and a transport; tests and simulators
+/// drive it directly, passing time in (nanoseconds on the node's clock, rule S8):
+///
+/// ```
+/// use ayllu_core::*;
+///
+/// let mut node = NodeCore::new(NodeId(1));
+/// let mut sonar = BehaviorClass::new("Sonar");
+/// sonar.port(PortSpec::new("Range", 0.0))?; // metres
+/// let mut motor = BehaviorClass::new("Motor");
+/// // A command older than 300 ms is stale: the motor must not act on it (S4).
+/// let speed = motor.port(PortSpec::new("Speed", 0.0).lifespan(Duration::from_millis(300)))?;
+/// let commands = motor.port(PortSpec::new("Commands", 0i64))?;
+/// motor.on_write("Count", speed, move |ctx| {
+///     let n = ctx.int(commands).unwrap_or(0);
+///     ctx.write(commands, n + 1).unwrap();
+/// })?;
+/// node.define(sonar)?;
+/// node.define(motor)?;
+/// node.create("Sonar", "S")?;
+/// node.create("Motor", "M")?;
+/// node.connect(
+///     &Endpoint::local("S", "Range"),
+///     &Endpoint::local("M", "Speed"),
+///     ConnectionKind::Normal,
+///     ConnectOptions::default(),
+/// )?;
+///
+/// let (range, speed) = (node.port("S", "Range")?, node.port("M", "Speed")?);
+/// node.write(Instant::from_millis(100), range, 1.5)?;
+/// assert_eq!(node.read(speed)?, Value::Float(1.5)); // propagated within the write (S5)
+/// node.poll(Instant::from_millis(100)); // processes run only here (S7)
+/// assert_eq!(node.read(node.port("M", "Commands")?)?, Value::Int(1));
+/// assert_eq!(node.get_at(Instant::from_millis(399), speed)?, Some(Value::Float(1.5)));
+/// assert_eq!(node.get_at(Instant::from_millis(400), speed)?, None); // stale
+/// // Values are never coerced (S1).
+/// let err = node.write(Instant::from_millis(500), range, 2i64).unwrap_err();
+/// assert!(matches!(err, Error::TypeMismatch { .. }));
+/// # Ok::<(), Error>(())
+/// ```
 pub struct NodeCore {
     id: NodeId,
     now: Instant,
@@ -244,6 +293,9 @@ pub struct NodeCore {
 }
 
 impl NodeCore {
+    /// An empty node at time zero: no classes, behaviors, connections or groups; open access
+    /// and default [`Limits`]. `id` must be unique in the team: it names the node's sources,
+    /// and lower ids win BLE and Max/Min ties (D3.4).
     pub fn new(id: NodeId) -> NodeCore {
         NodeCore {
             id,
@@ -283,6 +335,7 @@ impl NodeCore {
         }
     }
 
+    /// This node's id.
     pub fn id(&self) -> NodeId {
         self.id
     }
@@ -322,6 +375,7 @@ impl NodeCore {
         Ok(())
     }
 
+    /// Whether a class of this name has been defined here.
     pub fn has_class(&self, name: &str) -> bool {
         self.classes.contains_key(name)
     }
@@ -487,6 +541,12 @@ impl NodeCore {
 
     /// Connect `source` (a port on this node) to `destination` (a port on this node, another
     /// node, or every node of a group). Returns the new connection's id.
+    ///
+    /// Refused: a zero period ([`Error::ZeroPeriod`], D6.8); a source on another node
+    /// ([`Error::NotLocal`]: use [`NodeCore::request_connect`]) or a group
+    /// ([`Error::GroupSource`]); an unknown behavior or port, or a slot; for the kinds that
+    /// write (Normal, OverrideIn, OverrideOut) a local destination of another type
+    /// ([`Error::TypeMismatch`], D6.7). Remote destinations are checked by their node.
     pub fn connect(
         &mut self,
         source: &Endpoint,
@@ -680,6 +740,8 @@ impl NodeCore {
         }
     }
 
+    /// Leave a broadcast group (nothing if not a member). Connections *to* the group stay:
+    /// remove them with [`NodeCore::disconnect`].
     pub fn leave(&mut self, group: &str) {
         let before = self.groups.len();
         self.groups.retain(|g| &**g != group);
@@ -694,6 +756,7 @@ impl NodeCore {
         self.groups_generation
     }
 
+    /// The groups joined, in join order.
     pub fn groups(&self) -> &[Arc<str>] {
         &self.groups
     }
@@ -756,6 +819,8 @@ impl NodeCore {
         RequestId(id)
     }
 
+    /// Where request `id` stands; `None` if this node never sent it. The runtime's
+    /// [`NodeCore::poll`] drives the retries.
     pub fn request_status(&self, id: RequestId) -> Option<RequestStatus> {
         self.requests.iter().find(|r| r.id == id.0).map(|r| r.status.clone())
     }
@@ -1340,6 +1405,8 @@ impl NodeCore {
         self.resolve(port).map(|ps| ps.cell.get(now).cloned())
     }
 
+    /// Whether the port holds a fresh value (rule S4) at [`NodeCore::now`]; errors for a handle
+    /// to a removed behavior.
     pub fn fresh(&self, port: PortRef) -> Result<bool, Error> {
         self.fresh_at(self.now, port)
     }

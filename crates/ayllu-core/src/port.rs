@@ -35,6 +35,8 @@ impl PortKind {
     pub fn is_aggregating(self) -> bool {
         !matches!(self, PortKind::Normal)
     }
+    /// Whether a port of this kind can hold `ty` (rule S3): Max and Min take bool, int and
+    /// float; Sum takes int, float and vector; Normal and Priority take every type.
     pub fn supports(self, ty: ValueType) -> bool {
         match self {
             PortKind::Normal | PortKind::Priority => true,
@@ -44,6 +46,7 @@ impl PortKind {
             PortKind::Sum => matches!(ty, ValueType::Int | ValueType::Float | ValueType::Vector),
         }
     }
+    /// The kind as reports and `ayllu why` print it (`max`).
     pub fn name(self) -> &'static str {
         match self {
             PortKind::Normal => "normal",
@@ -56,10 +59,50 @@ impl PortKind {
 }
 
 /// The declaration of a port in a behavior class.
+///
+/// A builder: [`PortSpec::new`] makes a Normal port, the other methods change its kind and
+/// add a lifespan or a window. [`BehaviorClass::port`](crate::BehaviorClass::port) checks the
+/// result.
+///
+/// ```
+/// use ayllu_core::*;
+///
+/// let mut c = BehaviorClass::new("Observer");
+/// // Normal: the last value written; absent 300 ms after the last one (S4).
+/// c.port(PortSpec::new("Rotate", 0.0).lifespan(Duration::from_millis(300)))?;
+/// // Max: the greatest value offered in a 1 s window opened by the first one (D3.2).
+/// c.port(PortSpec::new("Nearest", 0.0).max().window(Duration::from_secs(1)))?;
+/// // Min: the smallest value offered since the last reset.
+/// c.port(PortSpec::new("Closest", 0i64).min())?;
+/// // Sum: forces of every avoider, element-wise; the shape is the default's (D3.5).
+/// c.port(PortSpec::new("Force", vec![0.0, 0.0]).sum())?;
+/// // Priority: the highest connection priority wins; the holder's lease is 0.5 s (D3.7).
+/// c.port(PortSpec::new("Goal", "idle").priority().window(Duration::from_millis(500)))?;
+/// // Refused: text has no order, and only aggregating ports have a window.
+/// assert!(matches!(c.port(PortSpec::new("Name", "x").max()), Err(Error::KindNotSupported { .. })));
+/// let w = PortSpec::new("W", 0.0).window(Duration::from_secs(1));
+/// assert!(matches!(c.port(w), Err(Error::WindowOnNormalPort { .. })));
+///
+/// let mut node = NodeCore::new(NodeId(1));
+/// node.define(c)?;
+/// node.create("Observer", "OBS1")?;
+/// let nearest = node.port("OBS1", "Nearest")?;
+/// assert_eq!(node.get(nearest)?, None); // empty until the first value (D3.1)
+/// node.write(Instant::ZERO, nearest, 3.0)?; // opens the window until 1 s
+/// node.write(Instant::from_millis(500), nearest, 2.0)?; // absorbed: below the maximum
+/// assert_eq!(node.read(nearest)?, Value::Float(3.0));
+/// node.write(Instant::from_millis(1200), nearest, 2.0)?; // a new window: the maximum may fall
+/// assert_eq!(node.read(nearest)?, Value::Float(2.0));
+/// # Ok::<(), Error>(())
+/// ```
 #[derive(Clone, Debug, PartialEq)]
 pub struct PortSpec {
+    /// The port's name, unique among its behavior's registers.
     pub name: String,
+    /// How it merges what is written (rule S3).
     pub kind: PortKind,
+    /// What the port reads as while empty or never written; its type is the port's type for
+    /// good (rule S1).
     pub default: Value,
     /// After this long without an accepted value the port reads as absent (rule S4).
     pub lifespan: Option<Duration>,
@@ -78,30 +121,44 @@ impl PortSpec {
             window: None,
         }
     }
+    /// Set the kind (see [`PortKind`]); [`PortSpec::max`] and the others are shorthands.
     pub fn kind(mut self, kind: PortKind) -> Self {
         self.kind = kind;
         self
     }
+    /// A Max port: keeps the greatest value offered (ties go to the smaller source, D3.4).
     pub fn max(self) -> Self {
         self.kind(PortKind::Max)
     }
+    /// A Min port: keeps the smallest value offered (ties go to the smaller source, D3.4).
     pub fn min(self) -> Self {
         self.kind(PortKind::Min)
     }
+    /// A Sum port: adds what is offered (integers wrap, vectors add element-wise, D3.5).
     pub fn sum(self) -> Self {
         self.kind(PortKind::Sum)
     }
+    /// A Priority port: the value of the highest-priority connection
+    /// ([`ConnectOptions::priority`](crate::ConnectOptions::priority)) wins; the holder may
+    /// update it at its own priority (D3.3).
     pub fn priority(self) -> Self {
         self.kind(PortKind::Priority)
     }
+    /// The port reads as absent (`get` is `None`, `fresh` false) once `d` has passed since it
+    /// last accepted a value (rule S4); an aggregating port also releases its holder then
+    /// (D3.7). Zero is refused ([`Error::ZeroWindow`]).
     pub fn lifespan(mut self, d: Duration) -> Self {
         self.lifespan = Some(d);
         self
     }
+    /// Aggregating ports only: Max, Min and Sum empty `d` after the first value of a window;
+    /// a Priority port empties `d` after its holder's last accepted write (D3.2, D3.7). Zero
+    /// or a Normal port is refused ([`Error::ZeroWindow`], [`Error::WindowOnNormalPort`]).
     pub fn window(mut self, d: Duration) -> Self {
         self.window = Some(d);
         self
     }
+    /// The port's value type: its default's.
     pub fn ty(&self) -> ValueType {
         self.default.ty()
     }
@@ -142,6 +199,7 @@ pub struct PortCell {
 }
 
 impl PortCell {
+    /// A live port as `spec` declares it; aggregating kinds start empty (D3.1).
     pub fn new(spec: &PortSpec) -> PortCell {
         PortCell {
             kind: spec.kind,
@@ -157,9 +215,11 @@ impl PortCell {
         }
     }
 
+    /// How the port merges values.
     pub fn kind(&self) -> PortKind {
         self.kind
     }
+    /// The port's value type (rule S1).
     pub fn ty(&self) -> ValueType {
         self.default.ty()
     }
@@ -254,6 +314,8 @@ impl PortCell {
         self.fresh(now).then_some(&self.value)
     }
 
+    /// Who supplied the value as of the last merge or reset (D3.4). Not cleared lazily: check
+    /// [`PortCell::is_empty`] or [`PortCell::fresh`] before trusting it.
     pub fn supplier(&self) -> Option<Source> {
         self.supplier
     }

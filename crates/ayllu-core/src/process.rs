@@ -19,9 +19,11 @@ pub struct Ctx<'a> {
 }
 
 impl Ctx<'_> {
+    /// The node's time: the `now` of the poll running this process (node clock, ns).
     pub fn now(&self) -> Instant {
         self.core.now()
     }
+    /// This node's id, e.g. to break ties the way BLE does (lower wins).
     pub fn node(&self) -> NodeId {
         self.core.id()
     }
@@ -60,6 +62,7 @@ impl Ctx<'_> {
         let now = self.now();
         self.cell(p).and_then(|c| c.get(now)).and_then(Value::as_bool)
     }
+    /// Whether the port holds a fresh value (rule S4); false for an empty aggregating port.
     pub fn fresh(&self, p: Port) -> bool {
         let now = self.now();
         self.cell(p).is_some_and(|c| c.fresh(now))
@@ -89,6 +92,7 @@ impl Ctx<'_> {
         }
     }
 
+    /// The slot's value. Slots have no freshness; a handle from another class reads as `false`.
     pub fn slot(&self, s: Slot) -> Value {
         self.core
             .behavior(self.b)
@@ -96,6 +100,9 @@ impl Ctx<'_> {
             .cloned()
             .unwrap_or(Value::Bool(false))
     }
+    /// Set a slot (Normal merge, never propagated: slots are not connectable, D2.1). Refused:
+    /// a value of another type ([`Error::TypeMismatch`], rule S1), or a handle from another
+    /// class ([`Error::UnknownPort`]).
     pub fn set_slot(&mut self, s: Slot, value: impl Into<Value>) -> Result<(), Error> {
         self.core.set_slot(self.b, s, value.into())
     }

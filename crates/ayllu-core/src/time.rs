@@ -33,21 +33,28 @@ impl Instant {
     /// The far future; used as "never".
     pub const MAX: Instant = Instant { nanos: u64::MAX };
 
+    /// `nanos` nanoseconds after the clock's origin.
     pub const fn from_nanos(nanos: u64) -> Self {
         Instant { nanos }
     }
+    /// `us` microseconds after the origin, saturating at [`Instant::MAX`].
     pub const fn from_micros(us: u64) -> Self {
         Instant { nanos: us.saturating_mul(1_000) }
     }
+    /// `ms` milliseconds after the origin, saturating at [`Instant::MAX`].
     pub const fn from_millis(ms: u64) -> Self {
         Instant { nanos: ms.saturating_mul(1_000_000) }
     }
+    /// `s` seconds after the origin, saturating at [`Instant::MAX`].
     pub const fn from_secs(s: u64) -> Self {
         Instant { nanos: s.saturating_mul(1_000_000_000) }
     }
+    /// Nanoseconds since the clock's origin.
     pub const fn as_nanos(self) -> u64 {
         self.nanos
     }
+    /// Seconds since the origin, for printing and plots: exact to the nanosecond only up to
+    /// 2^53 ns (about 104 days).
     pub fn as_secs_f64(self) -> f64 {
         self.nanos as f64 / 1e9
     }
@@ -58,18 +65,24 @@ impl Instant {
 }
 
 impl Duration {
+    /// No time. Refused as a period, window or lifespan (D6.8, D7.4).
     pub const ZERO: Duration = Duration { nanos: 0 };
+    /// The longest span, about 584 years; arithmetic saturates here.
     pub const MAX: Duration = Duration { nanos: u64::MAX };
 
+    /// `nanos` nanoseconds.
     pub const fn from_nanos(nanos: u64) -> Self {
         Duration { nanos }
     }
+    /// `us` microseconds, saturating at [`Duration::MAX`].
     pub const fn from_micros(us: u64) -> Self {
         Duration { nanos: us.saturating_mul(1_000) }
     }
+    /// `ms` milliseconds, saturating at [`Duration::MAX`].
     pub const fn from_millis(ms: u64) -> Self {
         Duration { nanos: ms.saturating_mul(1_000_000) }
     }
+    /// `s` seconds, saturating at [`Duration::MAX`].
     pub const fn from_secs(s: u64) -> Self {
         Duration { nanos: s.saturating_mul(1_000_000_000) }
     }
@@ -99,15 +112,19 @@ impl Duration {
         }
         Ok(d)
     }
+    /// The span in nanoseconds.
     pub const fn as_nanos(self) -> u64 {
         self.nanos
     }
+    /// The span in seconds, as users write periods (`0.2`).
     pub fn as_secs_f64(self) -> f64 {
         self.nanos as f64 / 1e9
     }
+    /// Whether the span is zero, which no period, window or lifespan may be.
     pub const fn is_zero(self) -> bool {
         self.nanos == 0
     }
+    /// `n` times the span, saturating at [`Duration::MAX`] (also what `*` does).
     pub const fn saturating_mul(self, n: u64) -> Duration {
         Duration { nanos: self.nanos.saturating_mul(n) }
     }

@@ -13,10 +13,15 @@ use std::sync::Arc;
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum ValueType {
+    /// `true` or `false` (ordered `false < true` in Max and Min ports).
     Bool,
+    /// A signed 64-bit integer; wraps in a Sum port (D3.5).
     Int,
+    /// A 64-bit IEEE 754 float.
     Float,
+    /// UTF-8 text.
     Text,
+    /// Opaque bytes.
     Bytes,
     /// A short vector of floats: a pose, a velocity, a bearing list.
     Vector,
@@ -26,11 +31,19 @@ pub enum ValueType {
 #[derive(Clone, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum Value {
+    /// A bool.
     Bool(bool),
+    /// An integer; never turned into a float or back (rule S1).
     Int(i64),
+    /// A float. Max and Min compare in IEEE total order (`-0.0 < 0.0`, D3.4); NaN is refused by
+    /// Max, Min and Sum ports (D3.6).
     Float(#[cfg_attr(feature = "serde", serde(with = "json_float"))] f64),
+    /// Text, reference-counted so propagation only bumps a count.
     Text(Arc<str>),
+    /// Bytes, reference-counted like text.
     Bytes(Arc<[u8]>),
+    /// A float vector of any length (a pose, a velocity); a Sum port fixes its length by its
+    /// default (D3.5).
     Vector(#[cfg_attr(feature = "serde", serde(with = "json_floats"))] Arc<[f64]>),
 }
 
@@ -99,6 +112,7 @@ mod json_floats {
 }
 
 impl Value {
+    /// The value's type: a port refuses values of any other (rule S1).
     pub fn ty(&self) -> ValueType {
         match self {
             Value::Bool(_) => ValueType::Bool,
@@ -109,45 +123,54 @@ impl Value {
             Value::Vector(_) => ValueType::Vector,
         }
     }
+    /// A text value (copies `s` once; propagating it then only bumps a count).
     pub fn text(s: &str) -> Value {
         Value::Text(Arc::from(s))
     }
+    /// A bytes value (copies `b` once).
     pub fn bytes(b: &[u8]) -> Value {
         Value::Bytes(Arc::from(b))
     }
+    /// A vector value (copies `v` once).
     pub fn vector(v: &[f64]) -> Value {
         Value::Vector(Arc::from(v))
     }
+    /// The bool, or `None` for another type (never coerced).
     pub fn as_bool(&self) -> Option<bool> {
         match self {
             Value::Bool(b) => Some(*b),
             _ => None,
         }
     }
+    /// The integer, or `None` for another type (a float is not converted).
     pub fn as_int(&self) -> Option<i64> {
         match self {
             Value::Int(i) => Some(*i),
             _ => None,
         }
     }
+    /// The float, or `None` for another type (an integer is not converted).
     pub fn as_float(&self) -> Option<f64> {
         match self {
             Value::Float(x) => Some(*x),
             _ => None,
         }
     }
+    /// The text, or `None` for another type.
     pub fn as_text(&self) -> Option<&str> {
         match self {
             Value::Text(s) => Some(s),
             _ => None,
         }
     }
+    /// The bytes, or `None` for another type.
     pub fn as_bytes(&self) -> Option<&[u8]> {
         match self {
             Value::Bytes(b) => Some(b),
             _ => None,
         }
     }
+    /// The vector's elements, or `None` for another type.
     pub fn as_vector(&self) -> Option<&[f64]> {
         match self {
             Value::Vector(v) => Some(v),
@@ -183,6 +206,7 @@ impl Value {
 }
 
 impl ValueType {
+    /// The type's name as errors, reports and the CLI print it (`float`).
     pub fn name(self) -> &'static str {
         match self {
             ValueType::Bool => "bool",

@@ -44,6 +44,7 @@ impl ReceiverConfig {
 /// A datagram that passed every check.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Datagram {
+    /// The sender's node id from the header (authenticated only if `authenticated`).
     pub sender: NodeId,
     /// The sender's datagram sequence number; when `authenticated`, the runtime checks it
     /// against the sender's [`crate::ReplayWindow`] before applying anything.
@@ -62,15 +63,19 @@ pub enum DropReason {
     Oversized,
     /// Shorter than its header (and MAC), or a message running past the end.
     Truncated,
+    /// The first two bytes are not `AY`: not an Ayllu datagram.
     BadMagic,
+    /// A protocol version other than [`crate::VERSION`].
     BadVersion,
     /// A reserved flag bit is set.
     BadFlags,
+    /// The team id differs from the receiver's: another team on the same network.
     WrongTeam,
     /// We hold a key and the datagram has no MAC.
     Unauthenticated,
     /// We hold no key and the datagram has a MAC.
     UnexpectedAuth,
+    /// The MAC does not verify under our key: forged, corrupted, or another key (N5).
     BadMac,
     /// A message of a known kind breaks its layout (short body, invalid UTF-8, a byte out of
     /// range, an empty name where one is required, ...).
@@ -78,6 +83,7 @@ pub enum DropReason {
 }
 
 impl DropReason {
+    /// Every reason, in the order the spec lists them (for counters).
     pub const ALL: [DropReason; 10] = [
         DropReason::Oversized,
         DropReason::Truncated,
@@ -198,6 +204,7 @@ impl NameCache {
     /// Number of sets (of two names each).
     pub const SETS: usize = 256;
 
+    /// An empty cache of [`NameCache::SETS`] sets (about 8 KiB of slots, names besides).
     pub fn new() -> Self {
         NameCache { slots: vec![None; 2 * NameCache::SETS] }
     }

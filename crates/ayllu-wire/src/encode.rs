@@ -22,16 +22,31 @@ use crate::{
 pub enum EncodeError {
     /// The datagram already holds messages and this one does not fit in the space left:
     /// finish this datagram and push the message into a new one.
-    DoesNotFit { needed: usize, available: usize },
+    DoesNotFit {
+        /// Bytes the message takes, with its 3-byte message header.
+        needed: usize,
+        /// Bytes left in this datagram.
+        available: usize,
+    },
     /// The message does not fit even in an empty datagram of this size limit: it cannot be sent
     /// at this MTU.
-    TooLarge { needed: usize, available: usize },
+    TooLarge {
+        /// Bytes the message takes, with its 3-byte message header.
+        needed: usize,
+        /// Bytes an empty datagram has for messages at this size limit.
+        available: usize,
+    },
     /// The message cannot be expressed on the wire at all (an empty or over-long name, a
     /// local endpoint, a timed connection kind with a zero period, ...). The text says which
     /// rule of `spec/protocol.md` it breaks.
     Invalid(&'static str),
     /// A report needs more than 64 REPLY parts at this MTU.
-    ReportTooLarge { bytes: usize, max_parts: u16 },
+    ReportTooLarge {
+        /// The report's size as JSON.
+        bytes: usize,
+        /// The most parts a reply may have ([`crate::MAX_REPLY_PARTS`]).
+        max_parts: u16,
+    },
 }
 
 impl fmt::Display for EncodeError {
@@ -55,6 +70,44 @@ impl std::error::Error for EncodeError {}
 
 /// Builds one datagram: header, then messages appended while they fit, then (with a key) the
 /// MAC written by [`DatagramWriter::finish`].
+///
+/// ```
+/// use ayllu_core::{ConnectionId, ConnectionKind, NodeId, PortMessage, Value};
+/// use ayllu_wire::*;
+///
+/// let key: Key = parse_key_hex(&"2a".repeat(32)).unwrap();
+/// let hello = WireMessage::Hello { interval_ms: 1000, name: "robot-1".into(), groups: vec!["Peers".into()] };
+/// let port = WireMessage::Port(PortMessage {
+///     conn: ConnectionId(1),
+///     seq: 7,
+///     behavior: "OBS1".into(),
+///     port: "Best".into(),
+///     kind: ConnectionKind::Normal,
+///     priority: 0,
+///     value: Value::Float(0.8),
+/// });
+/// // Everything for one destination in one datagram (N3), signed with the team key (N5).
+/// let seq = first_sequence(1_700_000_000); // boot time: above any earlier run's numbers
+/// let mut writer = DatagramWriter::new(7, NodeId(1), seq, Some(key), DEFAULT_MTU);
+/// writer.push(&hello)?;
+/// writer.push(&port)?;
+/// let bytes = writer.finish();
+///
+/// let datagram = decode(&bytes, &ReceiverConfig::keyed(7, key)).unwrap();
+/// assert!(datagram.authenticated);
+/// assert_eq!((datagram.sender, datagram.seq), (NodeId(1), seq));
+/// assert_eq!(datagram.messages, vec![hello, port.clone()]);
+/// // Refused whole by a keyless receiver and under another key.
+/// assert_eq!(decode(&bytes, &ReceiverConfig::open(7)), Err(DropReason::UnexpectedAuth));
+/// assert_eq!(decode(&bytes, &ReceiverConfig::keyed(7, [0; KEY_LEN])), Err(DropReason::BadMac));
+///
+/// // A message that does not fit leaves the datagram as it was: send it, start another.
+/// let mut small = DatagramWriter::new(7, NodeId(1), seq + 1, None, HEADER_LEN + 60);
+/// small.push(&port)?;
+/// assert!(matches!(small.push(&port), Err(EncodeError::DoesNotFit { .. })));
+/// assert_eq!(small.message_count(), 1);
+/// # Ok::<(), EncodeError>(())
+/// ```
 #[derive(Clone, Debug)]
 pub struct DatagramWriter {
     buf: Vec<u8>,

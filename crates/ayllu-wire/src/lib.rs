@@ -45,6 +45,8 @@
 //! assert_eq!(decode(&bytes, &ReceiverConfig { team: 8, key: None }).unwrap_err(), DropReason::WrongTeam);
 //! ```
 
+#![warn(missing_docs)]
+
 pub mod auth;
 pub mod decode;
 pub mod encode;
@@ -83,18 +85,27 @@ pub const KEY_LEN: usize = 32;
 
 /// Message kind codes (the `kind` byte before each message).
 pub mod kind {
+    /// A value along a connection (best effort, N1).
     pub const PORT: u8 = 0x01;
+    /// A liveness announcement with the sender's groups (N6).
     pub const HELLO: u8 = 0x02;
+    /// A control request (reliable, N2); its `op` byte is one of [`crate::op`].
     pub const REQUEST: u8 = 0x10;
+    /// One part of the answer to a request.
     pub const REPLY: u8 = 0x11;
 }
 
 /// REQUEST operation codes.
 pub mod op {
+    /// Make a connection from one of the receiver's ports (answered with its id).
     pub const CONNECT: u8 = 1;
+    /// Remove a connection the receiver owns (answered with its id).
     pub const DISCONNECT: u8 = 2;
+    /// Describe the whole node (answered with a `NodeReport`, as JSON in REPLY parts).
     pub const LIST: u8 = 3;
+    /// Explain one port (answered with a `PortReport`, as JSON in REPLY parts).
     pub const WHY: u8 = 4;
+    /// Read one port's value.
     pub const READ: u8 = 5;
 }
 

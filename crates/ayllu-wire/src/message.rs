@@ -18,19 +18,52 @@ pub enum WireMessage {
     /// PORT (0x01): a value travelling along a connection.
     Port(PortMessage),
     /// HELLO (0x02): liveness announcement and the sender's broadcast groups.
-    Hello { interval_ms: u32, name: Arc<str>, groups: Vec<Arc<str>> },
+    Hello {
+        /// How often the sender announces itself, in milliseconds (> 0); it is forgotten after
+        /// three silent intervals (N6).
+        interval_ms: u32,
+        /// A human name for tools (`robot-1`); may be empty.
+        name: Arc<str>,
+        /// The broadcast groups the sender has joined, so group messages can be unicast to it
+        /// where broadcast does not reach (D-S10.1).
+        groups: Vec<Arc<str>>,
+    },
     /// REQUEST (0x10) with a known operation. `body` is never [`ControlBody::Reply`], and a
     /// `Connect` destination is never [`ayllu_core::Endpoint::Local`].
-    Request { id: u64, body: ControlBody },
+    Request {
+        /// Chosen by the requester, unique among its requests; repeats reuse it (N2).
+        id: u64,
+        /// What is asked.
+        body: ControlBody,
+    },
     /// REQUEST with an operation code this implementation does not know. The receiver answers
     /// it with an error REPLY (`unknown operation`) rather than dropping it, so that tools can
     /// tell an old node from a lost request. Its arguments, if any, are not kept.
-    UnknownRequest { id: u64, op: u8 },
+    UnknownRequest {
+        /// The request's id, for the error reply.
+        id: u64,
+        /// The operation code this implementation does not know.
+        op: u8,
+    },
     /// REPLY (0x11): part `part` of `parts` of the answer to request `id`.
-    Reply { id: u64, part: u16, parts: u16, payload: ReplyPart },
+    Reply {
+        /// The id of the request this answers.
+        id: u64,
+        /// This part's index, 0-based, below `parts`.
+        part: u16,
+        /// How many parts the answer has (1 to [`crate::MAX_REPLY_PARTS`]; 1 unless a report).
+        parts: u16,
+        /// What this part carries.
+        payload: ReplyPart,
+    },
     /// A message of an unknown kind, skipped using its length. Decode-only: it is reported so
     /// the receiver can count it (`unknown_kind`); the encoder refuses it (it has no body).
-    Unknown { code: u8, length: u16 },
+    Unknown {
+        /// The unknown kind byte.
+        code: u8,
+        /// The length of the body that was skipped, in bytes.
+        length: u16,
+    },
 }
 
 /// What one REPLY part carries.

@@ -99,7 +99,10 @@ pub enum AssembleError {
     /// carry.
     Inconsistent,
     /// The parts together exceed the assembler's byte limit.
-    TooLarge { limit: usize },
+    TooLarge {
+        /// The assembler's limit, in bytes.
+        limit: usize,
+    },
     /// The slices concatenated are not the JSON of a `NodeReport` or `PortReport`.
     BadReport(String),
 }
