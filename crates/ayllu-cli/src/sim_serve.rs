@@ -353,7 +353,7 @@ pub fn robot(args: &RobotArgs) -> Result<(), Fail> {
     let mut node = Node::new(MonotonicClock::new(), UdpTransport::bind(args.id, config)?);
     // The body's ports, as local behaviors the server writes (sensors) and reads (motors).
     Body::install(node.core_mut(), targets, &world)?;
-    let cfg = ControllerConfig { claim_hz: args.claim_hz, wander_seed: args.seed };
+    let cfg = ControllerConfig { claim_hz: args.claim_hz, wander_seed: args.seed, ..ControllerConfig::default() };
     let brain = build(node.core_mut(), args.controller, &prios, &cfg)?;
     let body = body_id(k);
     for port in ["Rotate", "Translate"] {

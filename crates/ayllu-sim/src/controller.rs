@@ -19,8 +19,8 @@
 use std::f64::consts::TAU;
 
 use ayllu::stdlib::{
-    make_observer, make_observer_layer, observer_class, random_wander_class, safe_velocity_class, SafeVelocity, BASE,
-    OVERRIDE_PERIOD, SONAR, VEL, VISION, VISION_LIFESPAN, WANDER,
+    make_observer, make_observer_layer, observer_class_with, random_wander_class, safe_velocity_class, Eligibility,
+    SafeVelocity, BASE, OVERRIDE_PERIOD, SONAR, VEL, VISION, VISION_LIFESPAN, WANDER,
 };
 use ayllu_core::{
     BehaviorClass, BleConfig, ConnectOptions, ConnectionKind, Duration, Endpoint, Error, NodeCore, PortRef, PortSpec,
@@ -67,11 +67,18 @@ pub struct ControllerConfig {
     pub claim_hz: f64,
     /// Seed of the wander behaviors (mixed with each node id).
     pub wander_seed: u64,
+    /// How BLE observers offer their eligibility (the paper: every 20 Hz activation).
+    #[serde(default = "paper_eligibility")]
+    pub eligibility: Eligibility,
+}
+
+fn paper_eligibility() -> Eligibility {
+    Eligibility::EveryActivation
 }
 
 impl Default for ControllerConfig {
     fn default() -> Self {
-        ControllerConfig { claim_hz: 1.0, wander_seed: 1 }
+        ControllerConfig { claim_hz: 1.0, wander_seed: 1, eligibility: Eligibility::EveryActivation }
     }
 }
 
@@ -140,7 +147,7 @@ pub fn build(
     match controller {
         Controller::Random => Ok(Brain::Wander),
         Controller::Ble | Controller::Local => {
-            node.define(observer_class()?)?;
+            node.define(observer_class_with(cfg.eligibility)?)?;
             let ble = BleConfig::new(GROUP, "Rotate", cfg.claim_hz)?;
             // Lowest layer first, so that each layer's `next` exists when it is made.
             for num in (1..=m).rev() {
