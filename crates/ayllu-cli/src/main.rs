@@ -21,6 +21,7 @@ mod controllers;
 mod fail;
 mod signals;
 mod sim_cmommt;
+mod sim_files;
 mod sim_serve;
 mod text;
 
@@ -79,6 +80,11 @@ enum SimCommand {
     Serve(sim_serve::ServeArgs),
     /// Run one robot's controller as its own process, driving a body that `sim serve` hosts.
     Robot(sim_serve::RobotArgs),
+    /// Run one scenario written as a TOML file (any field of the simulator's scenario).
+    Run(sim_files::RunArgs),
+    /// Run a sweep written as a TOML file (a scenario, seeds, controllers and a grid of
+    /// fields); print the means and write every run as runs.csv / runs.jsonl.
+    Sweep(sim_files::SweepArgs),
 }
 
 #[derive(Subcommand, Debug)]
@@ -323,6 +329,8 @@ fn run(cli: Cli) -> Result<(), Fail> {
         Command::Sim(SimCommand::Cmommt(args)) => sim_cmommt::run(&args),
         Command::Sim(SimCommand::Serve(args)) => sim_serve::serve(&args),
         Command::Sim(SimCommand::Robot(args)) => sim_serve::robot(&args),
+        Command::Sim(SimCommand::Run(args)) => sim_files::run_file(&args),
+        Command::Sim(SimCommand::Sweep(args)) => sim_files::sweep_file(&args),
     }
 }
 

@@ -16,5 +16,6 @@ pub mod radio;
 pub mod recording;
 pub mod report;
 pub mod scenario;
+pub mod scenario_file;
 pub mod study;
 pub mod world;

@@ -367,11 +367,8 @@ impl<S: DatagramSocket> UdpTransport<S> {
         }
         self.replay_dirty = false;
         self.next_save = now + Duration::from_secs(1);
-        let text: String = self
-            .replay
-            .iter()
-            .filter_map(|(n, (w, _))| w.newest().map(|seq| format!("{} {seq}\n", n.0)))
-            .collect();
+        let text: String =
+            self.replay.iter().filter_map(|(n, (w, _))| w.newest().map(|seq| format!("{} {seq}\n", n.0))).collect();
         let tmp = path.with_extension("tmp");
         let saved = std::fs::write(&tmp, text).and_then(|()| std::fs::rename(&tmp, &path));
         match saved {

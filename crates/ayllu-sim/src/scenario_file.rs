@@ -1,0 +1,294 @@
+//! Scenarios and sweeps as data: TOML files that `ayllu sim run` and `ayllu sim sweep` read,
+//! and that any program can read through this module (docs/cmommt.md, "Studies as files").
+//!
+//! A scenario file starts from the simulator's standard scenario for a team and overrides any
+//! field of [`Scenario`] (the arena, the world's sensors and targets, the radio's loss, delay,
+//! jitter, range and partitions, kills at any instants, the controllers' tunables, seed,
+//! duration, frame and tick rates):
+//!
+//! ```toml
+//! controller = "BLE"       # BLE, Random, Local, ForceField, Centralized
+//! robots = 3
+//! targets = 4              # priorities 4, 3, 2, 1 (or list world.targets yourself)
+//! seed = 1
+//! duration = 300.0
+//! [radio]
+//! loss = 0.1
+//! [[kills]]
+//! at = 150.0
+//! robot = 2
+//! [controllers]
+//! eligibility = "lean"     # or "paper"
+//! ```
+//!
+//! A sweep file is a scenario file plus `seeds` (runs per cell, seeds 1..=N), `controllers`
+//! (names) and a `[grid]` table mapping field paths (`radio.loss`, `robots`, `world.arena`)
+//! to lists of values; the cells are the grid's cartesian product, in the order written.
+//!
+//! Promises: every key must be a field of the scenario (a misspelt key is an error naming it,
+//! never silently ignored); tables merge into the defaults, arrays and values replace them;
+//! errors name the file's part that is wrong. Nothing here runs a simulation.
+
+use serde_json::{Map, Value as Json};
+
+use crate::controller::Controller;
+use crate::scenario::Scenario;
+
+/// `(field path, value)` of each grid axis.
+type Labels = Vec<(String, String)>;
+
+/// One cell of a sweep: the scenario (seed 1) and the grid values that made it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SweepCell {
+    /// `(field path, value)` for each grid axis, in the grid's order.
+    pub values: Vec<(String, String)>,
+    /// The scenario of this cell; run it with seeds 1..=`Sweep::seeds`.
+    pub scenario: Scenario,
+}
+
+/// A sweep read from a file: cells x controllers x seeds.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Sweep {
+    /// Runs per cell and controller (seeds 1..=seeds).
+    pub seeds: u64,
+    /// The controllers every cell is run with.
+    pub controllers: Vec<Controller>,
+    /// The grid's cells, in order.
+    pub cells: Vec<SweepCell>,
+}
+
+impl Sweep {
+    /// Every run: (cell index, controller, seed, scenario), in order.
+    pub fn runs(&self) -> Vec<(usize, Controller, u64, Scenario)> {
+        let mut runs = Vec::new();
+        for (i, cell) in self.cells.iter().enumerate() {
+            for &c in &self.controllers {
+                for seed in 1..=self.seeds {
+                    let mut s = cell.scenario.clone();
+                    s.controller = c;
+                    s.seed = seed;
+                    s.controllers.wander_seed = seed;
+                    runs.push((i, c, seed, s));
+                }
+            }
+        }
+        runs
+    }
+}
+
+/// Read a scenario file (module docs).
+pub fn scenario(text: &str) -> Result<Scenario, String> {
+    let table = parse(text)?;
+    scenario_from(table)
+}
+
+/// Read a sweep file (module docs).
+pub fn sweep(text: &str) -> Result<Sweep, String> {
+    let mut table = parse(text)?;
+    let seeds = match table.remove("seeds") {
+        None => 10,
+        Some(v) => v.as_u64().filter(|n| (1..=1000).contains(n)).ok_or("`seeds` must be a number from 1 to 1000")?,
+    };
+    let controllers = match take_controller_list(&mut table) {
+        None => Controller::ALL.to_vec(),
+        Some(v) => v
+            .as_array()
+            .ok_or("`controllers` must be a list of names")?
+            .iter()
+            .map(|c| c.as_str().and_then(Controller::parse).ok_or(format!("unknown controller {c}")))
+            .collect::<Result<_, _>>()?,
+    };
+    let grid = match table.remove("grid") {
+        None => Map::new(),
+        Some(Json::Object(g)) => g,
+        Some(_) => return Err("`grid` must be a table of field = [values]".into()),
+    };
+    let mut cells: Vec<(Labels, Map<String, Json>)> = vec![(Vec::new(), table)];
+    for (path, values) in grid {
+        let values =
+            values.as_array().filter(|v| !v.is_empty()).ok_or(format!("grid.{path} must be a non-empty list"))?;
+        let mut next = Vec::new();
+        for (labels, base) in &cells {
+            for v in values {
+                let mut t = base.clone();
+                set_path(&mut t, &path, v.clone())?;
+                let mut labels = labels.clone();
+                labels.push((path.clone(), v.to_string()));
+                next.push((labels, t));
+            }
+        }
+        cells = next;
+    }
+    let cells = cells
+        .into_iter()
+        .map(|(values, t)| Ok(SweepCell { scenario: scenario_from(t)?, values }))
+        .collect::<Result<_, String>>()?;
+    Ok(Sweep { seeds, controllers, cells })
+}
+
+/// In a sweep file `controllers` is the list of controllers to run, unless it is a table (the
+/// scenario's controller tunables).
+fn take_controller_list(table: &mut Map<String, Json>) -> Option<Json> {
+    if table.get("controllers").is_some_and(Json::is_array) {
+        table.remove("controllers")
+    } else {
+        None
+    }
+}
+
+fn parse(text: &str) -> Result<Map<String, Json>, String> {
+    let value: toml::Value = toml::from_str(text).map_err(|e| format!("not a valid TOML file: {e}"))?;
+    match serde_json::to_value(value).map_err(|e| e.to_string())? {
+        Json::Object(m) => Ok(m),
+        _ => Err("expected a TOML table".into()),
+    }
+}
+
+fn scenario_from(mut table: Map<String, Json>) -> Result<Scenario, String> {
+    let controller = match table.remove("controller") {
+        None => Controller::Ble,
+        Some(v) => v.as_str().and_then(Controller::parse).ok_or(format!("unknown controller {v}"))?,
+    };
+    let robots = match table.get("robots") {
+        None => 3,
+        Some(v) => v.as_u64().filter(|n| (1..=10_000).contains(n)).ok_or("`robots` must be a number from 1")? as usize,
+    };
+    let targets = match table.remove("targets") {
+        None => 4,
+        Some(v) => v.as_u64().filter(|n| (1..=1000).contains(n)).ok_or("`targets` must be a number from 1")? as usize,
+    };
+    let seed = table.get("seed").and_then(Json::as_u64).unwrap_or(1);
+    if let Some(Json::Object(c)) = table.get_mut("controllers") {
+        if let Some(e) = c.get("eligibility").and_then(Json::as_str) {
+            let policy = match e {
+                "paper" => ayllu::stdlib::Eligibility::EveryActivation,
+                "lean" => ayllu::stdlib::Eligibility::LEAN,
+                other => return Err(format!("controllers.eligibility `{other}`: expected \"paper\" or \"lean\"")),
+            };
+            c.insert("eligibility".into(), serde_json::to_value(policy).map_err(|e| e.to_string())?);
+        }
+    }
+    let base = Scenario::sized(controller, robots, targets, seed);
+    let mut merged = serde_json::to_value(&base).map_err(|e| e.to_string())?;
+    merge(&mut merged, Json::Object(table), "")?;
+    serde_json::from_value(merged).map_err(|e| format!("the scenario does not fit: {e}"))
+}
+
+/// Merge `over` into `base`: tables field by field (every key must exist in `base`), anything
+/// else replaces. `at` is the path so far, for errors.
+fn merge(base: &mut Json, over: Json, at: &str) -> Result<(), String> {
+    match (base, over) {
+        (Json::Object(b), Json::Object(o)) => {
+            for (k, v) in o {
+                let path = if at.is_empty() { k.clone() } else { format!("{at}.{k}") };
+                let slot = b.get_mut(&k).ok_or(format!("unknown field `{path}`"))?;
+                merge(slot, v, &path)?;
+            }
+            Ok(())
+        }
+        (b, o) => {
+            *b = o;
+            Ok(())
+        }
+    }
+}
+
+/// Set `path` (`radio.loss`) in `table` to `value`, making tables on the way.
+fn set_path(table: &mut Map<String, Json>, path: &str, value: Json) -> Result<(), String> {
+    let mut parts = path.split('.').peekable();
+    let mut here = table;
+    while let Some(p) = parts.next() {
+        if parts.peek().is_none() {
+            here.insert(p.to_owned(), value);
+            return Ok(());
+        }
+        let next = here.entry(p.to_owned()).or_insert_with(|| Json::Object(Map::new()));
+        here = next.as_object_mut().ok_or(format!("grid path `{path}`: `{p}` is not a table"))?;
+    }
+    Err(format!("empty grid path `{path}`"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_scenario_file_overrides_any_field_and_refuses_unknown_ones() {
+        let s = scenario(
+            r#"
+            controller = "local"
+            robots = 5
+            targets = 6
+            seed = 7
+            duration = 60.0
+            [radio]
+            loss = 0.2
+            range = 4.0
+            [[radio.partitions]]
+            start = 10.0
+            end = 20.0
+            island = [1, 2]
+            [[kills]]
+            at = 30.0
+            robot = 2
+            [[kills]]
+            at = 30.0
+            [world]
+            arena = [12.0, 9.0]
+            [controllers]
+            claim_hz = 2.0
+            eligibility = "lean"
+            "#,
+        )
+        .unwrap();
+        assert_eq!((s.controller, s.robots, s.seed, s.duration), (Controller::Local, 5, 7, 60.0));
+        assert_eq!(s.world.targets.len(), 6);
+        assert_eq!((s.radio.loss, s.radio.range, s.radio.partitions.len()), (0.2, Some(4.0), 1));
+        assert_eq!(s.kills.len(), 2);
+        assert_eq!(s.world.arena, [12.0, 9.0]);
+        assert_eq!(s.controllers.eligibility, ayllu::stdlib::Eligibility::LEAN);
+        assert_eq!(s.controllers.claim_hz, 2.0);
+        // Untouched fields keep the standard scenario's values.
+        let standard = Scenario::sized(Controller::Local, 5, 6, 7);
+        assert_eq!(
+            (s.dt, s.frame_dt, s.world.camera_range),
+            (standard.dt, standard.frame_dt, standard.world.camera_range)
+        );
+
+        for (text, needle) in [
+            ("[radio]\nlos = 0.1", "unknown field `radio.los`"),
+            ("controler = \"BLE\"", "unknown field `controler`"),
+            ("controller = \"Planner\"", "unknown controller"),
+            ("[radio]\nloss = \"much\"", "does not fit"),
+            ("robots = 0", "robots"),
+            ("this is not toml", "TOML"),
+        ] {
+            let err = scenario(text).unwrap_err();
+            assert!(err.contains(needle), "{text}: {err}");
+        }
+    }
+
+    #[test]
+    fn a_sweep_is_the_grids_product_times_controllers_times_seeds() {
+        let sw = sweep(
+            r#"
+            seeds = 3
+            controllers = ["BLE", "Random"]
+            duration = 30.0
+            [grid]
+            robots = [2, 4]
+            "radio.loss" = [0.0, 0.1, 0.3]
+            "#,
+        )
+        .unwrap();
+        assert_eq!((sw.seeds, sw.controllers.len(), sw.cells.len()), (3, 2, 6));
+        assert_eq!(sw.runs().len(), 6 * 2 * 3);
+        let last = &sw.cells[5];
+        assert_eq!((last.scenario.robots, last.scenario.radio.loss, last.scenario.duration), (4, 0.3, 30.0));
+        assert_eq!(
+            last.values,
+            vec![("robots".to_owned(), "4".to_owned()), ("radio.loss".to_owned(), "0.3".to_owned())]
+        );
+        assert!(sweep("[grid]\n\"radio.los\" = [0.1]").unwrap_err().contains("radio.los"));
+    }
+}
