@@ -27,7 +27,7 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 use ayllu_sim::metrics::Metrics;
 use ayllu_sim::recording::{CoverageSeries, Event, Frame, Recording, RecordingMeta, RobotFrame, RobotInfo, TargetInfo};
 use ayllu_sim::report::{self, Replay, Report};
-use ayllu_sim::study::Row;
+use ayllu_sim::study::{Row, RunRow};
 
 const CHROMIUM: &str = "/usr/bin/chromium";
 const WINDOW: (u32, u32) = (1280, 900);

@@ -11,7 +11,7 @@ use std::path::PathBuf;
 use super::{Replay, Report};
 use crate::metrics::Metrics;
 use crate::recording::{CoverageSeries, Event, Frame, Recording, RecordingMeta, RobotFrame, RobotInfo, TargetInfo};
-use crate::study::Row;
+use crate::study::{Row, RunRow};
 
 use super::{compare, decode, encode, paper_claim, summary_text, tables_text, text_table, write, Verdict};
 
@@ -49,7 +49,9 @@ fn writes_every_file_it_promises() {
             "robustness.svg",
             "results.json",
             "results.md",
-            "tables.txt"
+            "tables.txt",
+            "runs.csv",
+            "runs.jsonl"
         ]
     );
     for f in &files {
@@ -273,7 +275,7 @@ fn an_empty_report_still_writes_a_page() {
     report.robustness.clear();
     let dir = scratch("empty");
     let files = write(&dir, &report).unwrap();
-    assert_eq!(files.len(), 8);
+    assert_eq!(files.len(), 10);
     let html = fs::read_to_string(dir.join("index.html")).unwrap();
     assert!(html.contains("(no runs)"));
     assert!(html.contains("No BLE runs"));
