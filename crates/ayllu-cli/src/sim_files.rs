@@ -8,7 +8,7 @@ use std::path::PathBuf;
 use ayllu_sim::report::runs_csv;
 use ayllu_sim::scenario::run;
 use ayllu_sim::scenario_file;
-use ayllu_sim::study::{run_all, RunRow};
+use ayllu_sim::study::{mean_sd, run_all, RunRow};
 use clap::Args;
 use serde_json::json;
 
@@ -118,14 +118,8 @@ pub fn sweep_file(args: &SweepArgs) -> Result<(), Fail> {
         for c in &sweep.controllers {
             let mine: Vec<&RunRow> =
                 rows.iter().filter(|r| r.table == format!("cell{}", i + 1) && r.controller == c.name()).collect();
-            let n = mine.len() as f64;
-            let a_w = mine.iter().map(|r| r.metrics.a_w).sum::<f64>() / n;
-            let sd = if mine.len() > 1 {
-                (mine.iter().map(|r| (r.metrics.a_w - a_w).powi(2)).sum::<f64>() / (n - 1.0)).sqrt()
-            } else {
-                0.0
-            };
-            let msgs = mine.iter().map(|r| r.metrics.msgs_per_robot_s).sum::<f64>() / n;
+            let (a_w, sd) = mean_sd(mine.iter().map(|r| r.metrics.a_w));
+            let (msgs, _) = mean_sd(mine.iter().map(|r| r.metrics.msgs_per_robot_s));
             writeln!(out, "  {:<12} A_w {a_w:.3} ± {sd:.3}   msgs/robot/s {msgs:.1}", c.name())?;
         }
     }

@@ -9,7 +9,7 @@ use ayllu::stdlib::Eligibility;
 use ayllu::Duration;
 use ayllu_sim::controller::Controller;
 use ayllu_sim::scenario::Scenario;
-use ayllu_sim::study::run_all;
+use ayllu_sim::study::{mean_sd, run_all};
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -38,10 +38,8 @@ fn main() {
             })
             .collect();
         let metrics = run_all(&scenarios, 2, &|| {}, &|o| o.metrics).expect("runs");
-        let a_w: Vec<f64> = metrics.iter().map(|m| m.a_w).collect();
-        let mean = a_w.iter().sum::<f64>() / a_w.len() as f64;
-        let sd = (a_w.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (a_w.len() - 1) as f64).sqrt();
-        let msgs = metrics.iter().map(|m| m.msgs_per_robot_s).sum::<f64>() / metrics.len() as f64;
+        let (mean, sd) = mean_sd(metrics.iter().map(|m| m.a_w));
+        let (msgs, _) = mean_sd(metrics.iter().map(|m| m.msgs_per_robot_s));
         let fewer = paper_msgs.map_or(1.0, |p: f64| p / msgs);
         paper_msgs.get_or_insert(msgs);
         println!("{name:<32} {mean:>7.3} ± {sd:.3} {msgs:>14.1} {fewer:>9.1}x");

@@ -232,6 +232,19 @@ pub struct Results {
     pub runs: Vec<RunRow>,
 }
 
+/// The mean and the sample standard deviation of `xs` (sd 0 for fewer than two values; both
+/// 0 for none): how every A_w ± sd of the tables, sweeps and examples is computed.
+pub fn mean_sd(xs: impl IntoIterator<Item = f64>) -> (f64, f64) {
+    let xs: Vec<f64> = xs.into_iter().collect();
+    if xs.is_empty() {
+        return (0.0, 0.0);
+    }
+    let n = xs.len() as f64;
+    let mean = xs.iter().sum::<f64>() / n;
+    let sd = if xs.len() > 1 { (xs.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt() } else { 0.0 };
+    (mean, sd)
+}
+
 /// One cell's row from its runs' metrics (in seed order): means of every metric; `recover_s`
 /// the mean over the runs that have one (`None` if none has); `unrecovered` the total over the
 /// runs (a count of failures to report, not a rate); `a_w_sd` the sample standard deviation of
@@ -240,13 +253,7 @@ pub fn aggregate(cell: &Cell, runs: &[Metrics]) -> Row {
     let n = runs.len().max(1) as f64;
     let mean = |f: fn(&Metrics) -> f64| runs.iter().map(f).sum::<f64>() / n;
     let recovers: Vec<f64> = runs.iter().filter_map(|m| m.recover_s).collect();
-    let a_w = mean(|m| m.a_w);
-    let a_w_sd = if runs.len() > 1 {
-        let ss: f64 = runs.iter().map(|m| (m.a_w - a_w).powi(2)).sum();
-        (ss / (runs.len() - 1) as f64).sqrt()
-    } else {
-        0.0
-    };
+    let (a_w, a_w_sd) = mean_sd(runs.iter().map(|m| m.a_w));
     Row {
         controller: cell.controller.name().to_owned(),
         robots: cell.robots as u32,

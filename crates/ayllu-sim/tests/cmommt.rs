@@ -98,10 +98,8 @@ fn ble_with(policy: ayllu::stdlib::Eligibility, robots: usize, targets: usize, s
         })
         .collect();
     let runs = ayllu_sim::study::run_all(&scenarios, 2, &|| {}, &|o| o.metrics).unwrap();
-    let n = runs.len() as f64;
-    let mean = runs.iter().map(|m| m.a_w).sum::<f64>() / n;
-    let sd = (runs.iter().map(|m| (m.a_w - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
-    (mean, sd, runs.iter().map(|m| m.msgs_per_robot_s).sum::<f64>() / n)
+    let (mean, sd) = ayllu_sim::study::mean_sd(runs.iter().map(|m| m.a_w));
+    (mean, sd, ayllu_sim::study::mean_sd(runs.iter().map(|m| m.msgs_per_robot_s)).0)
 }
 
 #[test]
