@@ -31,19 +31,27 @@ use serde::{Deserialize, Serialize};
 /// The BLE (and force-field) broadcast group.
 pub const GROUP: &str = "Peers";
 
+/// The controllers compared on CMOMMT (docs/cmommt.md, "The controllers").
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
 pub enum Controller {
+    /// The paper's Fig. 2: observer layers cross-inhibited by BLE (errata fixed).
     Ble,
+    /// Wander only (the floor).
     Random,
+    /// The observer chain without BLE: each robot follows the best target it sees, no talking.
     Local,
+    /// Attraction to seen targets, repulsion from broadcast teammates (a potential-field baseline).
     ForceField,
+    /// An omniscient planner assigning targets from the world's truth (the upper bound).
     Centralized,
 }
 
 impl Controller {
+    /// Every controller, in the tables' order.
     pub const ALL: [Controller; 5] =
         [Controller::Ble, Controller::Random, Controller::Local, Controller::ForceField, Controller::Centralized];
 
+    /// The name used in tables, reports and files ("BLE", "ForceField", ...).
     pub fn name(self) -> &'static str {
         match self {
             Controller::Ble => "BLE",
@@ -90,7 +98,12 @@ pub enum Brain {
     /// A behavior's `Drive` port holds the target id driving (0 none).
     Drive(PortRef),
     /// Centralized: the oracle writes `ORACLE.Angle`/`Assigned`; `Drive` mirrors `Assigned`.
-    Oracle { angle: PortRef, assigned: PortRef },
+    Oracle {
+        /// The bearing the oracle commands.
+        angle: PortRef,
+        /// The target the oracle assigned (0: none).
+        assigned: PortRef,
+    },
     /// Wander only.
     Wander,
 }

@@ -9,6 +9,8 @@
 //! Non-goals: physical fidelity beyond unicycle kinematics and circle/segment contacts; 3-D;
 //! real-time pacing (the distributed server paces itself).
 
+#![warn(missing_docs)]
+
 pub mod body;
 pub mod controller;
 pub mod metrics;

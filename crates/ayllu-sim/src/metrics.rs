@@ -22,22 +22,32 @@
 
 use serde::{Deserialize, Serialize};
 
+/// The figures of merit of one run (or a cell's means), as defined in the module docs.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Metrics {
+    /// A: average number of targets observed.
     pub a: f64,
+    /// A / m: the same as a fraction of the targets.
     pub a_per_m: f64,
+    /// A_w: priority-weighted fraction of targets observed (0..1).
     pub a_w: f64,
+    /// top-k against the starting team (k = min(robots, m)).
     pub top_k: f64,
+    /// The k of top-k: min(robots at the start, targets).
     pub k: u32,
     /// top-k against the robots alive at each instant (k(t) = min(live robots, m)).
     #[serde(default)]
     pub top_k_alive: f64,
+    /// Robot-observations beyond the first, on average.
     pub redundant: f64,
+    /// Changes of the target driving a robot, per live robot per minute.
     pub switches_per_min: f64,
+    /// Mean seconds to re-cover a killed robot's targets (None: nothing to re-cover).
     pub recover_s: Option<f64>,
     /// Tasks lost to a kill and never re-covered before the end (counted in `recover_s` as
     /// the time left).
     pub unrecovered: u32,
+    /// Radio messages sent per robot per second (a broadcast counts once per sender).
     pub msgs_per_robot_s: f64,
 }
 
@@ -65,6 +75,7 @@ pub struct Meter {
 }
 
 impl Meter {
+    /// A meter for targets of `priorities` (non-increasing) and a team of `robots`.
     pub fn new(priorities: &[f64], robots: usize) -> Meter {
         Meter {
             priorities: priorities.to_vec(),

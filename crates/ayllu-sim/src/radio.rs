@@ -21,20 +21,26 @@ use serde::{Deserialize, Serialize};
 /// the rest hear only the rest.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Partition {
+    /// When the partition begins (s of virtual time).
     pub start: f64,
+    /// When it heals (s).
     pub end: f64,
+    /// The node ids on one side; everyone else is on the other.
     pub island: Vec<u32>,
 }
 
+/// The radio medium: loss per receiver, delay and jitter, range and partitions.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct RadioConfig {
     /// Probability that one receiver misses one message.
     pub loss: f64,
     /// Base latency and the width of a uniform jitter on top (s).
     pub delay: f64,
+    /// Uniform jitter added to `delay` (s), drawn per emission.
     pub jitter: f64,
     /// Messages reach only robots within this distance (m); `None`: everywhere.
     pub range: Option<f64>,
+    /// Scheduled partitions.
     pub partitions: Vec<Partition>,
 }
 
@@ -48,9 +54,13 @@ impl Default for RadioConfig {
 /// What the radio needs to know about a robot when it routes.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Station {
+    /// The robot's node id.
     pub node: NodeId,
+    /// Position (m).
     pub x: f64,
+    /// Position (m).
     pub y: f64,
+    /// A dead robot neither sends nor receives.
     pub alive: bool,
 }
 
@@ -89,6 +99,8 @@ impl Ord for InFlight {
     }
 }
 
+/// The simulated radio: routes the nodes' outgoing messages with loss, delay, jitter, range and
+/// partitions, seeded, on virtual time.
 pub struct Radio {
     config: RadioConfig,
     rng: fastrand::Rng,
@@ -104,12 +116,16 @@ pub struct Radio {
     groups: Vec<(Arc<str>, Vec<usize>)>,
     /// Emissions per station, and deliveries lost (by loss draw) / cut (range, partition).
     pub sent: Vec<u64>,
+    /// Deliveries dropped by the loss draw.
     pub lost: u64,
+    /// Deliveries cut by range or a partition.
     pub cut: u64,
+    /// Deliveries made.
     pub delivered: u64,
 }
 
 impl Radio {
+    /// A radio for `stations` robots with `config`, its draws seeded by `seed`.
     pub fn new(config: RadioConfig, stations: usize, seed: u64) -> Radio {
         Radio {
             config,
@@ -128,6 +144,7 @@ impl Radio {
         }
     }
 
+    /// The configuration it runs with.
     pub fn config(&self) -> &RadioConfig {
         &self.config
     }

@@ -14,11 +14,13 @@ use serde::{Deserialize, Serialize};
 pub struct RecordingMeta {
     /// Controller name: "BLE", "Random", "Local", "ForceField", "Centralized".
     pub controller: String,
+    /// The run's seed.
     pub seed: u64,
     /// Arena width and height (m); walls run along its border.
     pub arena: [f64; 2],
     /// Camera field of view (rad, whole angle) and range (m).
     pub camera_fov: f64,
+    /// Camera range (m).
     pub camera_range: f64,
     /// A target counts as observed within this distance and inside the field of view.
     pub observe_range: f64,
@@ -26,29 +28,38 @@ pub struct RecordingMeta {
     pub frame_dt: f64,
     /// Run length (s) and radio loss probability.
     pub duration: f64,
+    /// Radio loss probability per message and receiver.
     pub loss: f64,
 }
 
+/// A target as the replay draws it.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TargetInfo {
     /// 1-based; target 1 has the highest priority.
     pub id: u32,
+    /// Its priority (larger: more important).
     pub priority: f64,
+    /// Its radius (m).
     pub radius: f64,
 }
 
+/// A robot as the replay draws it.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct RobotInfo {
     /// The robot's node id.
     pub id: u32,
+    /// Its radius (m).
     pub radius: f64,
 }
 
 /// One robot at one frame.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct RobotFrame {
+    /// Position (m).
     pub x: f64,
+    /// Position (m).
     pub y: f64,
+    /// Heading (rad).
     pub theta: f64,
     /// False once the robot has been killed.
     pub alive: bool,
@@ -62,9 +73,12 @@ pub struct RobotFrame {
     pub observing: Vec<u32>,
 }
 
+/// The world at one instant.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Frame {
+    /// Virtual time (s).
     pub t: f64,
+    /// Every robot, by index.
     pub robots: Vec<RobotFrame>,
     /// Target positions [x, y], in `targets` order.
     pub targets: Vec<[f64; 2]>,
@@ -73,24 +87,33 @@ pub struct Frame {
 /// Something that happened at a time: today only robot failures.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Event {
+    /// When it happened (s).
     pub t: f64,
     /// "kill"
     pub kind: String,
+    /// The robot's node id.
     pub robot: u32,
 }
 
+/// A whole run, frame by frame, for a replay.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Recording {
+    /// The run's settings.
     pub meta: RecordingMeta,
+    /// The robots' fixed facts.
     pub robots: Vec<RobotInfo>,
+    /// The targets' fixed facts.
     pub targets: Vec<TargetInfo>,
+    /// One frame every `meta.frame_dt`.
     pub frames: Vec<Frame>,
+    /// Kills, in time order.
     pub events: Vec<Event>,
 }
 
 /// Coverage over time for a plot: one sample per frame.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct CoverageSeries {
+    /// Sample times (s).
     pub t: Vec<f64>,
     /// Targets observed by at least one robot.
     pub observed: Vec<u32>,

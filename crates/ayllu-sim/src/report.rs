@@ -46,6 +46,7 @@ pub use summary::{compare, paper_claim, Comparison, Verdict};
 /// Everything a report shows.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Report {
+    /// The page's title.
     pub title: String,
     /// The command line that produced it, for people to re-run.
     pub command: String,

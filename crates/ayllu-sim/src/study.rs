@@ -23,12 +23,17 @@ use crate::scenario::{self, Outcome, Scenario};
 /// One cell of a table: a controller in one setting, metrics averaged over `seeds` runs.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Row {
+    /// The controller's name.
     pub controller: String,
+    /// Robots at the start.
     pub robots: u32,
+    /// Targets.
     pub targets: u32,
+    /// Radio loss probability.
     pub loss: f64,
     /// A robot is killed halfway through each run.
     pub kill: bool,
+    /// Runs averaged.
     pub seeds: u32,
     /// Means over the seeds (recover_s: over the runs that had something to re-cover).
     pub metrics: Metrics,
@@ -74,12 +79,17 @@ impl Table {
 /// A controller in one setting, to be run with seeds 1..=`seeds`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Cell {
+    /// The controller.
     pub controller: Controller,
+    /// Robots at the start.
     pub robots: usize,
+    /// Targets.
     pub targets: usize,
+    /// Radio loss probability.
     pub loss: f64,
     /// Kill the most useful robot halfway through.
     pub kill: bool,
+    /// Runs (seeds 1..=seeds).
     pub seeds: u32,
     /// Seconds of virtual time per run.
     pub duration: f64,
@@ -110,9 +120,13 @@ pub struct StudyConfig {
     pub seeds: u32,
     /// Seconds of virtual time per run.
     pub duration: f64,
+    /// The controllers compared.
     pub controllers: Vec<Controller>,
+    /// Team sizes of the sweep.
     pub sweep_robots: Vec<usize>,
+    /// Target counts of the sweep.
     pub sweep_targets: Vec<usize>,
+    /// Loss levels of the sweep.
     pub sweep_loss: Vec<f64>,
     /// Loss levels of the robustness scenario (the paper's setting, a robot killed halfway).
     pub robustness_loss: Vec<f64>,
@@ -150,8 +164,11 @@ impl StudyConfig {
 /// The three tables of a plan.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Table {
+    /// The paper's setting.
     Paper,
+    /// robots x targets x loss.
     Sweep,
+    /// A robot killed halfway.
     Robustness,
 }
 
@@ -168,9 +185,11 @@ pub struct Plan {
 
 /// Robots and targets of the paper's setting (section 4.3).
 pub const PAPER_ROBOTS: usize = 3;
+/// Targets in the paper's setting.
 pub const PAPER_TARGETS: usize = 4;
 
 impl Plan {
+    /// The cells of `config`'s three tables.
     pub fn new(config: &StudyConfig) -> Plan {
         let cell = |controller, robots, targets, loss, kill| Cell {
             controller,
@@ -224,8 +243,11 @@ impl Plan {
 /// The plan's rows, table by table, in the plan's order.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Results {
+    /// The paper's setting: one row per controller.
     pub paper: Vec<Row>,
+    /// The sweep's rows.
     pub sweep: Vec<Row>,
+    /// The robustness rows.
     pub robustness: Vec<Row>,
     /// Every run, in the plan's order (table, cell, seed).
     #[serde(default)]

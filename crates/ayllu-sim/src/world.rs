@@ -23,20 +23,25 @@ pub enum Motion {
     Bounce,
 }
 
+/// A target's declaration: priority, speed and motion.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TargetSpec {
     /// Larger is more important; the scenario numbers targets by decreasing priority.
     pub priority: f64,
     /// m/s
     pub speed: f64,
+    /// How it moves.
     pub motion: Motion,
 }
 
 /// Everything fixed about a world.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct WorldConfig {
+    /// Width and height (m); walls on the border.
     pub arena: [f64; 2],
+    /// Robot radius (m).
     pub robot_radius: f64,
+    /// Target radius (m).
     pub target_radius: f64,
     /// Height of a target (m); its apparent height is `focal * height / distance`.
     pub target_height: f64,
@@ -44,19 +49,28 @@ pub struct WorldConfig {
     pub focal: f64,
     /// Motor limits.
     pub max_speed: f64,
+    /// Fastest turn (rad/s).
     pub max_turn: f64,
+    /// Camera field of view (rad, whole angle).
     pub camera_fov: f64,
+    /// Camera range (m).
     pub camera_range: f64,
     /// A target counts as observed (metrics) in the field of view and within this distance.
     pub observe_range: f64,
+    /// Sonar beams around the robot.
     pub sonar_beams: usize,
+    /// Sonar range (m).
     pub sonar_range: f64,
     /// Sensor noise: bearing (rad, s.d.), apparent height (fraction, s.d.), sonar (m, s.d.),
     /// and the chance that a visible target is missed in one camera frame.
     pub bearing_noise: f64,
+    /// Relative noise (sd) of a target's apparent height.
     pub height_noise: f64,
+    /// Noise (sd, m) of a sonar range.
     pub sonar_noise: f64,
+    /// Probability that a camera frame misses a visible target.
     pub miss_rate: f64,
+    /// The targets, in decreasing priority after `by_priority`.
     pub targets: Vec<TargetSpec>,
 }
 
@@ -96,23 +110,34 @@ impl WorldConfig {
     }
 }
 
+/// Where a robot is and which way it faces.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Pose {
+    /// Position (m).
     pub x: f64,
+    /// Position (m).
     pub y: f64,
+    /// Heading (rad, 0 along +x).
     pub theta: f64,
 }
 
+/// A robot's body in the world.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Robot {
+    /// Its pose.
     pub pose: Pose,
+    /// False once killed: it stops and senses nothing.
     pub alive: bool,
 }
 
+/// A target in the world.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Target {
+    /// Position (m).
     pub x: f64,
+    /// Position (m).
     pub y: f64,
+    /// Direction of travel (rad).
     pub heading: f64,
     waypoint: (f64, f64),
     pause: f64,
@@ -132,13 +157,19 @@ pub struct Sighting {
 /// What the motors are asked to do.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Command {
+    /// Forward speed asked (m/s), clamped to `max_speed`.
     pub translate: f64,
+    /// Turn rate asked (rad/s), clamped to `max_turn`.
     pub rotate: f64,
 }
 
+/// The world's ground truth: robots, targets, walls; stepped on virtual time.
 pub struct World {
+    /// Its configuration.
     pub config: WorldConfig,
+    /// The robots, by index (node id - 1).
     pub robots: Vec<Robot>,
+    /// The targets, by index (target id - 1).
     pub targets: Vec<Target>,
     motion_rng: fastrand::Rng,
     noise_rng: fastrand::Rng,

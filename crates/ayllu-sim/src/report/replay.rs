@@ -44,9 +44,13 @@ pub struct Replay {
     /// The page's first menu: "Paper setting", "Robustness: 10 % loss", "Sweep: 5 robots, ...".
     /// Runs sharing a setting differ by controller and seed (in `meta`).
     pub setting: String,
+    /// The run's settings (controller, seed, arena, ...).
     pub meta: RecordingMeta,
+    /// The robots' fixed facts.
     pub robots: Vec<RobotInfo>,
+    /// The targets' fixed facts.
     pub targets: Vec<TargetInfo>,
+    /// Kills, in time order.
     pub events: Vec<Event>,
     /// Recorded frames (frame i at i · `meta.frame_dt`).
     pub frames: u32,

@@ -16,8 +16,11 @@ use crate::study::Row;
 /// BLE's A_w against another controller's, from BLE's side.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Verdict {
+    /// BLE's A_w is higher beyond two standard errors.
     Better,
+    /// BLE's A_w is lower beyond two standard errors.
     Worse,
+    /// The difference is under two standard errors.
     WithinNoise,
 }
 
@@ -34,13 +37,17 @@ impl Verdict {
 /// One controller's A_w in the paper's setting against BLE's.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Comparison {
+    /// The other controller's name.
     pub controller: String,
+    /// Its mean A_w.
     pub a_w: f64,
+    /// Its A_w's standard deviation over seeds.
     pub a_w_sd: f64,
     /// BLE's A_w minus this controller's.
     pub diff: f64,
     /// One standard error of `diff`.
     pub se: f64,
+    /// What the difference says.
     pub verdict: Verdict,
 }
 
