@@ -34,15 +34,19 @@ pub const GROUP: &str = "Peers";
 /// The controllers compared on CMOMMT (docs/cmommt.md, "The controllers").
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
 pub enum Controller {
-    /// The paper's Fig. 2: observer layers cross-inhibited by BLE (errata fixed).
+    /// The paper's Fig. 2: observer layers OBS1..OBSm over WANDER, each cross-inhibited across
+    /// robots by BLE (with the fixes of docs/cmommt.md, "What we changed from Fig. 2").
     Ble,
-    /// Wander only (the floor).
+    /// `WANDER` and `VEL` only, no observers, no communication: the floor.
     Random,
     /// The observer chain without BLE: each robot follows the best target it sees, no talking.
     Local,
-    /// Attraction to seen targets, repulsion from broadcast teammates (a potential-field baseline).
+    /// A-CMOMMT style (Parker): turns along priority-weighted attractions to the targets it sees
+    /// (cut to 0.2 for a target a peer reports seeing from closer) plus repulsion from sonar
+    /// echoes under 0.8 m.
     ForceField,
-    /// An omniscient planner assigning targets from the world's truth (the upper bound).
+    /// An omniscient planner assigning targets from the world's ground truth every second and
+    /// steering each robot to the exact bearing of its target: the upper bound.
     Centralized,
 }
 
@@ -99,9 +103,10 @@ pub enum Brain {
     Drive(PortRef),
     /// Centralized: the oracle writes `ORACLE.Angle`/`Assigned`; `Drive` mirrors `Assigned`.
     Oracle {
-        /// The bearing the oracle commands.
+        /// `ORACLE.Angle`: bearing (rad, right-positive) of the assigned target, written by the
+        /// harness every tick while the robot has an assignment.
         angle: PortRef,
-        /// The target the oracle assigned (0: none).
+        /// `ORACLE.Assigned`: the assigned target's id (1-based; 0: none).
         assigned: PortRef,
     },
     /// Wander only.

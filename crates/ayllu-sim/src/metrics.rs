@@ -25,29 +25,33 @@ use serde::{Deserialize, Serialize};
 /// The figures of merit of one run (or a cell's means), as defined in the module docs.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Metrics {
-    /// A: average number of targets observed.
+    /// A, Parker's average number of targets observed (0..=m; docs/cmommt.md).
     pub a: f64,
-    /// A / m: the same as a fraction of the targets.
+    /// A / m: the same as a fraction of the targets (0..=1).
     pub a_per_m: f64,
-    /// A_w: priority-weighted fraction of targets observed (0..1).
+    /// A_w, the priority-weighted fraction of targets observed (0..=1; docs/cmommt.md).
     pub a_w: f64,
-    /// top-k against the starting team (k = min(robots, m)).
+    /// top-k: time-averaged fraction of the k highest-priority targets observed (0..=1), with
+    /// k = min(robots at the start, m).
     pub top_k: f64,
     /// The k of top-k: min(robots at the start, targets).
     pub k: u32,
     /// top-k against the robots alive at each instant (k(t) = min(live robots, m)).
     #[serde(default)]
     pub top_k_alive: f64,
-    /// Robot-observations beyond the first, on average.
+    /// Observations beyond the first, summed over the targets and averaged over time.
     pub redundant: f64,
-    /// Changes of the target driving a robot, per live robot per minute.
+    /// Changes of the target driving a robot (to or from none too), per live robot per minute
+    /// of virtual time.
     pub switches_per_min: f64,
-    /// Mean seconds to re-cover a killed robot's targets (None: nothing to re-cover).
+    /// Mean virtual seconds from a kill until another robot observes each target lost with it
+    /// (module docs); `None`: no kill, or nothing to re-cover.
     pub recover_s: Option<f64>,
     /// Tasks lost to a kill and never re-covered before the end (counted in `recover_s` as
     /// the time left).
     pub unrecovered: u32,
-    /// Radio messages sent per robot per second (a broadcast counts once per sender).
+    /// Radio emissions per robot per second of virtual time (a broadcast counts once per
+    /// sender; Centralized: one per assigned robot per second).
     pub msgs_per_robot_s: f64,
 }
 

@@ -23,7 +23,7 @@ use serde::{Deserialize, Serialize};
 pub struct Partition {
     /// When the partition begins (s of virtual time).
     pub start: f64,
-    /// When it heals (s).
+    /// When it heals (s of virtual time; excluded).
     pub end: f64,
     /// The node ids on one side; everyone else is on the other.
     pub island: Vec<u32>,
@@ -34,13 +34,13 @@ pub struct Partition {
 pub struct RadioConfig {
     /// Probability that one receiver misses one message.
     pub loss: f64,
-    /// Base latency and the width of a uniform jitter on top (s).
+    /// Base latency of every emission (s of virtual time).
     pub delay: f64,
-    /// Uniform jitter added to `delay` (s), drawn per emission.
+    /// Width of a uniform jitter added to `delay` (s), drawn once per emission.
     pub jitter: f64,
     /// Messages reach only robots within this distance (m); `None`: everywhere.
     pub range: Option<f64>,
-    /// Scheduled partitions.
+    /// Scheduled partitions (see [`Partition`]).
     pub partitions: Vec<Partition>,
 }
 
@@ -56,9 +56,9 @@ impl Default for RadioConfig {
 pub struct Station {
     /// The robot's node id.
     pub node: NodeId,
-    /// Position (m).
+    /// Position (m, arena frame), for the range limit.
     pub x: f64,
-    /// Position (m).
+    /// Position (m, arena frame), for the range limit.
     pub y: f64,
     /// A dead robot neither sends nor receives.
     pub alive: bool,
@@ -114,13 +114,13 @@ pub struct Radio {
     cursor: Vec<usize>,
     /// Members of each group, by station index in increasing order.
     groups: Vec<(Arc<str>, Vec<usize>)>,
-    /// Emissions per station, and deliveries lost (by loss draw) / cut (range, partition).
+    /// Emissions per station (a group message counts once).
     pub sent: Vec<u64>,
-    /// Deliveries dropped by the loss draw.
+    /// Deliveries (one per receiver) dropped by the loss draw.
     pub lost: u64,
-    /// Deliveries cut by range or a partition.
+    /// Deliveries (one per receiver) cut by the range limit or a partition.
     pub cut: u64,
-    /// Deliveries made.
+    /// Deliveries (one per receiver) handed over.
     pub delivered: u64,
 }
 

@@ -18,15 +18,15 @@ pub struct RecordingMeta {
     pub seed: u64,
     /// Arena width and height (m); walls run along its border.
     pub arena: [f64; 2],
-    /// Camera field of view (rad, whole angle) and range (m).
+    /// Camera field of view (rad, whole angle).
     pub camera_fov: f64,
     /// Camera range (m).
     pub camera_range: f64,
-    /// A target counts as observed within this distance and inside the field of view.
+    /// A target counts as observed within this distance (m) and inside the field of view.
     pub observe_range: f64,
     /// Virtual seconds between frames.
     pub frame_dt: f64,
-    /// Run length (s) and radio loss probability.
+    /// Run length (s of virtual time).
     pub duration: f64,
     /// Radio loss probability per message and receiver.
     pub loss: f64,
@@ -55,11 +55,11 @@ pub struct RobotInfo {
 /// One robot at one frame.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct RobotFrame {
-    /// Position (m).
+    /// Position (m, arena frame).
     pub x: f64,
-    /// Position (m).
+    /// Position (m, arena frame).
     pub y: f64,
-    /// Heading (rad).
+    /// Heading (rad, counter-clockwise from +x).
     pub theta: f64,
     /// False once the robot has been killed.
     pub alive: bool,
@@ -76,9 +76,9 @@ pub struct RobotFrame {
 /// The world at one instant.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Frame {
-    /// Virtual time (s).
+    /// Virtual time (s since the start of the run).
     pub t: f64,
-    /// Every robot, by index.
+    /// Every robot, in `Recording::robots` order (dead ones included).
     pub robots: Vec<RobotFrame>,
     /// Target positions [x, y], in `targets` order.
     pub targets: Vec<[f64; 2]>,
@@ -87,9 +87,9 @@ pub struct Frame {
 /// Something that happened at a time: today only robot failures.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Event {
-    /// When it happened (s).
+    /// When it happened (s of virtual time).
     pub t: f64,
-    /// "kill"
+    /// What happened: today always `"kill"`.
     pub kind: String,
     /// The robot's node id.
     pub robot: u32,
@@ -113,7 +113,7 @@ pub struct Recording {
 /// Coverage over time for a plot: one sample per frame.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct CoverageSeries {
-    /// Sample times (s).
+    /// Sample times (s of virtual time), one per frame.
     pub t: Vec<f64>,
     /// Targets observed by at least one robot.
     pub observed: Vec<u32>,

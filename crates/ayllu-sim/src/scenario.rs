@@ -42,7 +42,7 @@ pub struct Kill {
 pub struct Scenario {
     /// The arena, sensors and targets.
     pub world: WorldConfig,
-    /// Robots at the start.
+    /// Robots at the start (node ids 1..=robots).
     pub robots: usize,
     /// The controller every robot runs.
     pub controller: Controller,
@@ -50,19 +50,21 @@ pub struct Scenario {
     pub controllers: ControllerConfig,
     /// The radio medium.
     pub radio: RadioConfig,
-    /// Seconds of virtual time.
+    /// Run length (s of virtual time).
     pub duration: f64,
-    /// Seed of the world's, the noise's and the radio's random streams.
+    /// Seed of the placement, target-motion, sensor-noise and radio streams (the wander seed is
+    /// `controllers.wander_seed`).
     pub seed: u64,
-    /// Scheduled robot failures.
+    /// Scheduled robot failures, any number, at any instants.
     pub kills: Vec<Kill>,
     /// Keep every frame for a replay (costs memory; the hash is computed either way).
     pub record: bool,
-    /// Seconds between frames.
+    /// Virtual seconds between frames (hashed, sampled for coverage, recorded if `record`),
+    /// rounded to a whole number of ticks.
     pub frame_dt: f64,
-    /// Tick length (s) and camera/sonar rate divider (2: 10 Hz at 50 ms ticks).
+    /// Tick length (s of virtual time); 0.05 is the observers' 20 Hz.
     pub dt: f64,
-    /// Ticks between camera and sonar frames.
+    /// Ticks between camera frames and sonar sweeps (2: 10 Hz at 50 ms ticks).
     pub sense_every: u32,
 }
 
@@ -128,28 +130,28 @@ impl Scenario {
 /// Radio totals of a run.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct RadioStats {
-    /// Messages emitted.
+    /// Radio emissions by all robots (a group message counts once).
     pub sent: u64,
-    /// Deliveries made.
+    /// Deliveries made (one per receiver).
     pub delivered: u64,
-    /// Deliveries dropped by the loss draw.
+    /// Deliveries dropped by the loss draw (one per receiver).
     pub lost: u64,
-    /// Deliveries cut by range or partitions.
+    /// Deliveries cut by the range limit or a partition (one per receiver).
     pub cut: u64,
 }
 
 /// What a run produced.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Outcome {
-    /// The run's metrics.
+    /// The run's figures of merit (docs/cmommt.md, "The metrics").
     pub metrics: Metrics,
     /// SHA-256 of every frame, hex.
     pub trace_hash: String,
     /// Coverage over time (one sample per frame).
     pub coverage: CoverageSeries,
-    /// Every frame, if the scenario asked for it.
+    /// Every frame, if the scenario asked for it (`Scenario::record`).
     pub recording: Option<Recording>,
-    /// Radio totals.
+    /// Radio totals over the run.
     pub radio: RadioStats,
 }
 
@@ -234,17 +236,18 @@ impl Sim {
         Ok(sim)
     }
 
-    /// Virtual time now.
+    /// Virtual time now: ticks done times `dt` (never the wall clock).
     pub fn now(&self) -> Instant {
         Instant::from_nanos(self.tick * self.dt.as_nanos())
     }
 
-    /// The world's ground truth.
+    /// The world's ground truth now (true positions, no noise).
     pub fn world(&self) -> &World {
         &self.world
     }
 
-    /// Robot `i`'s node (0-based), for reports and `why`.
+    /// The node of robot index `i` (0-based; node id `i + 1`), to inspect its ports and
+    /// connections, for reports and `why`.
     pub fn core(&self, i: usize) -> &NodeCore {
         &self.robots[i].core
     }

@@ -27,13 +27,13 @@ pub struct Row {
     pub controller: String,
     /// Robots at the start.
     pub robots: u32,
-    /// Targets.
+    /// Targets (priorities m, ..., 1).
     pub targets: u32,
-    /// Radio loss probability.
+    /// Radio loss probability per message and receiver.
     pub loss: f64,
     /// A robot is killed halfway through each run.
     pub kill: bool,
-    /// Runs averaged.
+    /// Runs averaged (seeds 1..=seeds).
     pub seeds: u32,
     /// Means over the seeds (recover_s: over the runs that had something to re-cover).
     pub metrics: Metrics,
@@ -51,7 +51,7 @@ pub struct RunRow {
     pub controller: String,
     /// Robots at the start.
     pub robots: u32,
-    /// Targets.
+    /// Targets (priorities m, ..., 1).
     pub targets: u32,
     /// Radio loss probability per message and receiver.
     pub loss: f64,
@@ -79,13 +79,13 @@ impl Table {
 /// A controller in one setting, to be run with seeds 1..=`seeds`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Cell {
-    /// The controller.
+    /// The controller every robot runs.
     pub controller: Controller,
     /// Robots at the start.
     pub robots: usize,
-    /// Targets.
+    /// Targets (priorities m, ..., 1), in a room sized as by `Scenario::sized`.
     pub targets: usize,
-    /// Radio loss probability.
+    /// Radio loss probability per message and receiver.
     pub loss: f64,
     /// Kill the most useful robot halfway through.
     pub kill: bool,
@@ -120,13 +120,13 @@ pub struct StudyConfig {
     pub seeds: u32,
     /// Seconds of virtual time per run.
     pub duration: f64,
-    /// The controllers compared.
+    /// The controllers compared, in every table, in this order.
     pub controllers: Vec<Controller>,
     /// Team sizes of the sweep.
     pub sweep_robots: Vec<usize>,
     /// Target counts of the sweep.
     pub sweep_targets: Vec<usize>,
-    /// Loss levels of the sweep.
+    /// Radio loss probabilities of the sweep.
     pub sweep_loss: Vec<f64>,
     /// Loss levels of the robustness scenario (the paper's setting, a robot killed halfway).
     pub robustness_loss: Vec<f64>,
@@ -164,11 +164,11 @@ impl StudyConfig {
 /// The three tables of a plan.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Table {
-    /// The paper's setting.
+    /// The paper's setting: 3 robots, 4 targets, no loss.
     Paper,
-    /// robots x targets x loss.
+    /// robots x targets x loss, every controller.
     Sweep,
-    /// A robot killed halfway.
+    /// The paper's setting with the most useful robot killed halfway, at several loss levels.
     Robustness,
 }
 
@@ -183,9 +183,9 @@ pub struct Plan {
     pub robustness: Vec<Cell>,
 }
 
-/// Robots and targets of the paper's setting (section 4.3).
+/// Robots in the paper's setting (section 4.3).
 pub const PAPER_ROBOTS: usize = 3;
-/// Targets in the paper's setting.
+/// Targets in the paper's setting (section 4.3), priorities 4, 3, 2, 1.
 pub const PAPER_TARGETS: usize = 4;
 
 impl Plan {
@@ -245,9 +245,9 @@ impl Plan {
 pub struct Results {
     /// The paper's setting: one row per controller.
     pub paper: Vec<Row>,
-    /// The sweep's rows.
+    /// The sweep: one row per cell and controller, in the plan's order.
     pub sweep: Vec<Row>,
-    /// The robustness rows.
+    /// The robustness scenario: one row per loss level and controller.
     pub robustness: Vec<Row>,
     /// Every run, in the plan's order (table, cell, seed).
     #[serde(default)]

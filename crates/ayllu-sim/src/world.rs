@@ -28,16 +28,16 @@ pub enum Motion {
 pub struct TargetSpec {
     /// Larger is more important; the scenario numbers targets by decreasing priority.
     pub priority: f64,
-    /// m/s
+    /// Speed while moving (m/s).
     pub speed: f64,
-    /// How it moves.
+    /// How it moves (see [`Motion`]).
     pub motion: Motion,
 }
 
 /// Everything fixed about a world.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct WorldConfig {
-    /// Width and height (m); walls on the border.
+    /// Width and height (m), origin at the bottom-left corner; walls on the border.
     pub arena: [f64; 2],
     /// Robot radius (m).
     pub robot_radius: f64,
@@ -47,30 +47,30 @@ pub struct WorldConfig {
     pub target_height: f64,
     /// Camera focal length in pixels: apparent height 100 px for a 0.5 m target at 1 m.
     pub focal: f64,
-    /// Motor limits.
+    /// Fastest forward or backward speed (m/s): [`Command::translate`] is clamped to ±this.
     pub max_speed: f64,
-    /// Fastest turn (rad/s).
+    /// Fastest turn (rad/s): [`Command::rotate`] is clamped to ±this.
     pub max_turn: f64,
-    /// Camera field of view (rad, whole angle).
+    /// Camera field of view (rad, whole angle, centred on the heading).
     pub camera_fov: f64,
-    /// Camera range (m).
+    /// Camera range (m): farther targets are not seen.
     pub camera_range: f64,
-    /// A target counts as observed (metrics) in the field of view and within this distance.
+    /// A target counts as observed (metrics) in the field of view and within this distance (m).
     pub observe_range: f64,
-    /// Sonar beams around the robot.
+    /// Sonar beams, evenly spaced around the robot from its heading.
     pub sonar_beams: usize,
-    /// Sonar range (m).
+    /// Sonar range (m), from the robot's rim; farther echoes are not heard.
     pub sonar_range: f64,
-    /// Sensor noise: bearing (rad, s.d.), apparent height (fraction, s.d.), sonar (m, s.d.),
-    /// and the chance that a visible target is missed in one camera frame.
+    /// Standard deviation of a sighting's bearing (rad), Gaussian.
     pub bearing_noise: f64,
-    /// Relative noise (sd) of a target's apparent height.
+    /// Standard deviation of a sighting's apparent height, as a fraction of it (0.05: 5 %).
     pub height_noise: f64,
-    /// Noise (sd, m) of a sonar range.
+    /// Standard deviation of a sonar range (m), Gaussian.
     pub sonar_noise: f64,
-    /// Probability that a camera frame misses a visible target.
+    /// Probability that one camera frame misses a visible target (drawn per target and frame).
     pub miss_rate: f64,
-    /// The targets, in decreasing priority after `by_priority`.
+    /// The targets; in decreasing priority after [`WorldConfig::by_priority`] (which the
+    /// scenario applies), so target id n is the n-th most important.
     pub targets: Vec<TargetSpec>,
 }
 
@@ -117,16 +117,16 @@ pub struct Pose {
     pub x: f64,
     /// Position (m).
     pub y: f64,
-    /// Heading (rad, 0 along +x).
+    /// Heading (rad, counter-clockwise from +x, in (-π, π]).
     pub theta: f64,
 }
 
 /// A robot's body in the world.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Robot {
-    /// Its pose.
+    /// Its pose in the arena.
     pub pose: Pose,
-    /// False once killed: it stops and senses nothing.
+    /// False once killed: it no longer moves or counts as observing, but stays as an obstacle.
     pub alive: bool,
 }
 
@@ -137,7 +137,7 @@ pub struct Target {
     pub x: f64,
     /// Position (m).
     pub y: f64,
-    /// Direction of travel (rad).
+    /// Direction of travel (rad, counter-clockwise from +x).
     pub heading: f64,
     waypoint: (f64, f64),
     pause: f64,
@@ -165,7 +165,7 @@ pub struct Command {
 
 /// The world's ground truth: robots, targets, walls; stepped on virtual time.
 pub struct World {
-    /// Its configuration.
+    /// Its configuration (fixed for the world's life).
     pub config: WorldConfig,
     /// The robots, by index (node id - 1).
     pub robots: Vec<Robot>,

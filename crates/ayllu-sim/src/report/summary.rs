@@ -16,11 +16,11 @@ use crate::study::Row;
 /// BLE's A_w against another controller's, from BLE's side.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Verdict {
-    /// BLE's A_w is higher beyond two standard errors.
+    /// BLE's A_w is higher by more than two standard errors of the difference.
     Better,
-    /// BLE's A_w is lower beyond two standard errors.
+    /// BLE's A_w is lower by more than two standard errors of the difference.
     Worse,
-    /// The difference is under two standard errors.
+    /// The difference is within two standard errors: noise.
     WithinNoise,
 }
 
@@ -39,15 +39,15 @@ impl Verdict {
 pub struct Comparison {
     /// The other controller's name.
     pub controller: String,
-    /// Its mean A_w.
+    /// Its mean A_w over the seeds (docs/cmommt.md).
     pub a_w: f64,
-    /// Its A_w's standard deviation over seeds.
+    /// The sample standard deviation of its A_w over the seeds.
     pub a_w_sd: f64,
     /// BLE's A_w minus this controller's.
     pub diff: f64,
     /// One standard error of `diff`.
     pub se: f64,
-    /// What the difference says.
+    /// What `diff` and `se` say: better, worse or within noise.
     pub verdict: Verdict,
 }
 
