@@ -261,30 +261,22 @@ fn three_processes_in_network_namespaces_use_real_subnet_broadcast() {
     });
 }
 
-/// The packet filter of namespace `i`: a table whose input chain drops `loss` % of UDP at
-/// random (`numgen random`), and an output chain, both empty of other rules.
+/// The packet filter of namespace `i`: a table with an input and an output chain, the input
+/// dropping `loss` % of UDP at random (`numgen random`).
 fn filter(net: &Netns, i: usize, loss: u32) -> Result<(), String> {
     let nft = |args: &[&str]| net.exec(i, "nft", args);
     nft(&["add", "table", "inet", "ayllu"])?;
     nft(&["add", "chain", "inet", "ayllu", "input", "{ type filter hook input priority 0; }"])?;
     nft(&["add", "chain", "inet", "ayllu", "output", "{ type filter hook output priority 0; }"])?;
-    nft(&[
-        "add",
-        "rule",
-        "inet",
-        "ayllu",
-        "input",
-        "meta",
-        "l4proto",
-        "udp",
-        "numgen",
-        "random",
-        "mod",
-        "100",
-        "<",
-        &loss.to_string(),
-        "drop",
-    ])
+    random_loss(net, i, loss)
+}
+
+/// The rule dropping `loss` % of namespace `i`'s incoming UDP.
+fn random_loss(net: &Netns, i: usize, loss: u32) -> Result<(), String> {
+    let loss = loss.to_string();
+    let rule =
+        ["add", "rule", "inet", "ayllu", "input", "meta", "l4proto", "udp", "numgen", "random", "mod", "100", "<"];
+    net.exec(i, "nft", &[&rule[..], &[&loss, "drop"]].concat())
 }
 
 /// Cut namespace `i` off (every UDP datagram in and out dropped), or heal it (back to `loss`).
@@ -296,23 +288,7 @@ fn partition(net: &Netns, i: usize, cut: bool, loss: u32) -> Result<(), String> 
         nft(&["add", "rule", "inet", "ayllu", "input", "meta", "l4proto", "udp", "drop"])?;
         nft(&["add", "rule", "inet", "ayllu", "output", "meta", "l4proto", "udp", "drop"])
     } else {
-        nft(&[
-            "add",
-            "rule",
-            "inet",
-            "ayllu",
-            "input",
-            "meta",
-            "l4proto",
-            "udp",
-            "numgen",
-            "random",
-            "mod",
-            "100",
-            "<",
-            &loss.to_string(),
-            "drop",
-        ])
+        random_loss(net, i, loss)
     }
 }
 

@@ -114,6 +114,13 @@ pub(crate) struct ProcState {
     pub(crate) retriggers: u64,
 }
 
+impl ProcState {
+    /// A process that has not run yet, first due at `now` (periodic ones; D7.2).
+    fn new(spec: ProcessSpec, now: Instant) -> ProcState {
+        ProcState { spec, next_due: now, runs: 0, overruns: 0, pending: false, ran_in_poll: 0, retriggers: 0 }
+    }
+}
+
 /// A triggered process that is triggered again in the poll in which it already ran (it
 /// triggers itself, directly or through a cycle of processes) runs again no sooner than this:
 /// such a loop runs at most 1000 times a second instead of spinning a core (D7.3).
@@ -410,15 +417,7 @@ impl NodeCore {
         let mut processes = Vec::with_capacity(class.processes.len());
         for (i, spec) in class.processes.iter().enumerate() {
             attach_trigger(&mut ports, &mut monos, spec.trigger, i as u16);
-            processes.push(ProcState {
-                spec: spec.clone(),
-                next_due: now,
-                runs: 0,
-                overruns: 0,
-                pending: false,
-                ran_in_poll: 0,
-                retriggers: 0,
-            });
+            processes.push(ProcState::new(spec.clone(), now));
         }
         let behavior = Behavior {
             id,
@@ -482,15 +481,7 @@ impl NodeCore {
         let ix = u16::try_from(beh.processes.len())
             .map_err(|_| Error::TooManyRegisters { behavior: behavior.to_owned() })?;
         attach_trigger(&mut beh.ports, &mut beh.monos, spec.trigger, ix);
-        beh.processes.push(ProcState {
-            spec,
-            next_due: now,
-            runs: 0,
-            overruns: 0,
-            pending: false,
-            ran_in_poll: 0,
-            retriggers: 0,
-        });
+        beh.processes.push(ProcState::new(spec, now));
         Ok(())
     }
 

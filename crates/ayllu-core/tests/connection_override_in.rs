@@ -118,25 +118,6 @@ fn disconnecting_the_holder_ends_its_override_at_once() {
 
 #[test]
 fn a_refused_override_in_message_opens_no_window() {
-    // D6.7: a remote OverrideIn whose value the port cannot take (wrong type) is refused whole:
-    // counted as type_mismatch, nothing written, and no window, so the local writer is not
-    // blocked by a message that was never applied.
-    let mut node = wiring(&["A", "D", "E"]);
-    link(&mut node, "A", "D", ConnectionKind::Normal);
-    link(&mut node, "D", "E", ConnectionKind::Normal);
-    let bad = PortMessage {
-        conn: ConnectionId(9),
-        seq: 1,
-        behavior: "D".into(),
-        port: V.into(),
-        kind: ConnectionKind::OverrideIn(ms(100)),
-        priority: 0,
-        value: Value::text("not an int"),
-    };
-    node.receive(at(0), NodeId(2), Message::Port(bad));
-    let why = node.why("D", V).unwrap();
-    assert!(why.windows.is_empty(), "{why}");
-    assert_eq!(dropped(&node, "D", DropCause::TypeMismatch), 1);
-    put(&mut node, at(1), "A", 5);
-    assert_eq!((value(&node, "D"), value(&node, "E")), (5, 5), "the local writer is not blocked");
+    // D6.7: a remote OverrideIn whose value the port cannot take (wrong type) is refused whole.
+    refused_override_opens_no_window(ConnectionKind::OverrideIn(ms(100)));
 }

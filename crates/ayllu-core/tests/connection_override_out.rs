@@ -110,25 +110,6 @@ fn override_out_is_refreshed_never_shortened() {
 
 #[test]
 fn a_refused_override_out_message_opens_no_window() {
-    // D6.7: a remote OverrideOut whose value the port cannot take (wrong type) is refused whole:
-    // counted as type_mismatch, nothing written, and no window, so the local writer is not
-    // blocked by a message that was never applied.
-    let mut node = wiring(&["A", "D", "E"]);
-    link(&mut node, "A", "D", ConnectionKind::Normal);
-    link(&mut node, "D", "E", ConnectionKind::Normal);
-    let bad = PortMessage {
-        conn: ConnectionId(9),
-        seq: 1,
-        behavior: "D".into(),
-        port: V.into(),
-        kind: ConnectionKind::OverrideOut(ms(100)),
-        priority: 0,
-        value: Value::text("not an int"),
-    };
-    node.receive(at(0), NodeId(2), Message::Port(bad));
-    let why = node.why("D", V).unwrap();
-    assert!(why.windows.is_empty(), "{why}");
-    assert_eq!(dropped(&node, "D", DropCause::TypeMismatch), 1);
-    put(&mut node, at(1), "A", 5);
-    assert_eq!((value(&node, "D"), value(&node, "E")), (5, 5), "the local writer is not blocked");
+    // D6.7: a remote OverrideOut whose value the port cannot take (wrong type) is refused whole.
+    refused_override_opens_no_window(ConnectionKind::OverrideOut(ms(100)));
 }

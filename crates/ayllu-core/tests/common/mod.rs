@@ -62,3 +62,27 @@ pub fn at(n: u64) -> Instant {
 pub fn ms(n: u64) -> Duration {
     Duration::from_millis(n)
 }
+
+/// D6.7, for either override kind: a remote override message whose value the port cannot
+/// take (wrong type) is refused whole: counted as type_mismatch, nothing written, and no
+/// window, so the local writer `A -> D -> E` is not blocked by a message never applied.
+pub fn refused_override_opens_no_window(kind: ConnectionKind) {
+    let mut node = wiring(&["A", "D", "E"]);
+    link(&mut node, "A", "D", ConnectionKind::Normal);
+    link(&mut node, "D", "E", ConnectionKind::Normal);
+    let bad = PortMessage {
+        conn: ConnectionId(9),
+        seq: 1,
+        behavior: "D".into(),
+        port: V.into(),
+        kind,
+        priority: 0,
+        value: Value::text("not an int"),
+    };
+    node.receive(at(0), NodeId(2), Message::Port(bad));
+    let why = node.why("D", V).unwrap();
+    assert!(why.windows.is_empty(), "{why}");
+    assert_eq!(dropped(&node, "D", DropCause::TypeMismatch), 1);
+    put(&mut node, at(1), "A", 5);
+    assert_eq!((value(&node, "D"), value(&node, "E")), (5, 5), "the local writer is not blocked");
+}
