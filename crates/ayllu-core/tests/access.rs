@@ -60,6 +60,17 @@ fn port_message(conn: u64, seq: u64, kind: ConnectionKind, v: i64) -> Message {
     })
 }
 
+/// A connection made on the node itself, in code (never leased, never capped).
+fn local_connection(n: &mut NodeCore) {
+    n.connect(
+        &Endpoint::local("R", "Out"),
+        &Endpoint::local("R", "In"),
+        ConnectionKind::Normal,
+        ConnectOptions::default(),
+    )
+    .unwrap();
+}
+
 fn remote_connections(n: &NodeCore) -> Vec<(u64, Option<NodeId>)> {
     n.report().connections.iter().map(|c| (c.id.0, c.requested_by)).collect()
 }
@@ -135,13 +146,7 @@ fn connections_made_by_request_are_capped_per_node_and_in_all() {
     assert_eq!(n.counters().get(DropCause::NotAllowed), 2);
     // Connections made in code do not count and are not capped.
     for _ in 0..10 {
-        n.connect(
-            &Endpoint::local("R", "Out"),
-            &Endpoint::local("R", "In"),
-            ConnectionKind::Normal,
-            ConnectOptions::default(),
-        )
-        .unwrap();
+        local_connection(&mut n);
     }
 }
 
@@ -152,13 +157,7 @@ fn a_lost_requester_takes_its_connections_with_it() {
     let mut n = node();
     assert!(ask(&mut n, ms(0), 7, 1, connect_to(7, ConnectionKind::Normal)).is_ok());
     assert!(ask(&mut n, ms(1), 8, 1, connect_to(8, ConnectionKind::Normal)).is_ok());
-    n.connect(
-        &Endpoint::local("R", "Out"),
-        &Endpoint::local("R", "In"),
-        ConnectionKind::Normal,
-        ConnectOptions::default(),
-    )
-    .unwrap();
+    local_connection(&mut n);
     let before = remote_connections(&n);
     assert_eq!(before.iter().filter(|(_, by)| by.is_some()).count(), 2);
     n.node_lost(ms(2), NodeId(7));
