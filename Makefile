@@ -50,8 +50,9 @@ bench-net:
 bench-sim:
 	$(CARGO) bench -p ayllu-sim --bench speed
 
-## The faulted team (30 % loss, partitions, kills and restarts, in network namespaces) for
-## MINUTES, checking take-overs, memory, descriptors and double claims (needs root, ip, nft).
+## The faulted team (network namespaces joined by the userspace shaper: delay, jitter,
+## reordering, duplication; 30 % loss and partitions by nftables; kills and restarts) for
+## MINUTES, checking take-overs, memory, descriptors and double claims (needs root, ip, nft, tun).
 MINUTES ?= 60
 soak:
 	scripts/install-test-tools

@@ -6,7 +6,8 @@
 //! DISCONNECT (`echo`). `write` connects a port of its own to the remote one, with any
 //! connection kind, so an engineer can suppress, inhibit or override a robot's port by hand.
 //! `ayllu node` runs a whole node hosting a standard controller; the multi-process tests start
-//! it.
+//! it. `ayllu shape` (Linux) joins network namespaces through a userspace shaper that delays,
+//! jitters, reorders, duplicates and drops the frames between them.
 //!
 //! Promises:
 //! * exit code 0 when the command did what it says; 1 with one message on stderr when it could
@@ -19,6 +20,8 @@ mod client;
 mod commands;
 mod controllers;
 mod fail;
+#[cfg(target_os = "linux")]
+mod shape;
 mod signals;
 mod sim_cmommt;
 mod sim_files;
@@ -143,6 +146,10 @@ enum Command {
     /// distributed mode (`serve` the world, run each `robot` controller as its own process).
     #[command(subcommand)]
     Sim(SimCommand),
+    /// Join network namespaces through TAP interfaces and pass the frames between them with
+    /// seeded delay, jitter, reordering, duplication and loss (a userspace netem; needs root).
+    #[cfg(target_os = "linux")]
+    Shape(shape::ShapeArgs),
 }
 
 #[derive(Args, Debug)]
@@ -331,6 +338,8 @@ fn run(cli: Cli) -> Result<(), Fail> {
         Command::Sim(SimCommand::Robot(args)) => sim_serve::robot(&args),
         Command::Sim(SimCommand::Run(args)) => sim_files::run_file(&args),
         Command::Sim(SimCommand::Sweep(args)) => sim_files::sweep_file(&args),
+        #[cfg(target_os = "linux")]
+        Command::Shape(args) => shape::run(&args),
     }
 }
 

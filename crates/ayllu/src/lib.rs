@@ -3,7 +3,8 @@
 //! Wraps the sans-IO [`ayllu_core`] in what a program needs to run it: a [`Node`] with a
 //! [`Clock`] (real monotonic or [`ManualClock`]) and a [`Transport`] chosen by URL
 //! (`mem://` in-process, `udp://` on IP networks), and [`Lockstep`] for deterministic teams on
-//! virtual time. Everything in the core is re-exported, so `use ayllu::*` is enough.
+//! virtual time. [`faults`] and, on Linux, [`shaper`] put seeded network faults between
+//! nodes for tests. Everything in the core is re-exported, so `use ayllu::*` is enough.
 
 #![warn(missing_docs)]
 
@@ -14,6 +15,8 @@ pub mod faults;
 pub mod lockstep;
 pub mod mem;
 pub mod node;
+#[cfg(target_os = "linux")]
+pub mod shaper;
 pub mod stdlib;
 pub mod transport;
 pub mod udp;
