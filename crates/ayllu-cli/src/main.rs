@@ -142,6 +142,13 @@ enum Command {
     Write(WriteArgs),
     /// Run a node hosting a standard controller, printing a JSON status line periodically.
     Node(NodeArgs),
+    /// Make an operator key pair: the secret goes to a new file FILE (for tools:
+    /// `operator_secret=FILE` in their URL); the public key is printed (for robots:
+    /// `operator=KEY`, so that only the operator may rewire them).
+    Keygen {
+        /// Where to write the secret (must not exist yet).
+        file: std::path::PathBuf,
+    },
     /// The simulator: the paper's multi-target observation task (`cmommt`), and the
     /// distributed mode (`serve` the world, run each `robot` controller as its own process).
     #[command(subcommand)]
@@ -333,6 +340,17 @@ fn run(cli: Cli) -> Result<(), Fail> {
         Command::Write(args) => commands::write(&args),
         Command::Disconnect { node, connection, net } => commands::disconnect_command(node, connection, &net),
         Command::Node(args) => controllers::run(&args),
+        Command::Keygen { file } => {
+            let public = ayllu::operator::keygen(&file)?;
+            println!("{public}");
+            eprintln!(
+                "secret written to {} (keep it off the robots); give robots operator={public} in their udp:// URL, \
+                 and tools operator_secret={} in theirs",
+                file.display(),
+                file.display()
+            );
+            Ok(())
+        }
         Command::Sim(SimCommand::Cmommt(args)) => sim_cmommt::run(&args),
         Command::Sim(SimCommand::Serve(args)) => sim_serve::serve(&args),
         Command::Sim(SimCommand::Robot(args)) => sim_serve::robot(&args),

@@ -425,3 +425,38 @@ fn a_node_can_refuse_rewiring_and_writes_from_the_network() {
     assert!(report["counted"]["not_allowed"].as_u64().unwrap_or(0) >= 1, "{report}");
     ayllu(&["node", "--id", "1", "--allow-write", "robots"], LIMIT).fails(2, "not a node id");
 }
+
+#[test]
+fn a_node_given_an_operator_key_is_rewired_only_by_the_operators_tools() {
+    // D9.4: `ayllu keygen` makes the pair; a relay started with operator=PUBLIC refuses an
+    // echo's CONNECT from a tool without the secret (with the reason) and accepts it from a
+    // tool with operator_secret=FILE. Port writes need no signature.
+    let dir = std::env::temp_dir().join(format!("ayllu-cli-operator-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let secret = dir.join("operator.secret");
+    let keygen = ayllu(&["keygen", secret.to_str().unwrap()], LIMIT).ok();
+    let public = keygen.stdout.trim().to_owned();
+    assert_eq!(public.len(), 64, "{keygen:?}");
+    ayllu(&["keygen", secret.to_str().unwrap()], LIMIT).fails(1, "exists");
+
+    let mut cmd = Command::new(BIN);
+    cmd.args(["node", "--id", "1", "--controller", "relay", "--status-ms", "100", "--for", "60"])
+        .args(["--udp", &format!("udp://127.0.0.1:0?operator={public}")]);
+    let mut proc = Proc::spawn("relay", cmd);
+    let addr = proc.wait_ready();
+    let plain = format!("udp://127.0.0.1:0?peer={addr}");
+    let signed = format!("{plain}&operator_secret={}", secret.display());
+    ayllu(&["echo", "1", "RELAY.Out", "--count", "1", "--udp", &plain], LIMIT).fails(1, "operator key");
+    ayllu(&["write", "1", "RELAY.In", "4", "--udp", &plain], LIMIT).ok();
+    // The operator's echo is connected; a writer feeds RELAY.In so that Out has values to send.
+    let mut echo_cmd = Command::new(BIN);
+    echo_cmd.args(["echo", "1", "RELAY.Out", "--count", "2", "--timeout", "8", "--udp", &signed]);
+    let echo = std::thread::spawn(move || common::run(echo_cmd, LIMIT));
+    ayllu(&["write", "1", "RELAY.In", "9", "--repeat-hz", "20", "--for", "2", "--udp", &plain], LIMIT).ok();
+    let echo = echo.join().unwrap().ok();
+    assert_eq!(echo.stdout.lines().count(), 2, "{echo:?}");
+    let report = ayllu(&["list", "1", "--json", "--udp", &plain], LIMIT).ok().json();
+    assert!(report["transport_counted"]["unsigned"].as_u64().unwrap_or(0) >= 1, "{report}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -16,7 +16,8 @@ use ayllu_core::{ConnectionId, ConnectionKind, ControlBody, Endpoint, NodeId, Po
 use crate::auth::{verify_mac, Key};
 use crate::message::{conn_kind_from, endpoint_tag, reply_code, value_type, ReplyPart, WireMessage};
 use crate::{
-    kind, op, FLAG_AUTH, HEADER_LEN, MAC_LEN, MAGIC, MAX_DATAGRAM_LEN, MAX_REPLY_PARTS, MESSAGE_HEADER_LEN, VERSION,
+    kind, op, COOKIE_LEN, FLAG_AUTH, HEADER_LEN, MAC_LEN, MAGIC, MAX_DATAGRAM_LEN, MAX_REPLY_PARTS, MESSAGE_HEADER_LEN,
+    VERSION,
 };
 
 /// How the receiving node is configured.
@@ -253,6 +254,8 @@ fn decode_messages(mut area: &[u8], names: &mut NameCache, out: &mut Vec<WireMes
             kind::HELLO => decode_hello(body, names),
             kind::REQUEST => decode_request(body, names),
             kind::REPLY => decode_reply(body, names),
+            kind::CHALLENGE => decode_cookie(body).map(|cookie| WireMessage::Challenge { cookie }),
+            kind::ECHO => decode_cookie(body).map(|cookie| WireMessage::Echo { cookie }),
             _ => Some(WireMessage::Unknown { code, length }),
         };
         out.push(message.ok_or(DropReason::Malformed)?);
@@ -309,7 +312,17 @@ fn decode_request(body: &[u8], names: &mut NameCache) -> Option<WireMessage> {
         // Not malformed: the receiver answers "unknown operation" (spec, REQUEST).
         other => return Some(WireMessage::UnknownRequest { id, op: other }),
     };
-    Some(WireMessage::Request { id, body })
+    // An optional signature after the arguments (fields are only ever appended; anything
+    // else there is ignored, as in every message).
+    let signature = match r.u8() {
+        Some(crate::operator::SIGNATURE_TAG) => r.array::<{ crate::operator::SIGNATURE_LEN }>(),
+        _ => None,
+    };
+    Some(WireMessage::Request { id, body, signature })
+}
+
+fn decode_cookie(body: &[u8]) -> Option<[u8; COOKIE_LEN]> {
+    body.get(..COOKIE_LEN)?.try_into().ok()
 }
 
 fn decode_reply(body: &[u8], names: &mut NameCache) -> Option<WireMessage> {

@@ -235,6 +235,14 @@ pub fn encode_datagram(
     Ok(w.finish())
 }
 
+/// Bytes `message` takes in a datagram, its 3-byte message header included (to budget what is
+/// sent before sending it).
+pub fn encoded_len(message: &WireMessage) -> Result<usize, EncodeError> {
+    let mut buf = Vec::new();
+    encode_body(&mut buf, message)?;
+    Ok(MESSAGE_HEADER_LEN + buf.len())
+}
+
 fn encode_body(buf: &mut Vec<u8>, message: &WireMessage) -> Result<(), EncodeError> {
     match message {
         WireMessage::Port(p) => encode_port(buf, p),
@@ -251,9 +259,18 @@ fn encode_body(buf: &mut Vec<u8>, message: &WireMessage) -> Result<(), EncodeErr
             }
             Ok(())
         }
-        WireMessage::Request { id, body } => {
+        WireMessage::Request { id, body, signature } => {
             buf.extend_from_slice(&id.to_le_bytes());
-            put_request(buf, body)
+            put_request(buf, body)?;
+            if let Some(sig) = signature {
+                buf.push(crate::operator::SIGNATURE_TAG);
+                buf.extend_from_slice(sig);
+            }
+            Ok(())
+        }
+        WireMessage::Challenge { cookie } | WireMessage::Echo { cookie } => {
+            buf.extend_from_slice(cookie);
+            Ok(())
         }
         WireMessage::UnknownRequest { id, op } => {
             if (op::CONNECT..=op::READ).contains(op) {
@@ -328,7 +345,7 @@ fn encode_port(buf: &mut Vec<u8>, p: &PortMessage) -> Result<(), EncodeError> {
     put_value(buf, &p.value)
 }
 
-fn put_request(buf: &mut Vec<u8>, body: &ControlBody) -> Result<(), EncodeError> {
+pub(crate) fn put_request(buf: &mut Vec<u8>, body: &ControlBody) -> Result<(), EncodeError> {
     match body {
         ControlBody::Connect { source_behavior, source_port, destination, kind, priority } => {
             buf.push(op::CONNECT);

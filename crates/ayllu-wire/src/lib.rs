@@ -51,12 +51,14 @@ pub mod auth;
 pub mod decode;
 pub mod encode;
 pub mod message;
+pub mod operator;
 pub mod reply;
 
 pub use auth::{mac, parse_key_hex, verify_mac, Key, ReplayWindow};
 pub use decode::{decode, decode_with, Datagram, DropReason, NameCache, ReceiverConfig};
-pub use encode::{encode_datagram, DatagramWriter, EncodeError};
+pub use encode::{encode_datagram, encoded_len, DatagramWriter, EncodeError};
 pub use message::{ReplyPart, WireMessage};
+pub use operator::{OperatorPublic, OperatorSecret, OperatorSignature};
 pub use reply::{reply_messages, report_slice_capacity, AssembleError, ReplyAssembler};
 
 // Re-exported so users of the wire types need not name the core crate for them.
@@ -82,6 +84,8 @@ pub const DEFAULT_MTU: usize = 1472;
 pub const MAX_REPLY_PARTS: u16 = 64;
 /// Team keys are 32 bytes.
 pub const KEY_LEN: usize = 32;
+/// Bytes of a CHALLENGE / ECHO cookie.
+pub const COOKIE_LEN: usize = 16;
 
 /// Message kind codes (the `kind` byte before each message).
 pub mod kind {
@@ -93,6 +97,10 @@ pub mod kind {
     pub const REQUEST: u8 = 0x10;
     /// One part of the answer to a request.
     pub const REPLY: u8 = 0x11;
+    /// "Echo this cookie": proves a requester's address before a large answer.
+    pub const CHALLENGE: u8 = 0x12;
+    /// A cookie sent back.
+    pub const ECHO: u8 = 0x13;
 }
 
 /// REQUEST operation codes.

@@ -11,6 +11,7 @@ use std::sync::Arc;
 use ayllu_core::{ConnectionId, ConnectionKind, ControlBody, Duration, Message, PortMessage, Value};
 
 use crate::encode::EncodeError;
+use crate::COOKIE_LEN;
 
 /// One message of a datagram.
 #[derive(Clone, Debug, PartialEq)]
@@ -35,6 +36,9 @@ pub enum WireMessage {
         id: u64,
         /// What is asked.
         body: ControlBody,
+        /// The operator's signature of this request ([`crate::operator`]), sent after the
+        /// arguments; receivers that require none ignore it.
+        signature: Option<crate::operator::OperatorSignature>,
     },
     /// REQUEST with an operation code this implementation does not know. The receiver answers
     /// it with an error REPLY (`unknown operation`) rather than dropping it, so that tools can
@@ -55,6 +59,18 @@ pub enum WireMessage {
         parts: u16,
         /// What this part carries.
         payload: ReplyPart,
+    },
+    /// CHALLENGE (0x12): "echo this cookie to prove you receive at the address you send
+    /// from". Sent, instead of an answer too large for it, to a requester whose address is
+    /// not proven (no amplification, `spec/protocol.md` "Return routability").
+    Challenge {
+        /// Opaque to the requester; only its sender can check it.
+        cookie: [u8; COOKIE_LEN],
+    },
+    /// ECHO (0x13): the answer to a CHALLENGE, the cookie sent back unchanged.
+    Echo {
+        /// The cookie the CHALLENGE carried.
+        cookie: [u8; COOKIE_LEN],
     },
     /// A message of an unknown kind, skipped using its length. Decode-only: it is reported so
     /// the receiver can count it (`unknown_kind`); the encoder refuses it (it has no body).
@@ -88,6 +104,8 @@ impl WireMessage {
             WireMessage::Hello { .. } => crate::kind::HELLO,
             WireMessage::Request { .. } | WireMessage::UnknownRequest { .. } => crate::kind::REQUEST,
             WireMessage::Reply { .. } => crate::kind::REPLY,
+            WireMessage::Challenge { .. } => crate::kind::CHALLENGE,
+            WireMessage::Echo { .. } => crate::kind::ECHO,
             WireMessage::Unknown { code, .. } => *code,
         }
     }
@@ -100,7 +118,7 @@ impl WireMessage {
             Message::Port(p) => Ok(vec![WireMessage::Port(p.clone())]),
             Message::Control(c) => match &c.body {
                 ControlBody::Reply { result } => crate::reply::reply_messages(c.id, result, mtu, auth),
-                body => Ok(vec![WireMessage::Request { id: c.id, body: body.clone() }]),
+                body => Ok(vec![WireMessage::Request { id: c.id, body: body.clone(), signature: None }]),
             },
         }
     }

@@ -104,7 +104,20 @@ fn message() -> impl Strategy<Value = WireMessage> {
         ),
         (1u32.., "[a-z0-9-]{0,12}", proptest::collection::vec(name(), 0..4))
             .prop_map(|(interval_ms, n, groups)| WireMessage::Hello { interval_ms, name: n.into(), groups }),
-        (any::<u64>(), request_body()).prop_map(|(id, body)| WireMessage::Request { id, body }),
+        (any::<u64>(), request_body(), proptest::option::of(any::<[u8; 32]>())).prop_map(|(id, body, sig)| {
+            WireMessage::Request {
+                id,
+                body,
+                signature: sig.map(|h| {
+                    let mut s = [0u8; 64];
+                    s[..32].copy_from_slice(&h);
+                    s[32..].copy_from_slice(&h);
+                    s
+                }),
+            }
+        }),
+        any::<[u8; 16]>().prop_map(|cookie| WireMessage::Challenge { cookie }),
+        any::<[u8; 16]>().prop_map(|cookie| WireMessage::Echo { cookie }),
         (any::<u64>(), prop_oneof![Just(0u8), 6u8..=255]).prop_map(|(id, op)| WireMessage::UnknownRequest { id, op }),
         reply(),
     ]

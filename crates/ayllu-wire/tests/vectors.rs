@@ -79,7 +79,18 @@ fn float_bits(bits: u64) -> Value {
 }
 
 fn request(id: u64, body: ControlBody) -> WireMessage {
-    WireMessage::Request { id, body }
+    WireMessage::Request { id, body, signature: None }
+}
+
+/// The operator secret the signed vectors use (its seed is 32 bytes of 0x11); the vectors are
+/// requests from node 3 to node 9 of team 7.
+fn vector_operator() -> ayllu_wire::OperatorSecret {
+    ayllu_wire::OperatorSecret::from_seed(&[0x11; 32])
+}
+
+fn signed_request(id: u64, body: ControlBody) -> WireMessage {
+    let signature = Some(vector_operator().sign(7, NodeId(3), NodeId(9), id, &body).unwrap());
+    WireMessage::Request { id, body, signature }
 }
 
 fn reply(id: u64, part: u16, parts: u16, payload: ReplyPart) -> WireMessage {
@@ -335,6 +346,27 @@ fn vectors() -> Vec<Vector> {
             "READ OBS1.Rotate",
             vec![request(45, ControlBody::Read { behavior: "OBS1".into(), port: "Rotate".into() })],
         ),
+        ok(
+            "request_disconnect_signed",
+            "DISCONNECT connection 19 with an operator signature (seed 32 x 0x11, node 3 to node 9, team 7)",
+            vec![signed_request(49, ControlBody::Disconnect { conn: ConnectionId(19) })],
+        ),
+        ok(
+            "request_connect_signed",
+            "CONNECT with an operator signature (seed 32 x 0x11, node 3 to node 9, team 7)",
+            vec![signed_request(
+                50,
+                ControlBody::Connect {
+                    source_behavior: "OBS1".into(),
+                    source_port: "Rotate".into(),
+                    destination: Endpoint::Node { node: NodeId(3), behavior: "TOOL".into(), port: "In".into() },
+                    kind: ConnectionKind::OverrideIn(ms(500)),
+                    priority: 0,
+                },
+            )],
+        ),
+        ok("challenge", "CHALLENGE: echo this cookie", vec![WireMessage::Challenge { cookie: *b"0123456789abcdef" }]),
+        ok("echo", "ECHO: a cookie sent back", vec![WireMessage::Echo { cookie: *b"0123456789abcdef" }]),
         ok(
             "request_unknown_op",
             "a REQUEST with operation 127: not malformed, answered with an error REPLY",
@@ -845,7 +877,7 @@ fn message_json(m: &WireMessage) -> Json {
             "kind": "hello", "interval_ms": interval_ms, "name": &**name,
             "groups": groups.iter().map(|g| &**g).collect::<Vec<_>>(),
         }),
-        WireMessage::Request { id, body } => {
+        WireMessage::Request { id, body, signature } => {
             let mut j = json!({"kind": "request", "id": id});
             let o = j.as_object_mut().unwrap();
             match body {
@@ -883,8 +915,13 @@ fn message_json(m: &WireMessage) -> Json {
                 }
                 ControlBody::Reply { .. } => panic!("replies are REPLY messages"),
             }
+            if let Some(sig) = signature {
+                o.insert("signature_hex".into(), json!(hex(sig)));
+            }
             j
         }
+        WireMessage::Challenge { cookie } => json!({"kind": "challenge", "cookie_hex": hex(cookie)}),
+        WireMessage::Echo { cookie } => json!({"kind": "echo", "cookie_hex": hex(cookie)}),
         WireMessage::UnknownRequest { id, op } => json!({"kind": "request", "id": id, "op": "unknown", "code": op}),
         WireMessage::Reply { id, part, parts, payload } => {
             let mut j = json!({"kind": "reply", "id": id});
@@ -954,8 +991,11 @@ fn message_from(j: &Json) -> WireMessage {
                 "unknown" => return WireMessage::UnknownRequest { id, op: u64_from(j, "code") as u8 },
                 other => panic!("unknown op {other}"),
             };
-            WireMessage::Request { id, body }
+            let signature = j.get("signature_hex").map(|h| unhex(h.as_str().unwrap()).try_into().unwrap());
+            WireMessage::Request { id, body, signature }
         }
+        "challenge" => WireMessage::Challenge { cookie: unhex(j["cookie_hex"].as_str().unwrap()).try_into().unwrap() },
+        "echo" => WireMessage::Echo { cookie: unhex(j["cookie_hex"].as_str().unwrap()).try_into().unwrap() },
         "reply" => {
             let payload = match j["status"].as_str().unwrap() {
                 "error" => ReplyPart::Error(j["message"].as_str().unwrap().to_owned()),

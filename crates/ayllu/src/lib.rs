@@ -15,6 +15,8 @@ pub mod faults;
 pub mod lockstep;
 pub mod mem;
 pub mod node;
+pub mod operator;
+pub mod routability;
 #[cfg(target_os = "linux")]
 pub mod shaper;
 pub mod stdlib;

@@ -11,6 +11,11 @@
 //!   replay window; without one the team is open.
 //! * N6: HELLO every `hello_ms` to static peers, group and broadcast addresses and known peers;
 //!   a peer silent for three of its periods is forgotten. A new peer is greeted at once.
+//! * Return routability: answers to an address that has not proven it receives are bounded to
+//!   three times what came from it; larger ones wait for a CHALLENGE/ECHO round trip
+//!   ([`crate::routability`]). CHALLENGEs we receive are echoed at once.
+//! * Operator key: with `operator=`, structure changes are applied only when signed, each
+//!   once ([`crate::operator`]); with `operator_secret=`, the ones we request are signed.
 //! * S10: `(node, ..)` goes to the peer's last known address; `(group, ..)` to the group's
 //!   address, else the broadcast address, else by unicast to each peer that announced the group.
 
@@ -24,6 +29,8 @@ use ayllu_wire::{
 
 use crate::datagram::{DatagramSocket, OsSocket};
 use crate::error::Error;
+use crate::operator::OperatorGate;
+use crate::routability::{Budget, Cookies};
 use crate::transport::{PeerInfo, Sent, Transport};
 use crate::udp_config::{UdpConfig, MAX_DATAGRAM};
 
@@ -87,10 +94,19 @@ impl<S: DatagramSocket> Drop for UdpTransport<S> {
     }
 }
 
-/// The replay high-water marks saved in `path` (`NODE SEQ` lines) as windows that accept only
-/// newer numbers. A missing file is a first start; unreadable lines are skipped with a warning.
-fn load_marks(path: &std::path::Path, warnings: &mut Vec<String>) -> BTreeMap<NodeId, (ReplayWindow, Instant)> {
-    let mut marks = BTreeMap::new();
+/// Replay high-water marks as saved in a state file: datagram numbers by sender (`NODE SEQ`
+/// lines) and signed request ids by requester (`op NODE ID` lines), each restored as a window
+/// that accepts only newer numbers.
+#[derive(Default)]
+struct Marks {
+    datagrams: BTreeMap<NodeId, (ReplayWindow, Instant)>,
+    requests: BTreeMap<NodeId, ReplayWindow>,
+}
+
+/// The marks saved in `path`. A missing file is a first start; unreadable lines are skipped
+/// with a warning.
+fn load_marks(path: &std::path::Path, warnings: &mut Vec<String>) -> Marks {
+    let mut marks = Marks::default();
     let text = match std::fs::read_to_string(path) {
         Ok(t) => t,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return marks,
@@ -100,11 +116,18 @@ fn load_marks(path: &std::path::Path, warnings: &mut Vec<String>) -> BTreeMap<No
         }
     };
     let mut bad = 0;
-    for line in text.lines().take(MAX_REPLAY_SENDERS) {
+    for line in text.lines().take(MAX_REPLAY_SENDERS + crate::operator::MAX_REQUESTERS) {
+        let (signed, line) = match line.strip_prefix("op ") {
+            Some(rest) => (true, rest),
+            None => (false, line),
+        };
         let mut parts = line.split_whitespace();
         match (parts.next().and_then(|n| n.parse().ok()), parts.next().and_then(|q| q.parse().ok())) {
+            (Some(n), Some(seq)) if signed => {
+                marks.requests.insert(NodeId(n), ReplayWindow::after(seq));
+            }
             (Some(n), Some(seq)) => {
-                marks.insert(NodeId(n), (ReplayWindow::after(seq), Instant::ZERO));
+                marks.datagrams.insert(NodeId(n), (ReplayWindow::after(seq), Instant::ZERO));
             }
             _ => bad += 1,
         }
@@ -140,6 +163,8 @@ struct Peer {
     heard: u32,
     /// It authenticated (keyed team).
     authenticated: bool,
+    /// What its address may still be sent before it proves it receives there.
+    budget: Budget,
 }
 
 impl Peer {
@@ -188,7 +213,8 @@ pub struct UdpTransport<S: DatagramSocket = OsSocket> {
     batches: Vec<(SocketAddr, DatagramWriter)>,
     inbox: VecDeque<(NodeId, Message)>,
     assemblies: VecDeque<((NodeId, u64), ReplyAssembler)>,
-    greet: Vec<SocketAddr>,
+    /// New peers to greet at the end of the turn (HELLO, and a CHALLENGE unless proven).
+    greet: Vec<(NodeId, SocketAddr)>,
     counters: Tally,
     generation: u64,
     buf: Vec<u8>,
@@ -201,6 +227,10 @@ pub struct UdpTransport<S: DatagramSocket = OsSocket> {
     route_buf: Vec<SocketAddr>,
     /// Names received recently (decoding allocates nothing for a name seen before).
     names: NameCache,
+    /// Makes and checks the cookies that prove a peer's address.
+    cookies: Cookies,
+    /// With `operator=`: the key structure changes must be signed with, and what it let through.
+    operator: Option<OperatorGate>,
     /// The decoded messages of the last datagram, emptied: its allocation is reused.
     decoded: Vec<WireMessage>,
 }
@@ -252,10 +282,13 @@ impl<S: DatagramSocket> UdpTransport<S> {
         // Discovery is a convenience: a machine without multicast still runs the node, and
         // says why nobody is found.
         let mut warnings = Vec::new();
-        let replay = match (&config.state, config.key) {
-            (Some(path), Some(_)) => load_marks(path, &mut warnings),
-            _ => BTreeMap::new(),
+        let marks = match &config.state {
+            Some(path) if config.key.is_some() || config.operator.is_some() => load_marks(path, &mut warnings),
+            _ => Marks::default(),
         };
+        let replay = if config.key.is_some() { marks.datagrams } else { BTreeMap::new() };
+        let operator = config.operator.map(|key| OperatorGate::new(key, marks.requests));
+        let cookies = Cookies::new().map_err(|e| Error::Io { what: "making the cookie secret".into(), error: e })?;
         if let Some(IpAddr::V4(ip)) = config.discovery.map(|a| a.ip()) {
             if let Err(e) = socket.join_multicast(ip) {
                 warnings.push(discovery_warning(&config, &e.to_string()));
@@ -301,6 +334,8 @@ impl<S: DatagramSocket> UdpTransport<S> {
             route_buf: Vec::new(),
             names: NameCache::new(),
             decoded: Vec::new(),
+            cookies,
+            operator,
         })
     }
 
@@ -362,13 +397,18 @@ impl<S: DatagramSocket> UdpTransport<S> {
     /// temporary file renamed over the old one), if they changed and a second has passed.
     fn save_marks(&mut self, now: Instant) {
         let Some(path) = self.config.state.clone() else { return };
-        if !self.replay_dirty || now < self.next_save || self.config.key.is_none() {
+        let signed_dirty = self.operator.as_ref().is_some_and(|g| g.dirty);
+        if !(self.replay_dirty || signed_dirty) || now < self.next_save {
             return;
         }
         self.replay_dirty = false;
         self.next_save = now + Duration::from_secs(1);
-        let text: String =
+        let mut text: String =
             self.replay.iter().filter_map(|(n, (w, _))| w.newest().map(|seq| format!("{} {seq}\n", n.0))).collect();
+        if let Some(gate) = &mut self.operator {
+            gate.dirty = false;
+            text.extend(gate.marks().map(|(n, id)| format!("op {} {id}\n", n.0)));
+        }
         let tmp = path.with_extension("tmp");
         let saved = std::fs::write(&tmp, text).and_then(|()| std::fs::rename(&tmp, &path));
         match saved {
@@ -522,11 +562,19 @@ impl<S: DatagramSocket> UdpTransport<S> {
             last_heard: now,
             heard: 0,
             authenticated: false,
+            budget: Budget::default(),
         });
         peer.heard = peer.heard.saturating_add(1);
         peer.authenticated |= datagram.authenticated;
+        if peer.addr != from {
+            // Proof was for the old address; the new one starts over.
+            peer.budget.reset();
+        }
         peer.addr = from;
         peer.last_heard = now;
+        peer.budget.received = peer.budget.received.saturating_add(len as u64);
+        // Forging an authenticated datagram needs the team key (and a fresh number).
+        peer.budget.proven |= datagram.authenticated;
         self.count("datagrams_received");
         let sender = datagram.sender;
         let mut hello = false;
@@ -534,8 +582,49 @@ impl<S: DatagramSocket> UdpTransport<S> {
         for m in messages.drain(..) {
             match m {
                 WireMessage::Port(p) => self.inbox.push_back((sender, Message::Port(p))),
-                WireMessage::Request { id, body } => {
-                    self.inbox.push_back((sender, Message::Control(ControlMessage { id, body })))
+                WireMessage::Request { id, body, signature } => {
+                    let team = self.config.team;
+                    let verdict = match &mut self.operator {
+                        Some(gate) => gate.admit(now, team, sender, self.id, id, &body, signature.as_ref()),
+                        None => Ok(()),
+                    };
+                    match verdict {
+                        Ok(()) => self.inbox.push_back((sender, Message::Control(ControlMessage { id, body }))),
+                        Err(refusal) => {
+                            self.count(refusal.cause());
+                            if refusal != crate::operator::Refusal::Replayed {
+                                // Answered, so the requester learns why rather than retrying.
+                                let what =
+                                    if matches!(body, ControlBody::Connect { .. }) { "CONNECT" } else { "DISCONNECT" };
+                                let why = format!(
+                                    "not allowed: this node applies {what} only when signed with its operator key ({})",
+                                    refusal.cause()
+                                );
+                                let reply = ControlBody::Reply { result: Err(why) };
+                                let _ = self.send_message(
+                                    &Destination::Node(sender),
+                                    Message::Control(ControlMessage { id, body: reply }),
+                                );
+                            }
+                        }
+                    }
+                }
+                WireMessage::Challenge { cookie } => {
+                    // Echoed at once, to where it came from: the same size, so no amplification.
+                    self.push(from, &WireMessage::Echo { cookie });
+                    self.count("challenges_received");
+                }
+                WireMessage::Echo { cookie } => {
+                    if self.cookies.check(now, sender, from, &cookie) {
+                        if let Some(p) = self.peers.get_mut(&sender) {
+                            if !p.budget.proven {
+                                p.budget.proven = true;
+                                self.count("addresses_proven");
+                            }
+                        }
+                    } else {
+                        self.count("bad_cookie");
+                    }
                 }
                 WireMessage::UnknownRequest { id, .. } => {
                     let reply = ControlBody::Reply { result: Err("unknown operation".into()) };
@@ -551,7 +640,7 @@ impl<S: DatagramSocket> UdpTransport<S> {
                         p.groups = groups.iter().map(|g| g.to_string()).collect();
                     }
                     if is_new {
-                        self.greet.push(from);
+                        self.greet.push((sender, from));
                     }
                     self.count("hellos_received");
                     hello = true;
@@ -664,7 +753,14 @@ impl<S: DatagramSocket> UdpTransport<S> {
             self.unflushed += 1;
         } else {
             match WireMessage::from_core(&message, self.config.mtu, self.config.key.is_some()) {
-                Ok(parts) => {
+                Ok(mut parts) => {
+                    if let Destination::Node(n) = to {
+                        if !self.may_answer(*n, &parts) {
+                            self.route_buf = addrs;
+                            return Sent::Dropped;
+                        }
+                        self.sign(*n, &mut parts);
+                    }
                     for &addr in &addrs {
                         for m in &parts {
                             self.push(addr, m);
@@ -680,6 +776,47 @@ impl<S: DatagramSocket> UdpTransport<S> {
         }
         self.route_buf = addrs;
         sent
+    }
+
+    /// Whether an answer made of `parts` may go to node `n` now (spec "Return routability"):
+    /// always to a proven address; to an unproven one only within its budget, charged. When it
+    /// may not, a CHALLENGE goes instead (if the budget allows even that) and the requester's
+    /// retry, after its ECHO, is answered from the core's memory.
+    fn may_answer(&mut self, n: NodeId, parts: &[WireMessage]) -> bool {
+        if !parts.iter().any(|m| matches!(m, WireMessage::Reply { .. })) {
+            return true;
+        }
+        let Some(addr) = self.peers.get(&n).map(|p| p.addr) else { return true };
+        let auth = if self.config.key.is_some() { ayllu_wire::MAC_LEN } else { 0 };
+        // An upper bound: each part in a datagram of its own.
+        let per_datagram = (ayllu_wire::HEADER_LEN + auth) as u64;
+        let bytes: u64 = parts.iter().map(|m| per_datagram + ayllu_wire::encoded_len(m).unwrap_or(0) as u64).sum();
+        let Some(peer) = self.peers.get_mut(&n) else { return true };
+        if peer.budget.spend(bytes) {
+            return true;
+        }
+        let challenge = per_datagram + (ayllu_wire::MESSAGE_HEADER_LEN + ayllu_wire::COOKIE_LEN) as u64;
+        let may_challenge = peer.budget.spend(challenge);
+        self.count("amplification_limited");
+        if may_challenge {
+            let cookie = self.cookies.make(self.now, n, addr);
+            self.push(addr, &WireMessage::Challenge { cookie });
+            self.count("challenges_sent");
+        }
+        false
+    }
+
+    /// Sign the structure changes among `parts`, requests to node `to`, with the operator
+    /// secret (`operator_secret=`), if this node holds one.
+    fn sign(&mut self, to: NodeId, parts: &mut [WireMessage]) {
+        let Some(secret) = &self.config.operator_secret else { return };
+        for m in parts {
+            if let WireMessage::Request { id, body, signature } = m {
+                if ayllu_wire::operator::changes_structure(body) {
+                    *signature = secret.sign(self.config.team, self.id, to, *id, body).ok();
+                }
+            }
+        }
     }
 
     /// The peers heard from recently.
@@ -712,8 +849,13 @@ impl<S: DatagramSocket> Transport for UdpTransport<S> {
         let greet = std::mem::take(&mut self.greet);
         if !greet.is_empty() {
             let hello = self.hello();
-            for addr in greet {
+            for (node, addr) in greet {
                 self.push(addr, &hello);
+                if self.peers.get(&node).is_some_and(|p| !p.budget.proven && p.addr == addr) {
+                    // Proves the peer's address before it asks for anything large.
+                    let cookie = self.cookies.make(self.now, node, addr);
+                    self.push(addr, &WireMessage::Challenge { cookie });
+                }
             }
         }
         // Drained and put back, so the list keeps its allocation from turn to turn.
@@ -788,7 +930,7 @@ impl<S: DatagramSocket> Transport for UdpTransport<S> {
         }
         self.save_marks(now);
         let mut next = self.next_expiry.min(self.next_hello);
-        if self.replay_dirty && self.config.state.is_some() {
+        if (self.replay_dirty || self.operator.as_ref().is_some_and(|g| g.dirty)) && self.config.state.is_some() {
             next = next.min(self.next_save);
         }
         if !self.held.is_empty() {

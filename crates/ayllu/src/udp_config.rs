@@ -24,10 +24,18 @@
 //!   greet each other by unicast, so no peer needs to be listed.
 //! * `ttl` (default 1, 0 to 255): the multicast TTL; 0 keeps discovery on this machine.
 //! * `hello_ms`: liveness period (N6); peers are forgotten after three silent periods.
-//! * `state=PATH` (keyed teams): a file where the node keeps, across restarts, the newest
-//!   datagram number it accepted from each sender, so that a datagram captured before a
+//! * `state=PATH` (keyed teams, or with `operator=`): a file where the node keeps, across
+//!   restarts, the newest datagram number it accepted from each sender (and the newest signed
+//!   request id from each requester), so that a datagram or signed request captured before a
 //!   restart is not accepted after it (N5, D-N5.3).
 //! * `mtu`: the largest datagram sent (batching fills datagrams up to it, N3).
+//! * `operator=HEX64`: the operator's public key (`ayllu keygen` prints it). The node then
+//!   applies structure changes (CONNECT, DISCONNECT) only when signed with the operator's
+//!   secret, each once (docs/security.md). With `state=PATH` it also remembers across
+//!   restarts which signed requests it applied.
+//! * `operator_secret=PATH`: a file holding the operator's secret (64 hex digits, as `ayllu
+//!   keygen` writes it): this program signs the structure changes it asks for. A path, not
+//!   the secret itself, so that it does not show in process lists.
 //!
 //! Parsing never panics; every mistake is an error naming the bad part.
 
@@ -80,6 +88,10 @@ pub struct UdpConfig {
     pub mtu: usize,
     /// The name announced in HELLO.
     pub name: String,
+    /// The operator's public key: structure changes must be signed by its secret.
+    pub operator: Option<ayllu_wire::OperatorPublic>,
+    /// The operator's secret, to sign the structure changes this node requests.
+    pub operator_secret: Option<ayllu_wire::OperatorSecret>,
 }
 
 impl UdpConfig {
@@ -98,6 +110,8 @@ impl UdpConfig {
             hello_interval: Duration::from_millis(1000),
             mtu: DEFAULT_MTU,
             name: String::new(),
+            operator: None,
+            operator_secret: None,
         }
     }
 
@@ -156,6 +170,14 @@ impl UdpConfig {
                     }
                     config.mtu = mtu;
                 }
+                "operator" => {
+                    config.operator = Some(ayllu_wire::OperatorPublic::from_hex(v).ok_or_else(|| {
+                        bad(format!(
+                            "operator `{v}` is not an operator public key (64 hex digits, as `ayllu keygen` prints)"
+                        ))
+                    })?);
+                }
+                "operator_secret" => config.operator_secret = Some(read_operator_secret(v).map_err(bad)?),
                 "name" => {
                     if v.len() > 255 {
                         return Err(bad("name must be at most 255 bytes".into()));
@@ -174,6 +196,16 @@ fn resolve(addr: &str) -> Result<SocketAddr, String> {
         .map_err(|e| format!("`{addr}` is not HOST:PORT ({e})"))?
         .find(SocketAddr::is_ipv4)
         .ok_or_else(|| format!("`{addr}` has no IPv4 address"))
+}
+
+/// The operator secret in file `path` (64 hex digits, surrounding white space ignored).
+pub fn read_operator_secret(path: &str) -> Result<ayllu_wire::OperatorSecret, String> {
+    if path.is_empty() {
+        return Err("operator_secret needs the path of a file that holds the secret".into());
+    }
+    let text = std::fs::read_to_string(path).map_err(|e| format!("cannot read the operator secret {path}: {e}"))?;
+    let seed = parse_key(text.trim()).map_err(|e| format!("operator secret {path}: {e}"))?;
+    Ok(ayllu_wire::OperatorSecret::from_seed(&seed))
 }
 
 /// 64 hex digits to a 32-byte key.
