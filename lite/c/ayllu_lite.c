@@ -227,7 +227,8 @@ int ayl_hello_group(const ayl_hello_msg *h, size_t i, ayl_str *out) {
 }
 
 int ayl_kind_known(uint8_t kind) {
-    return kind == AYL_KIND_PORT || kind == AYL_KIND_HELLO || kind == AYL_KIND_REQUEST || kind == AYL_KIND_REPLY;
+    return kind == AYL_KIND_PORT || kind == AYL_KIND_HELLO || kind == AYL_KIND_REQUEST || kind == AYL_KIND_REPLY ||
+           kind == AYL_KIND_CHALLENGE || kind == AYL_KIND_ECHO;
 }
 
 /* ----- decoding ------------------------------------------------------------------------------ */
@@ -400,8 +401,27 @@ static ayl_cause decode_body(uint8_t kind, reader *r, ayl_msg *m) {
             q->behavior = rd_str8(r, 0);
             q->port = rd_str8(r, 0);
             break;
+        case AYL_OP_LIST:
+            break; /* no arguments */
         default:
-            break; /* LIST has no arguments; unknown ops are answered, not dropped */
+            /* Unknown ops are answered, not dropped; their arguments (and so where a signature
+             * would start) are unknown. */
+            return r->bad ? AYL_MALFORMED : AYL_OK;
+        }
+        /* An optional operator signature after the arguments. Anything else there, or a tag
+         * without 64 bytes after it, is ignored like any extra body bytes. */
+        if (!r->bad && r->end - r->pos >= 1 + AYL_SIGNATURE_LEN && r->b[r->pos] == AYL_SIGNATURE_TAG) {
+            q->has_signature = 1;
+            memcpy(q->signature, r->b + r->pos + 1, AYL_SIGNATURE_LEN);
+            r->pos += 1 + AYL_SIGNATURE_LEN;
+        }
+        break;
+    }
+    case AYL_KIND_CHALLENGE:
+    case AYL_KIND_ECHO: {
+        const uint8_t *c = rd_take(r, AYL_COOKIE_LEN); /* shorter: malformed */
+        if (c != NULL) {
+            memcpy(m->u.cookie.cookie, c, AYL_COOKIE_LEN);
         }
         break;
     }
@@ -740,11 +760,24 @@ static void wr_body(wbuf *w, const ayl_msg *m) {
             wr_str8(w, q->behavior, 0);
             wr_str8(w, q->port, 0);
             break;
-        default:
+        case AYL_OP_LIST:
             break;
+        default:
+            if (q->has_signature) {
+                invalid(w); /* a decoder would not see a signature after unknown arguments */
+            }
+            break;
+        }
+        if (q->has_signature) {
+            wr_int(w, AYL_SIGNATURE_TAG, 1);
+            wr_bytes(w, q->signature, AYL_SIGNATURE_LEN);
         }
         break;
     }
+    case AYL_KIND_CHALLENGE:
+    case AYL_KIND_ECHO:
+        wr_bytes(w, m->u.cookie.cookie, AYL_COOKIE_LEN);
+        break;
     case AYL_KIND_REPLY: {
         const ayl_reply_msg *y = &m->u.reply;
         if (y->parts < 1 || y->parts > AYL_MAX_PARTS || y->part >= y->parts ||
@@ -1206,6 +1239,60 @@ static void flush_requests(ayl_node *n) {
     }
 }
 
+static int addr_eq(const ayl_addr *a, const ayl_addr *b) {
+    return a->len == b->len && a->len <= AYL_ADDR_SIZE && memcmp(a->bytes, b->bytes, a->len) == 0;
+}
+
+/* The node configured at `to`, else one heard there recently; NULL if none. */
+static const ayl_peer *peer_at(const ayl_node *n, const ayl_addr *to) {
+    const ayl_peer *heard = NULL;
+    size_t i;
+    for (i = 0; i < n->cfg.max_peers; i++) {
+        const ayl_peer *p = &n->cfg.peers[i];
+        if (p->used && addr_eq(&p->addr, to) && peer_alive(n, p)) {
+            if (p->is_static) {
+                return p;
+            }
+            heard = heard ? heard : p;
+        }
+    }
+    return heard;
+}
+
+/* What an operator signature covers (spec, "Operator signature"): a context string, team,
+ * requester, receiver, then the REQUEST body from the id through the last argument. */
+static const char SIGNED_CONTEXT[] = "ayllu operator request v1"; /* with its NUL: 26 bytes */
+#define SIGNED_HEAD (sizeof SIGNED_CONTEXT + 12)
+
+/* Sign q (its id final, no signature yet) for node `receiver`, using `scratch` for the signed
+ * bytes. Returns 0 or a negative ayl_error. */
+static int sign_request(ayl_node *n, uint32_t receiver, ayl_request_msg *q, uint8_t *scratch, size_t cap) {
+    ayl_msg m;
+    int len;
+    if (cap < SIGNED_HEAD) {
+        return AYL_E_NOSPACE;
+    }
+    memset(&m, 0, sizeof m);
+    m.kind = AYL_KIND_REQUEST;
+    m.u.request = *q;
+    m.u.request.has_signature = 0;
+    /* The message's kind and length land just before the body, where the head's last 3 bytes
+     * go; they are overwritten next. */
+    len = encode_message(scratch + SIGNED_HEAD - 3, cap - (SIGNED_HEAD - 3), &m);
+    if (len < 0) {
+        return len;
+    }
+    memcpy(scratch, SIGNED_CONTEXT, sizeof SIGNED_CONTEXT);
+    put_le(scratch + sizeof SIGNED_CONTEXT, n->cfg.team, 4);
+    put_le(scratch + sizeof SIGNED_CONTEXT + 4, n->cfg.node_id, 4);
+    put_le(scratch + sizeof SIGNED_CONTEXT + 8, receiver, 4);
+    if (n->cfg.sign(n->cfg.sign_user, scratch, SIGNED_HEAD - 3 + (size_t)len, q->signature) < 0) {
+        return AYL_E_INVALID;
+    }
+    q->has_signature = 1;
+    return 0;
+}
+
 int ayl_node_request(ayl_node *node, const ayl_addr *to, const ayl_request_msg *req, uint8_t *out, size_t out_cap,
                      uint64_t *id) {
     ayl_pending *slot = NULL;
@@ -1224,6 +1311,17 @@ int ayl_node_request(ayl_node *node, const ayl_addr *to, const ayl_request_msg *
     m.kind = AYL_KIND_REQUEST;
     m.u.request = *req;
     m.u.request.id = node->next_id;
+    m.u.request.has_signature = 0;
+    if (node->cfg.sign != NULL && (req->op == AYL_OP_CONNECT || req->op == AYL_OP_DISCONNECT)) {
+        const ayl_peer *receiver = peer_at(node, to);
+        if (receiver == NULL) {
+            return AYL_E_NOTFOUND;
+        }
+        len = sign_request(node, receiver->node, &m.u.request, slot->msg, sizeof slot->msg);
+        if (len < 0) {
+            return len;
+        }
+    }
     len = encode_message(slot->msg, sizeof slot->msg, &m);
     if (len < 0) {
         return len;
@@ -1240,6 +1338,7 @@ int ayl_node_request(ayl_node *node, const ayl_addr *to, const ayl_request_msg *
     slot->parts = 0;
     slot->parts_seen = 0;
     slot->out_overflow = 0;
+    slot->hurried = 0;
     memset(&slot->answer, 0, sizeof slot->answer);
     slot->state = AYL_REQ_PENDING;
     if (id != NULL) {
@@ -1361,6 +1460,32 @@ static void apply_reply(ayl_node *n, const ayl_reply_msg *y) {
         p->state = AYL_REQ_DONE;
     }
     /* Otherwise the retry timer asks again for the missing parts: the node answers from memory. */
+}
+
+/* Return routability (spec, "CHALLENGE and ECHO"): send the cookie back at once, to the
+ * address the CHALLENGE came from, in a datagram no larger than the CHALLENGE's (so nobody can
+ * use this to amplify). Then the requests waiting on that address go again now rather than at
+ * their next retry: the node, the address proven, answers them in full. Only once per request,
+ * so forged CHALLENGEs cannot make us repeat a request more often than the retries do. */
+static void answer_challenge(ayl_node *n, const ayl_cookie_msg *c, const ayl_addr *from) {
+    ayl_msg m;
+    size_t i;
+    memset(&m, 0, sizeof m);
+    m.kind = AYL_KIND_ECHO;
+    m.u.cookie = *c;
+    n->challenged++;
+    (void)send_msgs(n, from, &m, NULL, 0); /* a failed send is counted; the retries go on */
+    for (i = 0; i < n->cfg.max_pending; i++) {
+        ayl_pending *p = &n->cfg.pending[i];
+        if (p->state != AYL_REQ_PENDING || p->hurried || p->sends == 0 || p->sends >= AYL_RETRY_LIMIT ||
+            !addr_eq(&p->to, from)) {
+            continue;
+        }
+        p->hurried = 1;
+        p->sends++;
+        p->next_send_ns = n->now_ns + AYL_RETRY_INTERVAL_NS;
+        (void)send_msgs(n, &p->to, NULL, p->msg, p->msg_len);
+    }
 }
 
 /* ----- the node: serving requests ------------------------------------------------------------ */
@@ -1694,6 +1819,11 @@ ayl_cause ayl_node_receive(ayl_node *node, const uint8_t *data, size_t len, cons
         case AYL_KIND_REPLY:
             apply_reply(node, &m.u.reply);
             break;
+        case AYL_KIND_CHALLENGE:
+            answer_challenge(node, &m.u.cookie, from);
+            break;
+        case AYL_KIND_ECHO:
+            break; /* a lite node sends no CHALLENGE (its answers are one datagram): no cookie to check */
         default:
             node->counters[AYL_UNKNOWN_KIND]++;
         }

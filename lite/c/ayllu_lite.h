@@ -22,6 +22,15 @@
  *    and write-inhibit windows only stop propagation, which lite ports never do.
  *  - With a team key every datagram sent is authenticated and every datagram received must
  *    carry a valid MAC and a sequence number not seen before (64-wide window per sender).
+ *  - Return routability (spec, "CHALLENGE and ECHO"): every CHALLENGE received is answered at
+ *    once, through the caller's send function, with an ECHO of its cookie to the address it
+ *    came from; the requests waiting on that address are then sent again (once each), so a
+ *    node that limits what it sends to unproven addresses answers them in full. Retries go on
+ *    as before. The lite node's own answers are single datagrams; it sends no CHALLENGE.
+ *  - Operator signatures are carried (decoded, encoded) but not made here: there is no Ed25519
+ *    in this library. Give the node a signer (ayl_node_config.sign, e.g. Monocypher's) and it
+ *    signs every CONNECT and DISCONNECT it sends; without one they go unsigned, and a node that
+ *    requires an operator key refuses them.
  *
  * Thread-safety, in general: codec functions (ayl_decode, ayl_next, ayl_writer_*, ayl_value_*,
  * ayl_replay_accept, ayl_cause_name, ayl_utf8_valid) touch only their arguments and are
@@ -58,6 +67,12 @@ extern "C" {
 #define AYL_KIND_HELLO 0x02
 #define AYL_KIND_REQUEST 0x10
 #define AYL_KIND_REPLY 0x11
+#define AYL_KIND_CHALLENGE 0x12 /* "echo this cookie" (return routability) */
+#define AYL_KIND_ECHO 0x13      /* a CHALLENGE's cookie sent back */
+
+#define AYL_COOKIE_LEN 16    /* bytes of a CHALLENGE / ECHO cookie */
+#define AYL_SIGNATURE_LEN 64 /* bytes of an operator signature (Ed25519) */
+#define AYL_SIGNATURE_TAG 1  /* the byte before a signature, after a REQUEST's arguments */
 
 /* Request operations. Other codes decode (and are answered "unknown operation"). */
 #define AYL_OP_CONNECT 1
@@ -210,7 +225,10 @@ typedef struct {
     ayl_str port;
 } ayl_endpoint;
 
-/* A REQUEST; which fields count depends on `op` (see spec/protocol.md). */
+/* A REQUEST; which fields count depends on `op` (see spec/protocol.md). A request of a known
+ * operation may carry the operator's signature after its arguments (spec, "Operator
+ * signature"): has_signature != 0 and the 64 bytes, copied in when decoded, sent when encoded.
+ * This library does not make or check signatures (no Ed25519 here); it carries them. */
 typedef struct {
     uint64_t id;
     uint8_t op;
@@ -226,6 +244,9 @@ typedef struct {
     /* WHY, READ */
     ayl_str behavior;
     ayl_str port;
+    /* any known operation */
+    int has_signature;
+    uint8_t signature[AYL_SIGNATURE_LEN];
 } ayl_request_msg;
 
 typedef enum { AYL_RESULT_ERROR = 0, AYL_RESULT_CONNECTION = 1, AYL_RESULT_VALUE = 2, AYL_RESULT_REPORT = 3 } ayl_result;
@@ -240,8 +261,15 @@ typedef struct {
     ayl_value value;   /* AYL_RESULT_VALUE */
 } ayl_reply_msg;
 
-/* One message. `kind` is the wire kind byte; for kinds other than the four above the message
- * was skipped and only u.unknown is meaningful. */
+/* CHALLENGE and ECHO: a 16-byte cookie, opaque to everyone but the node that made it. A node
+ * sends CHALLENGE instead of an answer too large for an address it has not proven, and with the
+ * HELLO that greets a new peer; the lite node answers each with an ECHO of the same cookie. */
+typedef struct {
+    uint8_t cookie[AYL_COOKIE_LEN];
+} ayl_cookie_msg;
+
+/* One message. `kind` is the wire kind byte; for kinds other than the six above the message
+ * was skipped and only u.unknown is meaningful. CHALLENGE and ECHO use u.cookie. */
 typedef struct {
     uint8_t kind;
     union {
@@ -249,6 +277,7 @@ typedef struct {
         ayl_hello_msg hello;
         ayl_request_msg request;
         ayl_reply_msg reply;
+        ayl_cookie_msg cookie;
         struct {
             uint8_t code;
             uint16_t length;
@@ -336,6 +365,11 @@ typedef int (*ayl_send_fn)(void *io_user, const ayl_addr *to, const uint8_t *dat
  * error. Fill *from with the sender's address. */
 typedef int (*ayl_recv_fn)(void *io_user, ayl_addr *from, uint8_t *buf, size_t cap);
 
+/* Sign `len` bytes with the operator's secret key: Ed25519 (RFC 8032), the 64-byte signature
+ * into `sig`. Return 0, or negative if it cannot sign (the request is then refused). This
+ * library has no Ed25519: bring one (Monocypher, libsodium, TweetNaCl, a secure element). */
+typedef int (*ayl_sign_fn)(void *sign_user, const uint8_t *data, size_t len, uint8_t sig[AYL_SIGNATURE_LEN]);
+
 /* Called after a PORT message stored a value in an exposed port. `value` points into the
  * port's storage and is valid until the port is written again. */
 typedef void (*ayl_write_fn)(void *user, const char *behavior, const char *port, const ayl_value *value,
@@ -403,6 +437,7 @@ typedef struct {
     uint64_t parts_seen;       /* bit i: part i arrived */
     uint16_t part_len[AYL_MAX_PARTS];
     int out_overflow;          /* the answer did not fit in out */
+    int hurried;               /* sent again at once after an ECHO (once per request) */
     ayl_reply_msg answer;      /* valid in AYL_REQ_DONE; its text/value point into out */
 } ayl_pending;
 
@@ -437,6 +472,11 @@ typedef struct {
     size_t ngroups;
     uint32_t hello_interval_ms; /* 0: 1000 */
     const ayl_addr *broadcast;  /* also receives HELLO; NULL: none */
+    /* The operator's signer, or NULL. With it, CONNECT and DISCONNECT requests are signed (spec,
+     * "Operator signature"), as nodes given the operator's public key require; without it they
+     * go unsigned, and such nodes refuse them. */
+    ayl_sign_fn sign;
+    void *sign_user;
 } ayl_node_config;
 
 typedef struct {
@@ -453,6 +493,7 @@ typedef struct {
     uint64_t counters[AYL_CAUSE_COUNT]; /* drops by cause; [AYL_OK] counts datagrams applied */
     uint64_t sent;
     uint64_t send_failures;
+    uint64_t challenged; /* CHALLENGEs received (each answered with an ECHO) */
 } ayl_node;
 
 /* A connection from this node to a port on another node, with its own id and sequence
@@ -506,8 +547,11 @@ int ayl_conn_send(ayl_node *node, ayl_conn *c, const ayl_value *value);
 
 /* Send a request to `to` and keep it for retries. Its id is chosen by the node and written
  * to *id. The answer goes to `out` (report text, error text, or a text/bytes/vector value;
- * may be NULL for CONNECT/DISCONNECT). Returns 0 or a negative ayl_error (AYL_E_NOSPACE: no
- * free pending slot, or the request is longer than AYL_REQUEST_MAX). Not thread-safe. */
+ * may be NULL for CONNECT/DISCONNECT). With cfg.sign, a CONNECT or DISCONNECT is signed for
+ * the node configured or heard at `to` (a signature in *req is ignored: it must cover the id
+ * chosen here). Returns 0 or a negative ayl_error (AYL_E_NOSPACE: no free pending slot, or the
+ * request is longer than AYL_REQUEST_MAX; AYL_E_NOTFOUND: a request to sign, and no node known
+ * at `to`; AYL_E_INVALID: also when the signer failed). Not thread-safe. */
 int ayl_node_request(ayl_node *node, const ayl_addr *to, const ayl_request_msg *req, uint8_t *out, size_t out_cap,
                      uint64_t *id);
 
@@ -522,7 +566,11 @@ ayl_req_state ayl_node_request_take(ayl_node *node, uint64_t id, ayl_reply_msg *
 void ayl_node_request_cancel(ayl_node *node, uint64_t id);
 
 /* Apply one datagram received from `from` at `now_ns`. Returns what happened to it (AYL_OK:
- * applied; messages inside may still have been dropped and counted). Not thread-safe. */
+ * applied; messages inside may still have been dropped and counted). A CHALLENGE inside is
+ * answered at once through cfg.send: an ECHO of its cookie to `from`, then the pending
+ * requests addressed to `from` (addresses compared byte for byte) are sent again once, so a
+ * node limiting amplification answers them in full without waiting for the next retry.
+ * Not thread-safe. */
 ayl_cause ayl_node_receive(ayl_node *node, const uint8_t *data, size_t len, const ayl_addr *from, uint64_t now_ns);
 
 /* Receive and apply every waiting datagram (through cfg.recv), then send HELLO if due and

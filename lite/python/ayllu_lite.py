@@ -19,6 +19,14 @@ What it promises:
   never write the value.
 * With a team key every datagram sent is authenticated, and every datagram received must carry
   a valid MAC and a sequence number not seen before (replay window of 64 per sender).
+* Return routability (spec, "CHALLENGE and ECHO"): every CHALLENGE received is answered at once
+  with an ECHO of its cookie, to the address it came from, and the requests waiting on that
+  address are sent again then (once each), so a node that limits what it sends to unproven
+  addresses answers them in full; retries go on as before. The lite node's own answers are
+  single datagrams, and it sends no CHALLENGE (see lite/README.md).
+* Operator signatures: with ``operator_secret`` (or ``operator_secret=FILE`` in the URL) every
+  CONNECT and DISCONNECT is signed (Ed25519, RFC 8032, computed here with the standard library)
+  for its receiving node, as nodes started with ``operator=`` require.
 """
 
 from __future__ import annotations
@@ -42,15 +50,19 @@ from typing import Any
 __all__ = [
     "AUTH",
     "CONN_KINDS",
+    "COOKIE_LEN",
     "DEFAULT_URL",
     "HEADER_LEN",
     "MAC_LEN",
     "MAX_DATAGRAM",
     "MTU",
+    "SIGNATURE_LEN",
+    "Challenge",
     "ConnKind",
     "Connection",
     "Datagram",
     "Dropped",
+    "Echo",
     "EncodeError",
     "Endpoint",
     "Hello",
@@ -75,8 +87,12 @@ __all__ = [
     "mac",
     "message_from_json",
     "message_to_json",
+    "operator_public_key",
     "parse_url",
     "random_key",
+    "read_operator_secret",
+    "sign_request",
+    "signed_request_bytes",
     "value_from_json",
     "value_to_json",
 ]
@@ -97,6 +113,16 @@ KIND_PORT = 0x01
 KIND_HELLO = 0x02
 KIND_REQUEST = 0x10
 KIND_REPLY = 0x11
+KIND_CHALLENGE = 0x12
+KIND_ECHO = 0x13
+
+#: Bytes of a CHALLENGE / ECHO cookie.
+COOKIE_LEN = 16
+#: Bytes of an operator signature, and the tag byte that introduces one after a REQUEST's
+#: arguments (spec, "Operator signature").
+SIGNATURE_LEN = 64
+SIGNATURE_TAG = 1
+_SIGNED_CONTEXT = b"ayllu operator request v1\0"
 
 _VT_BOOL, _VT_INT, _VT_FLOAT, _VT_TEXT, _VT_BYTES, _VT_VECTOR = range(6)
 _EP_NODE, _EP_GROUP = 1, 2
@@ -148,6 +174,9 @@ class Op(enum.IntEnum):
     LIST = 3
     WHY = 4
     READ = 5
+
+
+_OPS = frozenset(Op)
 
 
 class Vector(tuple[float, ...]):
@@ -226,6 +255,8 @@ class Request:
 
     CONNECT uses ``src_behavior``, ``src_port``, ``destination``, ``conn_kind``, ``period_ns``
     and ``priority``; DISCONNECT uses ``conn``; WHY and READ use ``behavior`` and ``port``.
+    ``signature`` is the operator's Ed25519 signature (64 bytes, sent after the arguments), or
+    None; see :func:`sign_request`. Requests of unknown operations carry none.
     """
 
     id: int
@@ -239,6 +270,7 @@ class Request:
     conn: int = 0
     behavior: str = ""
     port: str = ""
+    signature: bytes | None = None
 
 
 @dataclass(frozen=True)
@@ -266,7 +298,23 @@ class Unknown:
     length: int
 
 
-Message = Port | Hello | Request | Reply | Unknown
+@dataclass(frozen=True)
+class Challenge:
+    """CHALLENGE: "echo this cookie". A node sends it instead of an answer too large for an
+    address it has not proven (return routability), and with the HELLO that greets a new peer.
+    :class:`LiteNode` answers every one with an :class:`Echo` of the same cookie."""
+
+    cookie: bytes
+
+
+@dataclass(frozen=True)
+class Echo:
+    """ECHO: a CHALLENGE's cookie (16 bytes) sent back unchanged."""
+
+    cookie: bytes
+
+
+Message = Port | Hello | Request | Reply | Challenge | Echo | Unknown
 
 
 @dataclass(frozen=True)
@@ -408,7 +456,17 @@ def _encode_body(m: Message) -> tuple[int, bytes]:
         elif m.op in (Op.WHY, Op.READ):
             body += _str8(m.behavior, "behavior") + _str8(m.port, "port")
         # LIST and operations unknown to this module carry no arguments.
+        if m.signature is not None:
+            if len(m.signature) != SIGNATURE_LEN:
+                raise EncodeError(f"an operator signature is {SIGNATURE_LEN} bytes")
+            if m.op not in _OPS:
+                raise EncodeError("a request of an unknown operation carries no signature")
+            body += bytes([SIGNATURE_TAG]) + bytes(m.signature)
         return KIND_REQUEST, body
+    if isinstance(m, (Challenge, Echo)):
+        if len(m.cookie) != COOKIE_LEN:
+            raise EncodeError(f"a cookie is {COOKIE_LEN} bytes")
+        return (KIND_CHALLENGE if isinstance(m, Challenge) else KIND_ECHO), bytes(m.cookie)
     if isinstance(m, Reply):
         if not 1 <= m.parts <= MAX_PARTS or not 0 <= m.part < m.parts:
             raise EncodeError("REPLY part must be below parts, and parts in 1..=64")
@@ -591,14 +649,27 @@ def _decode_message(kind: int, r: _Reader) -> Message:
             sb, sp = r.str8(), r.str8()
             dest = r.endpoint()
             ck, period = r.kind_period()
-            return Request(rid, Op.CONNECT, sb, sp, dest, ck, period, r.i32())
-        if op == Op.DISCONNECT:
-            return Request(rid, Op.DISCONNECT, conn=r.u64())
-        if op in (Op.WHY, Op.READ):
-            return Request(rid, Op(op), behavior=r.str8(), port=r.str8())
-        # LIST has no arguments; an unknown op is decoded (and answered with an error by a
-        # node) rather than dropped, so tools can tell an old node from a lost request.
-        return Request(rid, Op(op) if op == Op.LIST else op)
+            req = Request(rid, Op.CONNECT, sb, sp, dest, ck, period, r.i32())
+        elif op == Op.DISCONNECT:
+            req = Request(rid, Op.DISCONNECT, conn=r.u64())
+        elif op in (Op.WHY, Op.READ):
+            req = Request(rid, Op(op), behavior=r.str8(), port=r.str8())
+        elif op == Op.LIST:
+            req = Request(rid, Op.LIST)  # no arguments
+        else:
+            # An unknown op is decoded (and answered with an error by a node) rather than
+            # dropped, so tools can tell an old node from a lost request. Its arguments, and
+            # so where a signature would start, are unknown.
+            return Request(rid, op)
+        # An optional operator signature after the arguments. Anything else there, or a tag
+        # without 64 bytes after it, is ignored like any extra body bytes.
+        if r.end - r.pos >= 1 + SIGNATURE_LEN and r.buf[r.pos] == SIGNATURE_TAG:
+            r.take(1)
+            req = dataclasses.replace(req, signature=bytes(r.take(SIGNATURE_LEN)))
+        return req
+    if kind in (KIND_CHALLENGE, KIND_ECHO):
+        cookie = bytes(r.take(COOKIE_LEN))
+        return Challenge(cookie) if kind == KIND_CHALLENGE else Echo(cookie)
     if kind == KIND_REPLY:
         rid, status, part, parts = r.u64(), r.u8(), r.u16(), r.u16()
         if status > 1:
@@ -622,7 +693,7 @@ def _decode_message(kind: int, r: _Reader) -> Message:
     raise AssertionError("unreachable: caller handles unknown kinds")
 
 
-_KNOWN_KINDS = frozenset((KIND_PORT, KIND_HELLO, KIND_REQUEST, KIND_REPLY))
+_KNOWN_KINDS = frozenset((KIND_PORT, KIND_HELLO, KIND_REQUEST, KIND_REPLY, KIND_CHALLENGE, KIND_ECHO))
 
 
 def decode(data: bytes, team: int, key: bytes | None = None) -> Datagram:
@@ -703,6 +774,112 @@ class ReplayWindow:
             return False
         self.bits |= 1 << (diff - 1)
         return True
+
+
+# ---------------------------------------------------------------------------------------------
+# Operator signatures (spec/protocol.md, "Operator signature"): Ed25519, RFC 8032
+# ---------------------------------------------------------------------------------------------
+#
+# The standard library has no Ed25519, so signing is done here with Python integers, following
+# RFC 8032 section 5.1 (points in extended coordinates). Only signing is needed: AylluLite never
+# verifies (a lite node applies no CONNECT or DISCONNECT). Python integers are not
+# constant-time, so the time a signature takes may depend on the secret: sign on the operator's
+# own machine, not where others can time it closely.
+
+_ED_P = 2**255 - 19
+_ED_L = 2**252 + 27742317777372353535851937790883648493
+_ED_D = -121665 * pow(121666, -1, _ED_P) % _ED_P
+_ED_SQRT_M1 = pow(2, (_ED_P - 1) // 4, _ED_P)
+_EdPoint = tuple[int, int, int, int]  # X, Y, Z, T with x = X/Z, y = Y/Z, x*y = T/Z
+
+
+def _ed_add(a: _EdPoint, b: _EdPoint) -> _EdPoint:
+    p = _ED_P
+    aa = (a[1] - a[0]) * (b[1] - b[0]) % p
+    bb = (a[1] + a[0]) * (b[1] + b[0]) % p
+    cc = 2 * a[3] * b[3] * _ED_D % p
+    dd = 2 * a[2] * b[2] % p
+    e, f, g, h = bb - aa, dd - cc, dd + cc, bb + aa
+    return (e * f % p, g * h % p, f * g % p, e * h % p)
+
+
+def _ed_mul(k: int, pt: _EdPoint) -> _EdPoint:
+    acc: _EdPoint = (0, 1, 1, 0)
+    while k:
+        if k & 1:
+            acc = _ed_add(acc, pt)
+        pt = _ed_add(pt, pt)
+        k >>= 1
+    return acc
+
+
+def _ed_encode(pt: _EdPoint) -> bytes:
+    zinv = pow(pt[2], -1, _ED_P)
+    x, y = pt[0] * zinv % _ED_P, pt[1] * zinv % _ED_P
+    return (y | (x & 1) << 255).to_bytes(32, "little")
+
+
+def _ed_base() -> _EdPoint:
+    y = 4 * pow(5, -1, _ED_P) % _ED_P
+    xx = (y * y - 1) * pow(_ED_D * y * y + 1, -1, _ED_P) % _ED_P
+    x = pow(xx, (_ED_P + 3) // 8, _ED_P)
+    if (x * x - xx) % _ED_P:
+        x = x * _ED_SQRT_M1 % _ED_P
+    if x & 1:
+        x = _ED_P - x  # the base point's x is even
+    return (x, y, 1, x * y % _ED_P)
+
+
+_ED_B = _ed_base()
+
+
+def _ed_secret(seed: bytes) -> tuple[int, bytes]:
+    if len(seed) != 32:
+        raise ValueError("an operator secret is a 32-byte seed (64 hex digits)")
+    h = hashlib.sha512(seed).digest()
+    a = int.from_bytes(h[:32], "little")
+    a = (a & ((1 << 254) - 8)) | (1 << 254)
+    return a, h[32:]
+
+
+def _ed_hash(*parts: bytes) -> int:
+    return int.from_bytes(hashlib.sha512(b"".join(parts)).digest(), "little") % _ED_L
+
+
+def operator_public_key(seed: bytes) -> bytes:
+    """The 32-byte Ed25519 public key of an operator secret (its 32-byte seed): what nodes
+    are given (``--operator-key``-style options print and take it as 64 hex digits)."""
+    a, _ = _ed_secret(seed)
+    return _ed_encode(_ed_mul(a, _ED_B))
+
+
+def _ed_sign(seed: bytes, message: bytes) -> bytes:
+    a, prefix = _ed_secret(seed)
+    public = _ed_encode(_ed_mul(a, _ED_B))
+    r = _ed_hash(prefix, message)
+    big_r = _ed_encode(_ed_mul(r, _ED_B))
+    s = (r + _ed_hash(big_r, public, message) * a) % _ED_L
+    return big_r + s.to_bytes(32, "little")
+
+
+def signed_request_bytes(team: int, requester: int, receiver: int, request: Request) -> bytes:
+    """What an operator signature covers: a context string, the team, the requester's and the
+    **receiver's** node ids (u32 each), then the REQUEST body from ``id`` through the last
+    argument (without any signature). So a signed request cannot be moved to another team,
+    node or requester."""
+    if request.op not in _OPS:
+        raise EncodeError("only requests of known operations are signed")
+    _, body = _encode_body(dataclasses.replace(request, signature=None))
+    return _SIGNED_CONTEXT + _u32(team, "team") + _u32(requester, "requester") + _u32(receiver, "receiver") + body
+
+
+def sign_request(seed: bytes, team: int, requester: int, receiver: int, request: Request) -> Request:
+    """``request`` with the operator signature of secret ``seed`` (32 bytes) for node
+    ``receiver``, sent by node ``requester`` in ``team``. Sign after the id is final: the id
+    is signed too. Deterministic (RFC 8032), so the same inputs give the same bytes."""
+    return dataclasses.replace(
+        request, signature=_ed_sign(seed, signed_request_bytes(team, requester, receiver, request))
+    )
 
 
 # ---------------------------------------------------------------------------------------------
@@ -796,7 +973,13 @@ def message_to_json(m: Message) -> dict[str, Any]:
             d["conn"] = m.conn
         elif m.op in (Op.WHY, Op.READ):
             d.update(behavior=m.behavior, port=m.port)
+        if m.signature is not None:
+            d["signature_hex"] = m.signature.hex()
         return d
+    if isinstance(m, Challenge):
+        return {"kind": "challenge", "cookie_hex": m.cookie.hex()}
+    if isinstance(m, Echo):
+        return {"kind": "echo", "cookie_hex": m.cookie.hex()}
     if isinstance(m, Reply):
         d = {"kind": "reply", "id": m.id, "status": "ok" if m.ok else "error", "part": m.part, "parts": m.parts}
         if m.error is not None:
@@ -831,6 +1014,7 @@ def message_from_json(j: dict[str, Any]) -> Message:
     if k == "request":
         name = j["op"]
         op: int = j["code"] if name == "unknown" else Op[name.upper()]
+        sig = bytes.fromhex(j["signature_hex"]) if "signature_hex" in j else None
         if op == Op.CONNECT:
             dj = j["destination"]
             dest = Endpoint(dj["behavior"], dj["port"], node=dj.get("node"), group=dj.get("group"))
@@ -843,12 +1027,16 @@ def message_from_json(j: dict[str, Any]) -> Message:
                 ConnKind.from_name(j["conn_kind"]),
                 j["period_ns"],
                 j["priority"],
+                signature=sig,
             )
         if op == Op.DISCONNECT:
-            return Request(j["id"], op, conn=j["conn"])
+            return Request(j["id"], op, conn=j["conn"], signature=sig)
         if op in (Op.WHY, Op.READ):
-            return Request(j["id"], op, behavior=j["behavior"], port=j["port"])
-        return Request(j["id"], op)
+            return Request(j["id"], op, behavior=j["behavior"], port=j["port"], signature=sig)
+        return Request(j["id"], op, signature=sig)
+    if k in ("challenge", "echo"):
+        cookie = bytes.fromhex(j["cookie_hex"])
+        return Challenge(cookie) if k == "challenge" else Echo(cookie)
     if k == "reply":
         base = {"id": j["id"], "part": j["part"], "parts": j["parts"]}
         if j["status"] == "error":
@@ -961,6 +1149,7 @@ class _Pending:
     parts: dict[int, Reply] = field(default_factory=dict)
     done: Reply | None = None  # the single-part answer, or the assembled report
     failed: str | None = None
+    hurried: bool = False  # sent again at once after an ECHO (once per request)
 
 
 class LiteNode:
@@ -987,9 +1176,15 @@ class LiteNode:
         groups: Iterable[str] = (),
         hello_interval_ms: int = 1000,
         clock: Callable[[], float] = time.monotonic,
+        operator_secret: bytes | None = None,
     ) -> None:
         if key is not None and len(key) != 32:
             raise ValueError("team keys are 32 bytes (64 hex digits)")
+        if operator_secret is not None:
+            _ed_secret(operator_secret)  # refuse a bad seed now
+        #: The operator's secret (the 32-byte Ed25519 seed), or None. With it, CONNECT and
+        #: DISCONNECT requests are signed, as nodes given the operator's public key require.
+        self.operator_secret = operator_secret
         _u32(node_id, "node id")
         _u32(team, "team")
         if hello_interval_ms <= 0:
@@ -1047,7 +1242,8 @@ class LiteNode:
         the environment variable ``AYLLU_URL``, else :data:`DEFAULT_URL` (discovery on this
         machine). Understood: the bind address, ``team``, ``key``, ``peer`` (repeatable),
         ``broadcast``, ``discovery``, ``ttl``, ``hello_ms``, ``name``. Keyword arguments
-        override the URL's settings."""
+        override the URL's settings. ``operator_secret=PATH`` signs structure changes; a node's
+        ``operator=`` key is accepted (a lite node applies no structure change)."""
         options = parse_url(url if url is not None else default_url())
         options.update(kwargs)
         return cls(node_id, **options)
@@ -1139,6 +1335,19 @@ class LiteNode:
             if now - last > 3 * interval:
                 del self._heard[n]
 
+    def _node_at(self, to: int | Address) -> int:
+        """The node id of a request's target: given, or the node configured or heard at
+        that address."""
+        if not isinstance(to, tuple):
+            return to
+        for n, a in self._static_peers.items():
+            if a == to:
+                return n
+        for n, (a, _, _) in self._heard.items():
+            if a == to:
+                return n
+        raise LookupError(f"a signed request needs its receiver's node id: no node known at {to}")
+
     def _resolve(self, to: int | Address) -> Address:
         if isinstance(to, tuple):
             return to
@@ -1224,11 +1433,18 @@ class LiteNode:
     def request(self, to: int | Address, request: Request, timeout: float | None = None) -> Reply:
         """Send a request and wait for its complete answer, retrying every 200 ms up to 25
         sends. ``request.id`` is replaced by a fresh id. Returns the reply (for reports: one
-        reply whose ``report`` is the reassembled text). Raises :class:`RequestTimeout`."""
+        reply whose ``report`` is the reassembled text). Raises :class:`RequestTimeout`.
+
+        With an operator secret, CONNECT and DISCONNECT are signed for the receiving node
+        (``to``, or the node known at that address; :class:`LookupError` if none is). A
+        CHALLENGE from the node is answered with an ECHO at once and the request sent again
+        (spec, "Return routability"), so large answers arrive without waiting for a retry."""
         with self._lock:
             rid = self._next_id
             self._next_id += 1
-            req = dataclasses.replace(request, id=rid)
+            req = dataclasses.replace(request, id=rid, signature=None)
+            if self.operator_secret is not None and req.op in (Op.CONNECT, Op.DISCONNECT):
+                req = sign_request(self.operator_secret, self.team, self.node_id, self._node_at(to), req)
             encode_message(req)  # refuse a bad request before it is remembered
             p = self._pending[rid] = _Pending(req, self._resolve(to))
             self._flush_requests()
@@ -1243,6 +1459,8 @@ class LiteNode:
                     if deadline is not None and self._clock() >= deadline:
                         raise RequestTimeout(f"request {rid}: no answer within {timeout} s")
                     wait = max(0.0, min(p.next_send - self._clock(), RETRY_INTERVAL_S))
+                    if deadline is not None:
+                        wait = max(0.0, min(wait, deadline - self._clock()))
                     if self._thread is not None and self._thread is not threading.current_thread():
                         self._answered.wait(wait or 0.01)
                         continue
@@ -1393,8 +1611,12 @@ class LiteNode:
                     self._apply_reply(m)
                 elif isinstance(m, Request):
                     replies.append(self._serve(m))
+                elif isinstance(m, Challenge):
+                    self._echo(m, addr)
                 elif isinstance(m, Unknown):
                     self._count("unknown_kind")
+                # An ECHO needs nothing: a lite node sends no CHALLENGE (its answers are single
+                # datagrams), so it has no cookie to check.
             for r in replies:
                 try:
                     self._send([r], addr)
@@ -1409,6 +1631,21 @@ class LiteNode:
         for cb, args in calls:
             cb(*args)
         return None
+
+    def _echo(self, m: Challenge, addr: Address) -> None:
+        # Return routability: send the cookie back at once, to the address the CHALLENGE came
+        # from (never larger than the CHALLENGE, so no one can use this to amplify). Then the
+        # requests waiting on that node go again now rather than at their next retry: the
+        # node, its address proven, answers them in full. Only once per request, so forged
+        # CHALLENGEs cannot make us repeat a request more often than the retries do.
+        self._count("challenged")
+        self._send([Echo(m.cookie)], addr)
+        now = self._clock()
+        for p in self._pending.values():
+            if p.to == addr and p.done is None and p.failed is None and p.sends > 0 and not p.hurried:
+                p.hurried = True
+                p.next_send = now
+        self._flush_requests()
 
     def _apply_port(self, sender: int, m: Port, calls: list[Any]) -> None:
         # Same order as the core's receive (docs/semantics.md, order of checks): stale,
@@ -1552,9 +1789,33 @@ def parse_url(url: str) -> dict[str, Any]:
             # Replay marks kept across restarts (D-N5.3) belong to full nodes; a lite client
             # sharing the same AYLLU_URL accepts the option and keeps its windows in memory.
             pass
+        elif k == "operator":
+            # A node's operator public key: what it requires of structure changes it applies.
+            # A lite node applies none (it refuses CONNECT and DISCONNECT), so it only checks
+            # the form.
+            if len(v) != 64 or any(c not in "0123456789abcdefABCDEF" for c in v):
+                raise ValueError("operator must be 64 hex digits (the public key `ayllu keygen` prints)")
+        elif k == "operator_secret":
+            out["operator_secret"] = read_operator_secret(v)
         else:
             raise ValueError(f"unknown option `{k}`")
     return out
+
+
+def read_operator_secret(path: str) -> bytes:
+    """The operator secret (the 32-byte Ed25519 seed) from file ``path``: 64 hex digits, as
+    ``ayllu keygen`` writes it, surrounding white space ignored. A path rather than the secret
+    itself, so that it does not show in process lists."""
+    if not path:
+        raise ValueError("operator_secret needs the path of a file that holds the secret")
+    try:
+        with open(path, encoding="ascii") as f:
+            text = f.read().strip()
+    except (OSError, UnicodeDecodeError) as e:
+        raise ValueError(f"cannot read the operator secret {path}: {e}") from None
+    if len(text) != 64 or any(c not in "0123456789abcdefABCDEF" for c in text):
+        raise ValueError(f"operator secret {path}: must be 64 hex digits")
+    return bytes.fromhex(text)
 
 
 def key_from_hex(text: str) -> bytes:

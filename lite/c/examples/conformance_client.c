@@ -24,6 +24,7 @@
  *   expose B P VALUE               expose a lite port -> ok
  *   get B P                        a lite port -> ok VALUE WRITES SENDER CONN (last writer)
  *   raw CASE [VALUE VALUE]         send a deliberately malformed datagram (see craft()) -> ok LEN
+ *   challenged                     CHALLENGEs received and echoed so far -> ok N
  *   quit
  *
  * Between commands the client keeps polling its socket (HELLO, incoming PORT messages), so the
@@ -59,6 +60,10 @@
 #define UNKNOWN_KIND 0x7e
 
 static int sock = -1;
+/* Crafted datagrams leave from their own socket, as the Python side's do: the node greets a new
+ * sender id with HELLO and a CHALLENGE whose cookie is bound to that id and address, and this
+ * lite node, were it on the same socket, would echo a cookie that is not its own (bad_cookie). */
+static int raw_sock = -1;
 static ayl_node node;
 static ayl_addr target; /* the Ayllu node under test */
 static uint8_t key[AYL_KEY_LEN];
@@ -473,7 +478,7 @@ static void cmd_raw(int argc, char **argv) {
         return;
     }
     for (i = 0; i < copies; i++) {
-        if (posix_udp_send(&sock, &target, raw_buf, (size_t)len) != 0) {
+        if (posix_udp_send(&raw_sock, &target, raw_buf, (size_t)len) != 0) {
             printf("err sendto failed\n");
             return;
         }
@@ -507,6 +512,8 @@ static int command(char *line) {
         q.behavior = ayl_s(argv[1]);
         q.port = ayl_s(argv[2]);
         answer_request(&q, AYL_RESULT_REPORT);
+    } else if (strcmp(argv[0], "challenged") == 0 && argc == 1) {
+        printf("ok %llu\n", (unsigned long long)node.challenged);
     } else if (strcmp(argv[0], "list") == 0 && argc == 1) {
         q.op = AYL_OP_LIST;
         answer_request(&q, AYL_RESULT_REPORT);
@@ -598,7 +605,8 @@ int main(int argc, char **argv) {
         memcpy(target.bytes, &sa, sizeof sa);
     }
     sock = socket(AF_INET, SOCK_DGRAM, 0);
-    if (sock < 0) {
+    raw_sock = socket(AF_INET, SOCK_DGRAM, 0);
+    if (sock < 0 || raw_sock < 0) {
         perror("socket");
         return 1;
     }
@@ -674,5 +682,6 @@ int main(int argc, char **argv) {
         }
     }
     close(sock);
+    close(raw_sock);
     return 0;
 }

@@ -597,6 +597,177 @@ static void test_report_reassembly_and_auth(void) {
     }
 }
 
+/* One message in its own datagram from `sender` at address `from_addr`, fed straight into the
+ * node (keyed when key != NULL). */
+static ayl_cause feed(tnode *t, uint8_t from_addr, uint32_t sender, uint64_t dseq, const ayl_msg *m,
+                      const uint8_t *key) {
+    uint8_t buf[AYL_MTU];
+    ayl_writer w;
+    ayl_addr from = addr_of(from_addr);
+    int len;
+    ayl_writer_begin(&w, buf, sizeof buf, 7, sender, dseq, key != NULL);
+    CHECK(ayl_writer_add(&w, m) == 0);
+    len = ayl_writer_finish(&w, key);
+    CHECK(len > 0);
+    return ayl_node_receive(&t->node, buf, (size_t)len, &from, 0);
+}
+
+/* The next datagram queued for `to`, removed and decoded: its first message in *m (1), or 0 if
+ * none is queued. */
+static int take_msg(uint8_t to, uint8_t *from, ayl_msg *m, const uint8_t *key) {
+    static uint8_t buf[AYL_MAX_DATAGRAM];
+    endpoint e;
+    ayl_addr a;
+    ayl_datagram d;
+    int len;
+    e.me = to;
+    e.sent = 0;
+    len = mem_recv(&e, &a, buf, sizeof buf);
+    if (len <= 0) {
+        return 0;
+    }
+    *from = a.bytes[0];
+    CHECK(ayl_decode(&d, buf, (size_t)len, 7, key) == AYL_OK && ayl_next(&d, m));
+    return 1;
+}
+
+static void test_challenge_is_echoed_and_report_reassembles(void) {
+    /* A node limiting amplification answers a LIST with a CHALLENGE: the lite node sends an
+     * ECHO of the cookie at once to the address the CHALLENGE came from, sends the request
+     * again right after it (once), and reassembles the multi-part answer that follows. */
+    static tnode b;
+    static uint8_t out[64];
+    static const uint8_t cookie[AYL_COOKIE_LEN] = "0123456789abcde"; /* with its NUL: 16 bytes */
+    ayl_addr node50 = addr_of(50);
+    ayl_request_msg q;
+    ayl_reply_msg ans;
+    ayl_msg m, got;
+    uint64_t id;
+    uint8_t from;
+    int sent, i;
+    net_clear();
+    tnode_init(&b, 2, 2, NULL);
+    b.node.next_hello_ns = UINT64_MAX;
+    memset(&q, 0, sizeof q);
+    q.op = AYL_OP_LIST;
+    CHECK(ayl_node_request(&b.node, &node50, &q, out, sizeof out, &id) == 0);
+    CHECK(take_msg(50, &from, &got, NULL) && got.kind == AYL_KIND_REQUEST && got.u.request.id == id);
+
+    memset(&m, 0, sizeof m);
+    m.kind = AYL_KIND_CHALLENGE;
+    memcpy(m.u.cookie.cookie, cookie, AYL_COOKIE_LEN);
+    /* From another address than the request went to: echoed there; the request waits. */
+    sent = b.io.sent;
+    CHECK(feed(&b, 51, 50, 1, &m, NULL) == AYL_OK);
+    CHECK(b.io.sent - sent == 1 && net_count == 1);
+    CHECK(take_msg(51, &from, &got, NULL) && from == 2 && got.kind == AYL_KIND_ECHO &&
+          memcmp(got.u.cookie.cookie, cookie, AYL_COOKIE_LEN) == 0);
+    /* From the request's address: the ECHO goes there, then the request again, at once. */
+    m.u.cookie.cookie[0] = 'X';
+    CHECK(feed(&b, 50, 50, 2, &m, NULL) == AYL_OK);
+    CHECK(b.io.sent - sent == 3 && net_count == 2);
+    CHECK(take_msg(50, &from, &got, NULL) && got.kind == AYL_KIND_ECHO && got.u.cookie.cookie[0] == 'X' &&
+          memcmp(got.u.cookie.cookie + 1, cookie + 1, AYL_COOKIE_LEN - 1) == 0);
+    CHECK(take_msg(50, &from, &got, NULL) && got.kind == AYL_KIND_REQUEST && got.u.request.id == id &&
+          got.u.request.op == AYL_OP_LIST);
+    /* A second CHALLENGE is echoed too, but the request is not hurried twice. */
+    CHECK(feed(&b, 50, 50, 3, &m, NULL) == AYL_OK);
+    CHECK(b.io.sent - sent == 4 && take_msg(50, &from, &got, NULL) && got.kind == AYL_KIND_ECHO && net_count == 0);
+    CHECK(b.node.challenged == 3 && b.node.counters[AYL_UNKNOWN_KIND] == 0);
+    /* An ECHO received is ignored (a lite node sends no CHALLENGE). */
+    m.kind = AYL_KIND_ECHO;
+    CHECK(feed(&b, 50, 50, 4, &m, NULL) == AYL_OK && net_count == 0 && b.node.counters[AYL_UNKNOWN_KIND] == 0);
+
+    /* The full answer, parts out of order: reassembled. */
+    memset(&m, 0, sizeof m);
+    m.kind = AYL_KIND_REPLY;
+    m.u.reply.id = id;
+    m.u.reply.parts = 3;
+    m.u.reply.result = AYL_RESULT_REPORT;
+    for (i = 0; i < 3; i++) {
+        static const char *const text[] = {"{\"node\":", "50,\"ok\"", ":true}"};
+        static const uint16_t order[] = {1, 2, 0};
+        m.u.reply.part = order[i];
+        m.u.reply.text = ayl_s(text[order[i]]);
+        CHECK(feed(&b, 50, 50, 10 + (uint64_t)i, &m, NULL) == AYL_OK);
+    }
+    CHECK(ayl_node_request_take(&b.node, id, &ans, NULL) == AYL_REQ_DONE);
+    CHECK_MSG(ans.result == AYL_RESULT_REPORT && ans.text.len == 21 &&
+                  memcmp(ans.text.ptr, "{\"node\":50,\"ok\":true}", 21) == 0,
+              "%.*s", (int)ans.text.len, ans.text.ptr);
+}
+
+/* The golden vector request_disconnect_signed: DISCONNECT 19, id 49, node 3 to node 9, team 7,
+ * signed by the operator whose seed is 32 x 0x11. */
+static const char SIGNED_DISCONNECT_HEX[] =
+    "1052003100000000000000021300000000000000016f1ff1ce1117b1368077e0eaf80a3a0eade9635dca673be30f5d4322b7fd7fd"
+    "77c60569d5d164190a8470a0bd8ae49b930d81b62aea9847fe48dfd4a3980ff0c";
+static uint8_t signed_seen[256];
+static size_t signed_seen_len;
+static int signs;
+
+static int fake_sign(void *user, const uint8_t *data, size_t len, uint8_t sig[AYL_SIGNATURE_LEN]) {
+    /* Stands in for Ed25519 (not in this library): records what it is asked to sign and gives
+     * the vector's signature, which is the real signature of exactly the bytes expected below. */
+    const uint8_t *vector_sig = user;
+    signs++;
+    signed_seen_len = len < sizeof signed_seen ? len : sizeof signed_seen;
+    memcpy(signed_seen, data, signed_seen_len);
+    memcpy(sig, vector_sig, AYL_SIGNATURE_LEN);
+    return 0;
+}
+
+static void test_operator_signatures(void) {
+    static tnode c;
+    static uint8_t want_msg[sizeof SIGNED_DISCONNECT_HEX / 2];
+    static const char context[] = "ayllu operator request v1"; /* with its NUL: 26 bytes */
+    static const uint8_t want_tail[] = {7,  0, 0, 0, 3, 0, 0, 0, 9, 0, 0, 0, /* team, requester, receiver */
+                                        49, 0, 0, 0, 0, 0, 0, 0, 2, 19, 0, 0, 0, 0, 0, 0, 0}; /* id, op, conn */
+    ayl_addr node9 = addr_of(9), stranger = addr_of(10);
+    ayl_request_msg q;
+    ayl_msg got;
+    uint64_t id;
+    uint8_t from;
+    size_t i;
+    for (i = 0; i < sizeof want_msg; i++) {
+        unsigned hi, lo;
+        hi = (unsigned)(SIGNED_DISCONNECT_HEX[2 * i] <= '9' ? SIGNED_DISCONNECT_HEX[2 * i] - '0'
+                                                            : SIGNED_DISCONNECT_HEX[2 * i] - 'a' + 10);
+        lo = (unsigned)(SIGNED_DISCONNECT_HEX[2 * i + 1] <= '9' ? SIGNED_DISCONNECT_HEX[2 * i + 1] - '0'
+                                                                : SIGNED_DISCONNECT_HEX[2 * i + 1] - 'a' + 10);
+        want_msg[i] = (uint8_t)(hi * 16 + lo);
+    }
+    net_clear();
+    tnode_init(&c, 3, 3, NULL);
+    c.node.cfg.sign = fake_sign;
+    c.node.cfg.sign_user = want_msg + sizeof want_msg - AYL_SIGNATURE_LEN;
+    c.node.next_hello_ns = UINT64_MAX;
+    CHECK(ayl_node_add_peer(&c.node, 9, &node9) == 0);
+    c.node.next_id = 49;
+    memset(&q, 0, sizeof q);
+    q.op = AYL_OP_DISCONNECT;
+    q.conn = 19;
+    CHECK(ayl_node_request(&c.node, &node9, &q, NULL, 0, &id) == 0 && id == 49 && signs == 1);
+    CHECK(signed_seen_len == sizeof context + sizeof want_tail && memcmp(signed_seen, context, sizeof context) == 0 &&
+          memcmp(signed_seen + sizeof context, want_tail, sizeof want_tail) == 0);
+    {
+        /* The REQUEST as sent is the vector's, byte for byte. */
+        packet *p = net_peek(9);
+        CHECK(p != NULL && p->len == AYL_HEADER_LEN + sizeof want_msg &&
+              memcmp(p->data + AYL_HEADER_LEN, want_msg, sizeof want_msg) == 0);
+    }
+    CHECK(take_msg(9, &from, &got, NULL) && got.u.request.has_signature);
+    /* Reads are not signed; a structure change to an address where no node is known is refused. */
+    memset(&q, 0, sizeof q);
+    q.op = AYL_OP_READ;
+    q.behavior = ayl_s("B");
+    q.port = ayl_s("P");
+    CHECK(ayl_node_request(&c.node, &stranger, &q, NULL, 0, &id) == 0 && signs == 1);
+    CHECK(take_msg(10, &from, &got, NULL) && !got.u.request.has_signature);
+    q.op = AYL_OP_DISCONNECT;
+    CHECK(ayl_node_request(&c.node, &stranger, &q, NULL, 0, &id) == AYL_E_NOTFOUND && signs == 1);
+}
+
 static void test_replay_window_and_codec_edges(void) {
     ayl_replay_window w;
     uint8_t buf[64];
@@ -634,6 +805,34 @@ static void test_replay_window_and_codec_edges(void) {
     CHECK(!ayl_utf8_valid((const uint8_t *)"\xc0\x80", 2));     /* overlong */
     CHECK(!ayl_utf8_valid((const uint8_t *)"\xf4\x90\x80\x80", 4)); /* above U+10FFFF */
     CHECK(ayl_utf8_valid((const uint8_t *)"\xf0\x9f\x98\x80", 4));
+
+    /* Signatures follow known operations only; a cookie is 16 bytes; a tag without 64 bytes
+     * after it is no signature (extra bytes, ignored). */
+    memset(&m, 0, sizeof m);
+    m.kind = AYL_KIND_REQUEST;
+    m.u.request.op = 99;
+    m.u.request.has_signature = 1;
+    CHECK(ayl_writer_begin(&wr, buf, sizeof buf, 1, 1, 1, 0) == 0 && ayl_writer_add(&wr, &m) == AYL_E_INVALID);
+    {
+        static const uint8_t head[AYL_HEADER_LEN] = {0x41, 0x59, 1, 0, 1, 0, 0, 0, 2, 0, 0, 0, 1};
+        uint8_t dg[AYL_HEADER_LEN + 3 + 9 + 64];
+        ayl_datagram d;
+        ayl_msg got;
+        memcpy(dg, head, sizeof head);
+        dg[AYL_HEADER_LEN] = AYL_KIND_CHALLENGE;
+        dg[AYL_HEADER_LEN + 1] = 15;
+        dg[AYL_HEADER_LEN + 2] = 0;
+        memset(dg + AYL_HEADER_LEN + 3, 'c', 15);
+        CHECK(ayl_decode(&d, dg, AYL_HEADER_LEN + 3 + 15, 1, NULL) == AYL_MALFORMED);
+        dg[AYL_HEADER_LEN] = AYL_KIND_REQUEST; /* LIST, id 5, tag 1 and 63 bytes */
+        dg[AYL_HEADER_LEN + 1] = 9 + 64;
+        memset(dg + AYL_HEADER_LEN + 3, 0, 9 + 64);
+        dg[AYL_HEADER_LEN + 3] = 5;
+        dg[AYL_HEADER_LEN + 3 + 8] = AYL_OP_LIST;
+        dg[AYL_HEADER_LEN + 3 + 9] = AYL_SIGNATURE_TAG;
+        CHECK(ayl_decode(&d, dg, sizeof dg, 1, NULL) == AYL_OK && ayl_next(&d, &got));
+        CHECK(got.kind == AYL_KIND_REQUEST && got.u.request.id == 5 && !got.u.request.has_signature);
+    }
 }
 
 static void test_oversized_receive(void) {
@@ -654,6 +853,8 @@ int main(void) {
     test_requests();
     test_retries();
     test_report_reassembly_and_auth();
+    test_challenge_is_echoed_and_report_reassembles();
+    test_operator_signatures();
     test_replay_window_and_codec_edges();
     test_oversized_receive();
     return check_exit("test_node");

@@ -78,6 +78,26 @@ static int keys_are(int obj, const char *const *names, int n) {
     return ok;
 }
 
+/* keys_are for a request: the op's fields, plus "signature_hex" when the request is signed
+ * (then read into q). */
+static int request_keys_are(int obj, const char *const *names, int n, ayl_request_msg *q) {
+    const char *with[16];
+    int sig = json_get(obj, "signature_hex"), k;
+    if (sig < 0) {
+        return keys_are(obj, names, n);
+    }
+    for (k = 0; k < n; k++) {
+        with[k] = names[k];
+    }
+    with[n] = "signature_hex";
+    if (!keys_are(obj, with, n + 1) || json_node(sig)->t != J_STR ||
+        unhex(json_node(sig)->s, json_node(sig)->len, q->signature, sizeof q->signature) != AYL_SIGNATURE_LEN) {
+        return 0;
+    }
+    q->has_signature = 1;
+    return 1;
+}
+
 static int get_u64(int obj, const char *k, uint64_t *v) { return json_u64(json_get(obj, k), v); }
 
 static int get_str(int obj, const char *k, ayl_str *s) {
@@ -255,7 +275,7 @@ static int msg_of(int j, ayl_msg *m) {
             static const char *const k[] = {"kind",        "id",        "op",        "src_behavior", "src_port",
                                             "destination", "conn_kind", "period_ns", "priority"};
             q->op = AYL_OP_CONNECT;
-            return keys_are(j, k, 9) && get_str(j, "src_behavior", &q->src_behavior) == 0 &&
+            return request_keys_are(j, k, 9, q) && get_str(j, "src_behavior", &q->src_behavior) == 0 &&
                            get_str(j, "src_port", &q->src_port) == 0 &&
                            endpoint_of(json_get(j, "destination"), &q->dest) == 0 &&
                            conn_kind_of(json_get(j, "conn_kind"), &q->kind) == 0 &&
@@ -266,17 +286,17 @@ static int msg_of(int j, ayl_msg *m) {
         if (json_str_is(op, "disconnect")) {
             static const char *const k[] = {"kind", "id", "op", "conn"};
             q->op = AYL_OP_DISCONNECT;
-            return keys_are(j, k, 4) && get_u64(j, "conn", &q->conn) == 0 ? 0 : -1;
+            return request_keys_are(j, k, 4, q) && get_u64(j, "conn", &q->conn) == 0 ? 0 : -1;
         }
         if (json_str_is(op, "list")) {
             static const char *const k[] = {"kind", "id", "op"};
             q->op = AYL_OP_LIST;
-            return keys_are(j, k, 3) ? 0 : -1;
+            return request_keys_are(j, k, 3, q) ? 0 : -1;
         }
         if (json_str_is(op, "why") || json_str_is(op, "read")) {
             static const char *const k[] = {"kind", "id", "op", "behavior", "port"};
             q->op = json_str_is(op, "why") ? AYL_OP_WHY : AYL_OP_READ;
-            return keys_are(j, k, 5) && get_str(j, "behavior", &q->behavior) == 0 &&
+            return request_keys_are(j, k, 5, q) && get_str(j, "behavior", &q->behavior) == 0 &&
                            get_str(j, "port", &q->port) == 0
                        ? 0
                        : -1;
@@ -329,6 +349,15 @@ static int msg_of(int j, ayl_msg *m) {
         }
         return -1;
     }
+    if (json_str_is(kind, "challenge") || json_str_is(kind, "echo")) {
+        static const char *const k[] = {"kind", "cookie_hex"};
+        int c = json_get(j, "cookie_hex");
+        m->kind = json_str_is(kind, "challenge") ? AYL_KIND_CHALLENGE : AYL_KIND_ECHO;
+        return keys_are(j, k, 2) && json_node(c)->t == J_STR &&
+                       unhex(json_node(c)->s, json_node(c)->len, m->u.cookie.cookie, AYL_COOKIE_LEN) == AYL_COOKIE_LEN
+                   ? 0
+                   : -1;
+    }
     if (json_str_is(kind, "unknown")) {
         static const char *const k[] = {"kind", "code", "length"};
         uint64_t code, length;
@@ -380,7 +409,8 @@ static int msg_eq(const ayl_msg *a, const ayl_msg *b) {
     }
     case AYL_KIND_REQUEST: {
         const ayl_request_msg *x = &a->u.request, *y = &b->u.request;
-        if (x->id != y->id || x->op != y->op) {
+        if (x->id != y->id || x->op != y->op || x->has_signature != y->has_signature ||
+            (x->has_signature && memcmp(x->signature, y->signature, AYL_SIGNATURE_LEN) != 0)) {
             return 0;
         }
         switch (x->op) {
@@ -411,6 +441,9 @@ static int msg_eq(const ayl_msg *a, const ayl_msg *b) {
             return str_eq(x->text, y->text);
         }
     }
+    case AYL_KIND_CHALLENGE:
+    case AYL_KIND_ECHO:
+        return memcmp(a->u.cookie.cookie, b->u.cookie.cookie, AYL_COOKIE_LEN) == 0;
     default:
         return a->u.unknown.code == b->u.unknown.code && a->u.unknown.length == b->u.unknown.length;
     }

@@ -53,6 +53,10 @@ def test_every_message_kind_roundtrips() -> None:
         al.Reply(2, value=2.0),
         al.Reply(3, part=1, parts=3, report='{"a":'),
         al.Reply(4, error="no such port"),
+        al.Request(8, al.Op.DISCONNECT, conn=3, signature=bytes(range(64))),
+        al.Request(9, al.Op.LIST, signature=b"\xff" * 64),
+        al.Challenge(b"0123456789abcdef"),
+        al.Echo(bytes(16)),
     ]
     roundtrip(msgs)
     roundtrip(msgs[:3], KEY)
@@ -163,3 +167,54 @@ def test_replay_window() -> None:
     assert w.accept(101 - 64)  # the 64th before the newest is still in the window
     assert not w.accept(101 - 65)  # older than the window
     assert w.accept(1000) and w.accept(999) and not w.accept(101)
+
+
+def test_signatures_and_cookies_follow_the_spec() -> None:
+    # A signature is sig_tag 1 and 64 bytes after the arguments; anything else there (another
+    # tag, or a tag without 64 bytes) is ignored like any extra body bytes.
+    req = al.Request(8, al.Op.READ, behavior="B", port="P")
+    plain = al.encode_message(req)
+    signed = al.encode_message(al.Request(8, al.Op.READ, behavior="B", port="P", signature=bytes(64)))
+    assert signed[3:] == plain[3:] + b"\x01" + bytes(64)
+    head = al.encode(TEAM, 3, 1, [])
+
+    def with_body(body: bytes, kind: int = al.KIND_REQUEST) -> bytes:
+        return head + bytes([kind]) + struct.pack("<H", len(body)) + body
+
+    for extra in (b"\x02" + bytes(64), b"\x01" + bytes(63)):
+        assert al.decode(with_body(plain[3:] + extra), TEAM).messages == (req,)
+    with pytest.raises(al.EncodeError):
+        al.encode_message(al.Request(1, al.Op.LIST, signature=bytes(63)))
+    with pytest.raises(al.EncodeError):
+        al.encode_message(al.Request(1, 99, signature=bytes(64)))  # unknown op: no signature
+    # A cookie is 16 bytes: a shorter body is malformed, a longer one has extra bytes ignored.
+    assert cause(with_body(bytes(15), al.KIND_CHALLENGE)) == "malformed"
+    assert cause(with_body(bytes(15), al.KIND_ECHO)) == "malformed"
+    assert al.decode(with_body(b"c" * 16 + b"more", al.KIND_ECHO), TEAM).messages == (al.Echo(b"c" * 16),)
+    with pytest.raises(al.EncodeError):
+        al.encode_message(al.Challenge(bytes(17)))
+
+
+def test_operator_signatures_are_rfc8032_ed25519() -> None:
+    # RFC 8032, section 7.1, TEST 1 (the empty message) and TEST 2 (one byte).
+    seed = bytes.fromhex("9d61b19deffd5a60ba844af492ec2cc44449c5697b326919703bac031cae7f60")
+    assert al.operator_public_key(seed).hex() == "d75a980182b10ab7d54bfed3c964073a0ee172f3daa62325af021a68f707511a"
+    assert al._ed_sign(seed, b"").hex() == (
+        "e5564300c360ac729086e2cc806e828a84877f1eb8e5d974d873e065"
+        "224901555fb8821590a33bacc61e39701cf9b46bd25bf5f0595bbe24655141438e7a100b"
+    )
+    seed2 = bytes.fromhex("4ccd089b28ff96da9db6c346ec114e0f5b8a319f35aba624da8cf6ed4fb8a6fb")
+    assert al.operator_public_key(seed2).hex() == "3d4017c3e843895a92b70aa74d1b7ebc9c982ccf2ec4968cc0cd55f12af4660c"
+    assert al._ed_sign(seed2, b"\x72").hex() == (
+        "92a009a9f0d4cab8720e820b5f642540a2b27b5416503f8fb3762223ebdb69da"
+        "085ac1e43e15996e458f3613d0f11d8c387b2eaeb4302aeeb00d291612bb0c00"
+    )
+    # The signed bytes bind team, requester and receiver (the golden vectors check the rest).
+    req = al.Request(77, al.Op.DISCONNECT, conn=4)
+    one = al.sign_request(bytes(32), 9, 1, 2, req).signature
+    assert one is not None and len(one) == 64
+    for team, requester, receiver in ((8, 1, 2), (9, 3, 2), (9, 1, 3)):
+        assert al.sign_request(bytes(32), team, requester, receiver, req).signature != one
+    assert al.signed_request_bytes(9, 1, 2, req)[:26] == b"ayllu operator request v1\0"
+    with pytest.raises(ValueError):
+        al.operator_public_key(bytes(31))

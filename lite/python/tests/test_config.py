@@ -4,6 +4,8 @@ option names, and the same default team when none is given."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 import ayllu_lite as al
@@ -44,6 +46,27 @@ def test_every_option_parses() -> None:
         "hello_interval_ms": 250,
         "name": "r1",
     }
+
+
+def test_operator_options(tmp_path: Path) -> None:
+    # operator_secret=FILE (as `ayllu keygen` writes it) signs; operator= is only checked.
+    secret = tmp_path / "operator.secret"
+    secret.write_text("11" * 32 + "\n", encoding="ascii")
+    public = al.operator_public_key(b"\x11" * 32).hex()
+    o = al.parse_url(f"udp://127.0.0.1:0?operator_secret={secret}&operator={public}")
+    assert o["operator_secret"] == b"\x11" * 32
+    node = al.LiteNode.from_url(5, f"udp://127.0.0.1:0?operator_secret={secret}")
+    try:
+        assert node.operator_secret == b"\x11" * 32
+    finally:
+        node.close()
+    secret.write_text("not hex", encoding="ascii")
+    with pytest.raises(ValueError, match="64 hex digits"):
+        al.parse_url(f"udp://127.0.0.1:0?operator_secret={secret}")
+    with pytest.raises(ValueError, match="cannot read"):
+        al.parse_url(f"udp://127.0.0.1:0?operator_secret={tmp_path / 'absent'}")
+    with pytest.raises(ValueError, match="operator"):
+        al.parse_url("udp://127.0.0.1:0?operator=abc")
 
 
 @pytest.mark.parametrize(

@@ -6,6 +6,7 @@ protection."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import socket
 import threading
@@ -180,16 +181,27 @@ def test_lite_answers_read_and_list_and_refuses_the_rest(pair: tuple[al.LiteNode
 
 class FakeNode:
     """A scripted Ayllu node on a raw socket: answers requests with `answer(request)` ->
-    list of replies, and can ignore the first few requests or leave out parts once."""
+    list of replies, and can ignore the first few requests or leave out parts once. With
+    `cookie`, it answers an address that has not echoed the cookie only with a CHALLENGE, as a
+    node limiting amplification does (spec, "Return routability")."""
 
-    def __init__(self, answer: Callable[[al.Request], list[al.Reply]], ignore: int = 0, key: bytes | None = None):
+    def __init__(
+        self,
+        answer: Callable[[al.Request], list[al.Reply]],
+        ignore: int = 0,
+        key: bytes | None = None,
+        cookie: bytes | None = None,
+    ):
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sock.bind(LOOP)
         self.sock.settimeout(0.05)
         self.address = self.sock.getsockname()
-        self.answer, self.ignore, self.key = answer, ignore, key
+        self.answer, self.ignore, self.key, self.cookie = answer, ignore, key, cookie
         self.requests: list[al.Request] = []
         self.omit_part_once: int | None = None
+        self.echoes: list[tuple[tuple[str, int], bytes]] = []  # (from, cookie)
+        self.proven: set[tuple[str, int]] = set()
+        self.challenged = 0
         self.seq = 1 << 32
         self.stop = False
         self.thread = threading.Thread(target=self.run, daemon=True)
@@ -202,10 +214,19 @@ class FakeNode:
             except (TimeoutError, OSError):
                 continue
             for m in al.decode(data, TEAM, self.key).messages:
+                if isinstance(m, al.Echo):
+                    self.echoes.append((addr, m.cookie))
+                    if m.cookie == self.cookie:
+                        self.proven.add(addr)
                 if not isinstance(m, al.Request):
                     continue
                 self.requests.append(m)
                 if len(self.requests) <= self.ignore:
+                    continue
+                if self.cookie is not None and addr not in self.proven:
+                    self.challenged += 1
+                    self.seq += 1
+                    self.sock.sendto(al.encode(TEAM, 50, self.seq, [al.Challenge(self.cookie)], key=self.key), addr)
                     continue
                 for r in self.answer(m):
                     if r.part == self.omit_part_once:
@@ -266,6 +287,80 @@ def test_multipart_report_is_reassembled_and_missing_parts_asked_again() -> None
         lite.start()  # the background thread handles the replies this time
         assert lite.list_node(node.address) == json.loads(report)
         assert len(node.requests) == 2
+    finally:
+        lite.close()
+        node.close()
+
+
+def test_challenge_is_echoed_and_the_report_still_reassembles(monkeypatch: pytest.MonkeyPatch) -> None:
+    # Retries are 10 s apart here, so the answer can only come in time if the ECHO went out
+    # and the request was sent again at once, as the CHALLENGE asks.
+    monkeypatch.setattr(al, "RETRY_INTERVAL_S", 10.0)
+    report = json.dumps({"node": 50, "behaviors": [{"name": f"B{i}", "text": "x" * 50} for i in range(40)]})
+    chunks = [report[i : i + 500] for i in range(0, len(report), 500)]
+    assert len(chunks) > 1
+
+    def answer(r: al.Request) -> list[al.Reply]:
+        return [al.Reply(r.id, part=i, parts=len(chunks), report=c) for i, c in enumerate(chunks)]
+
+    cookie = b"0123456789abcdef"
+    node = FakeNode(answer, cookie=cookie)
+    lite = al.LiteNode(9, TEAM, bind=LOOP)
+    try:
+        r = lite.request(node.address, al.Request(0, al.Op.LIST), timeout=3.0)
+        assert json.loads(r.report or "") == json.loads(report)
+        # One ECHO, from the lite node's address, with the CHALLENGE's cookie; then the same
+        # request once more, answered in full and reassembled.
+        assert node.echoes == [(lite.address, cookie)]
+        assert node.challenged == 1
+        assert len(node.requests) == 2
+        assert len({r.id for r in node.requests}) == 1
+        assert lite.counters["challenged"] == 1
+    finally:
+        lite.close()
+        node.close()
+
+
+def test_echo_goes_to_the_address_the_challenge_came_from() -> None:
+    # The CHALLENGE arrives from another address than the one the request went to: the ECHO
+    # goes back to where the CHALLENGE came from, at once, in its own datagram.
+    node = FakeNode(lambda r: [], ignore=1000, key=KEY)
+    other = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    other.bind(LOOP)
+    other.settimeout(2.0)
+    lite = al.LiteNode(9, TEAM, bind=LOOP, key=KEY, peers=[(50, node.address)])
+    try:
+        cookie = bytes(range(100, 116))
+        dropped = lite.handle_datagram(al.encode(TEAM, 50, 7, [al.Challenge(cookie)], key=KEY), other.getsockname())
+        assert dropped is None
+        data, addr = other.recvfrom(9000)
+        assert addr == lite.address
+        d = al.decode(data, TEAM, KEY)
+        assert d.sender == 9 and d.messages == (al.Echo(cookie),)
+        # An ECHO received (a lite node sends no CHALLENGE) is ignored, not an unknown kind.
+        assert lite.handle_datagram(al.encode(TEAM, 50, 8, [al.Echo(cookie)], key=KEY), other.getsockname()) is None
+        assert "unknown_kind" not in lite.counters
+    finally:
+        lite.close()
+        node.close()
+        other.close()
+
+
+def test_operator_secret_signs_structure_changes_for_the_receiver() -> None:
+    seed = b"\x11" * 32
+    node = FakeNode(lambda r: [al.Reply(r.id, conn=12) if r.op == al.Op.CONNECT else al.Reply(r.id, value=1)])
+    lite = al.LiteNode(3, TEAM, bind=LOOP, operator_secret=seed, peers=[(50, node.address)])
+    try:
+        assert lite.connect(50, "S", "P", "B", "Q") == 12
+        assert lite.read(node.address, "S", "P") == 1
+        lite.disconnect(node.address, 12)  # by address: the receiver's id comes from the peers
+        connect, read, disconnect = node.requests
+        for r in (connect, disconnect):
+            unsigned = dataclasses.replace(r, signature=None)
+            assert r.signature == al.sign_request(seed, TEAM, 3, 50, unsigned).signature
+        assert read.signature is None  # only structure changes are signed
+        with pytest.raises(LookupError, match="receiver's node id"):
+            lite.disconnect(("127.0.0.1", 9), 12)
     finally:
         lite.close()
         node.close()

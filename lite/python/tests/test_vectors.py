@@ -74,3 +74,17 @@ def test_encode(vector: dict[str, Any]) -> None:
     messages = [al.message_from_json(m) for m in expect["messages"]]
     data = al.encode(vector["team"], expect["sender"], expect["seq"], messages, key=_key(vector))
     assert data.hex() == vector["hex"]
+
+
+@SKIP
+def test_signed_vectors_are_signed_by_their_operator() -> None:
+    # The signed vectors are requests from node 3 to node 9 of team 7, signed by the operator
+    # whose seed is 32 bytes of 0x11: signing them again gives the same bytes (Ed25519 is
+    # deterministic), so AylluLite's signing agrees with crates/ayllu-wire's.
+    signed = [v for v in CASES if any("signature_hex" in m for m in v["expect"].get("messages", []))]
+    assert signed, "the vectors include no signed request"
+    for v in signed:
+        (m,) = (al.message_from_json(j) for j in v["expect"]["messages"])
+        assert isinstance(m, al.Request)
+        again = al.sign_request(b"\x11" * 32, 7, 3, 9, m)
+        assert again.signature == m.signature, v["name"]
