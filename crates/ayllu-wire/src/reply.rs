@@ -150,6 +150,11 @@ impl ReplyAssembler {
         ReplyAssembler { limit, slices: Vec::new(), bytes: 0, done: false }
     }
 
+    /// Bytes of report text held so far (to bound what all assemblies together hold).
+    pub fn bytes(&self) -> usize {
+        self.bytes
+    }
+
     /// True once a complete reply was returned by [`ReplyAssembler::push`].
     pub fn is_done(&self) -> bool {
         self.done

@@ -43,6 +43,14 @@ const MAX_REPLAY_SENDERS: usize = 4096;
 /// table (three periods) and so how long it is greeted.
 const MAX_PEER_INTERVAL: Duration = Duration::from_secs(60);
 const MAX_ASSEMBLIES: usize = 64;
+/// Report bytes held by all reply assemblies together: the oldest go first beyond it (one
+/// honest report is at most 64 parts of 1.4 KB at the default MTU; forged parts could
+/// otherwise hold 64 x 512 KiB).
+const MAX_ASSEMBLY_BYTES: usize = 2 << 20;
+/// Groups and group-name bytes kept per peer from its HELLO (a forged HELLO of 8 KB per id,
+/// for 1024 ids, would otherwise hold 8 MB); the excess is counted `groups_truncated`.
+const MAX_PEER_GROUPS: usize = 128;
+const MAX_PEER_GROUP_BYTES: usize = 4096;
 /// Sent datagrams' buffers kept for reuse (one per destination of a turn is plenty).
 const SPARE_BUFFERS: usize = 8;
 /// Datagrams read per `recv` refill, so one busy socket cannot starve the node's loop.
@@ -637,7 +645,18 @@ impl<S: DatagramSocket> UdpTransport<S> {
                         // Clamped: a forged peer announcing 0xFFFFFFFF ms would stay 149 days.
                         p.interval = Duration::from_millis(u64::from(interval_ms.max(1))).min(MAX_PEER_INTERVAL);
                         p.name = name.to_string();
-                        p.groups = groups.iter().map(|g| g.to_string()).collect();
+                        p.groups.clear();
+                        let mut bytes = 0;
+                        for g in groups.iter().take(MAX_PEER_GROUPS) {
+                            bytes += g.len();
+                            if bytes > MAX_PEER_GROUP_BYTES {
+                                break;
+                            }
+                            p.groups.push(g.to_string());
+                        }
+                        if p.groups.len() < groups.len() {
+                            self.counters.add("groups_truncated");
+                        }
                     }
                     if is_new {
                         self.greet.push((sender, from));
@@ -679,7 +698,17 @@ impl<S: DatagramSocket> UdpTransport<S> {
                 let body = ControlBody::Reply { result };
                 self.inbox.push_back((sender, Message::Control(ControlMessage { id, body })));
             }
-            Ok(None) => {}
+            Ok(None) => {
+                // Bounded in bytes as well as in count: the oldest other assemblies go first.
+                let mut total: usize = self.assemblies.iter().map(|(_, a)| a.bytes()).sum();
+                while total > MAX_ASSEMBLY_BYTES && self.assemblies.len() > 1 {
+                    let oldest = usize::from(self.assemblies.front().is_some_and(|(k, _)| *k == key));
+                    if let Some((_, gone)) = self.assemblies.remove(oldest) {
+                        total -= gone.bytes();
+                        self.count("reply_evicted");
+                    }
+                }
+            }
             Err(_) => {
                 self.assemblies.remove(i);
                 self.count("bad_reply");

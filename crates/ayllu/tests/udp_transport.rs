@@ -569,3 +569,29 @@ fn a_request_retried_before_the_greeting_is_held_once() {
     assert!(matches!(team.nodes()[a].core().request_status(id), Some(ayllu::RequestStatus::Done(_))));
     let _ = b;
 }
+
+#[test]
+fn n4_forged_hellos_and_reply_parts_are_bounded_in_bytes_not_only_in_entries() {
+    let bus = DatagramBus::new();
+    let mut team = Lockstep::new("udp-bytes");
+    let b = node(&mut team, &bus, 2, None, TEAM);
+    let mut evil = bus.bind(addr(66)).unwrap();
+    // A HELLO of 180 groups of 40 bytes keeps at most 4 KiB of group names for its sender.
+    let groups: Vec<std::sync::Arc<str>> = (0..180).map(|g| format!("{g:040}").into()).collect();
+    let hello = WireMessage::Hello { interval_ms: 1000, name: "x".into(), groups };
+    evil.send_to(&encode_datagram(TEAM, NodeId(500), 1, None, &[hello]).unwrap(), addr(2)).unwrap();
+    team.advance(TICK, TICK);
+    assert_eq!(count(&team.nodes()[b], "groups_truncated"), 1);
+    // Report parts for answers nobody asked: 6 replies of 63 parts of 7 KB each (2.6 MB).
+    // Fewer than the 64 assemblies allowed, but more than their 2 MiB of bytes.
+    let slice = "r".repeat(7000);
+    for id in 0..6u64 {
+        for part in 0..63u16 {
+            let reply = WireMessage::Reply { id, part, parts: 64, payload: ReplyPart::Report(slice.clone()) };
+            let bytes = encode_datagram(TEAM, NodeId(500), 2 + id * 64 + u64::from(part), None, &[reply]).unwrap();
+            evil.send_to(&bytes, addr(2)).unwrap();
+        }
+        team.advance(TICK, TICK);
+    }
+    assert!(count(&team.nodes()[b], "reply_evicted") >= 1, "held more than 2 MiB of report parts");
+}
