@@ -20,11 +20,13 @@ TARGET_DIR ?= $(or $(CARGO_TARGET_DIR),target)
 
 ## Run every test: Rust (unit, rule, property, golden vectors, examples, processes over real
 ## sockets, the report page in headless Chromium), AylluLite C and Python (golden vectors,
-## node logic over loopback). Installs Debian's chromium, pytest and ruff first if missing.
+## node logic over loopback), libayllu's C tests under ASan+UBSan and its C++17 header check.
+## Installs Debian's chromium, pytest and ruff first if missing.
 test:
 	PYTHON=$(PYTHON) scripts/install-test-tools
 	$(CARGO) test --workspace
 	$(MAKE) -C lite/c test
+	$(MAKE) -C crates/ayllu-c test
 	AYLLU_BIN=$(TARGET_DIR)/debug/ayllu $(PYTHON) -m pytest lite/python/tests -q
 	$(CARGO) build -p ayllu-cli
 	$(PYTHON) spec/conformance --ayllu $(TARGET_DIR)/debug/ayllu
@@ -34,6 +36,7 @@ lint:
 	$(CARGO) fmt --all -- --check
 	$(CARGO) clippy --workspace --all-targets -- -D warnings
 	RUSTDOCFLAGS=-Dwarnings $(CARGO) doc --workspace --no-deps --quiet
+	$(MAKE) -C crates/ayllu-c lint
 	PYTHON=$(PYTHON) scripts/install-test-tools
 	cd lite/python && $(PYTHON) -m ruff check . && $(PYTHON) -m ruff format --check .
 	$(PYTHON) -m ruff check spec/conformance && $(PYTHON) -m ruff format --check spec/conformance

@@ -1,0 +1,63 @@
+//! Introspection from C: `why` a port holds and passes what it does, and the whole node
+//! (`list`), as JSON strings in the shapes `ayllu why --json` and `ayllu list --json` print.
+
+use std::ffi::c_char;
+
+use crate::cstr::{owned, put};
+use crate::node::{ay_node, names, with_node};
+use crate::status::{ay_status, boundary, Fail};
+
+fn json<T: serde::Serialize>(value: &T) -> Result<String, Fail> {
+    serde_json::to_string(value).map_err(|e| Fail::invalid(format!("report as JSON: {e}")))
+}
+
+/// Why `behavior.port` holds what it holds and passes what it passes, now: value, freshness,
+/// supplier, active windows and their holders, connections in and out. `*out` receives a
+/// JSON object.
+///
+/// Ownership: `*out` belongs to the caller; free it with `ay_string_free`. Thread-safety: the
+/// node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`, `AY_ERR_UNKNOWN`
+/// (`*out` is then untouched).
+///
+/// # Safety
+/// `node` is NULL or a pointer from this library; the names are NULL or NUL-terminated; `out`
+/// is NULL or valid for a write.
+#[no_mangle]
+pub unsafe extern "C" fn ay_node_why_json(
+    node: *mut ay_node,
+    behavior: *const c_char,
+    port: *const c_char,
+    out: *mut *mut c_char,
+) -> ay_status {
+    boundary("ay_node_why_json", || {
+        // SAFETY: the C caller's promises on the names.
+        let (b, p) = unsafe { names(behavior, port) }?;
+        if out.is_null() {
+            return Err(Fail::null("out"));
+        }
+        let text = with_node(node, |s| json(&s.node.why(b, p)?))?;
+        // SAFETY: the C caller's promise on `out`.
+        unsafe { put(out, owned(text), "out") }
+    })
+}
+
+/// The whole node now (the `list` report): its behaviors with their ports, slots,
+/// monostables and processes, its connections, groups, counters and warnings (e.g. a BLE
+/// inhibit period too short). `*out` receives a JSON object.
+///
+/// Ownership: `*out` belongs to the caller; free it with `ay_string_free`. Thread-safety: the
+/// node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`.
+///
+/// # Safety
+/// `node` is NULL or a pointer from this library; `out` is NULL or valid for a write.
+#[no_mangle]
+pub unsafe extern "C" fn ay_node_report_json(node: *mut ay_node, out: *mut *mut c_char) -> ay_status {
+    boundary("ay_node_report_json", || {
+        if out.is_null() {
+            return Err(Fail::null("out"));
+        }
+        let text = with_node(node, |s| json(&s.node.core().report()))?;
+        // SAFETY: the C caller's promise on `out`.
+        unsafe { put(out, owned(text), "out") }
+    })
+}
