@@ -61,15 +61,23 @@ soak:
 	scripts/install-test-tools
 	SOAK_MINUTES=$(MINUTES) $(CARGO) test --release -p ayllu-cli --test cross_subsumption_processes soak -- --ignored --nocapture
 
-## Fuzz every decoder target for SECONDS each (needs a nightly toolchain; installs cargo-fuzz).
+## Fuzz every target (decoder, node, udp:// URLs, command lines) for SECONDS each (needs a
+## nightly toolchain; installs cargo-fuzz).
 SECONDS ?= 60
 fuzz:
 	fuzz/run $(SECONDS)
 
-## Every fuzz target for RUNS executions each (default 10 million; hours for node_receive).
+## Every fuzz target for RUNS executions each (default 10 million; about an hour each for
+## node_receive and cli_args), JOBS targets at once, then DATAGRAMS mutated golden vectors over
+## real UDP into two live `ayllu node` processes on loopback (at most 15 minutes; the example
+## crates/ayllu-cli/examples/live_wire_mutation.rs).
 RUNS ?= 10000000
+JOBS ?= 2
+DATAGRAMS ?= 2000000
 fuzz-long:
-	FUZZ_RUNS=$(RUNS) fuzz/run
+	FUZZ_RUNS=$(RUNS) FUZZ_JOBS=$(JOBS) fuzz/run
+	$(CARGO) build --release -p ayllu-cli --bin ayllu --example live_wire_mutation
+	target/release/examples/live_wire_mutation target/release/ayllu --datagrams $(DATAGRAMS)
 
 fmt:
 	$(CARGO) fmt --all

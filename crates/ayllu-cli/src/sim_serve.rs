@@ -98,7 +98,7 @@ pub struct RobotArgs {
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// BLE claims per second.
-    #[arg(long, value_name = "HZ", default_value_t = 1.0, value_parser = positive_secs)]
+    #[arg(long, value_name = "HZ", default_value_t = 1.0, value_parser = crate::positive_hz)]
     pub claim_hz: f64,
     /// The controller node's udp:// URL: its address, and how it finds its peers (peer=,
     /// broadcast=, discovery=). Its body finds it (the server's URLs name it). Default:
