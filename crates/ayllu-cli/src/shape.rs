@@ -2,9 +2,9 @@
 //! kernels without `tc netem`. This file only reads the arguments and prints: a first line
 //! naming the TAP interfaces it made, then one JSON line of counters per status period.
 //!
-//! Promises: nothing is created unless every TAP interface could be (an error names the
-//! namespace and why, exit 1); the interfaces disappear when the command ends; Ctrl-C,
-//! SIGTERM, `--for` and a closed stdout end it.
+//! Promises: if one TAP interface cannot be made, the command exits with code 1, an error
+//! naming the namespace and why, and no interface left behind; the interfaces disappear when
+//! the command ends; Ctrl-C, SIGTERM, `--for` and a closed stdout end it.
 
 use std::io::Write as _;
 
