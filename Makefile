@@ -70,12 +70,14 @@ fuzz:
 ## Every fuzz target for RUNS executions each (default 10 million; about an hour each for
 ## node_receive and cli_args), JOBS targets at once, then DATAGRAMS mutated golden vectors over
 ## real UDP into two live `ayllu node` processes on loopback (at most 15 minutes; the example
-## crates/ayllu-cli/examples/live_wire_mutation.rs).
+## crates/ayllu-cli/examples/live_wire_mutation.rs). BUDGET=SECONDS stops the fuzz targets by
+## then, wherever they got (e.g. on a machine shared with builds).
 RUNS ?= 10000000
 JOBS ?= 2
 DATAGRAMS ?= 2000000
+BUDGET ?=
 fuzz-long:
-	FUZZ_RUNS=$(RUNS) FUZZ_JOBS=$(JOBS) fuzz/run
+	FUZZ_RUNS=$(RUNS) FUZZ_JOBS=$(JOBS) FUZZ_BUDGET=$(BUDGET) fuzz/run
 	$(CARGO) build --release -p ayllu-cli --bin ayllu --example live_wire_mutation
 	target/release/examples/live_wire_mutation target/release/ayllu --datagrams $(DATAGRAMS)
 
