@@ -459,7 +459,16 @@ fn three_processes_through_the_userspace_shaper_keep_the_arbitration_properties(
     };
     // Declared after `net` and before the nodes: dropped (killed) after them, before the
     // namespaces go.
-    let shaper = start_shaper(&net, 3, &SHAPE, 120).unwrap_or_else(|e| panic!("{e}"));
+    let shaper = match start_shaper(&net, 3, &SHAPE, 120) {
+        Ok(shaper) => shaper,
+        // The device node exists but TAP interfaces cannot be made (no tun driver, a
+        // container without the capability): the environment, not the code.
+        Err(reason) if reason.contains("/dev/net/tun") || reason.contains("TUNSETIFF") => {
+            eprintln!("SKIPPED: the shaper cannot make TAP interfaces: {reason}");
+            return;
+        }
+        Err(reason) => panic!("{reason}"),
+    };
     let bounds = Bounds::new();
     let start_node = |i: usize| {
         let url = format!("udp://10.85.0.{}:7400?broadcast=10.85.0.255:7400", i + 1);
