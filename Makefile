@@ -2,7 +2,7 @@
 # CI (.ci/run) runs `make lint` and `make test`.
 CARGO ?= cargo
 
-.PHONY: demo test lint bench bench-net bench-sim fuzz fuzz-long soak fmt
+.PHONY: demo test lint test-python lint-python bench-python bench bench-net bench-sim fuzz fuzz-long soak fmt
 
 ## Run the main demo: W-CMOMMT in the simulator (the paper's setting, a sweep, a robot killed
 ## halfway) for BLE and every baseline; prints a short summary (BLE against each baseline, whether
@@ -30,6 +30,7 @@ test:
 	AYLLU_BIN=$(TARGET_DIR)/debug/ayllu $(PYTHON) -m pytest lite/python/tests -q
 	$(CARGO) build -p ayllu-cli
 	$(PYTHON) spec/conformance --ayllu $(TARGET_DIR)/debug/ayllu
+	$(MAKE) test-python
 
 ## Formatting, lints and API docs, warnings as errors.
 lint:
@@ -40,10 +41,15 @@ lint:
 	PYTHON=$(PYTHON) scripts/install-test-tools
 	cd lite/python && $(PYTHON) -m ruff check . && $(PYTHON) -m ruff format --check .
 	$(PYTHON) -m ruff check spec/conformance && $(PYTHON) -m ruff format --check spec/conformance
+	$(MAKE) lint-python
 
 ## Benchmarks (not part of the tests): figures printed beside a baseline measured in the same run.
 bench:
 	$(CARGO) bench -p ayllu --bench propagation
+
+## libayllu: a port write and a process activation from C beside the same from Rust, same run.
+bench-c:
+	$(MAKE) -C crates/ayllu-c bench
 
 ## Network benchmarks (loopback UDP), each beside a raw-UDP baseline from the same run.
 bench-net:
@@ -83,3 +89,19 @@ fuzz-long:
 
 fmt:
 	$(CARGO) fmt --all
+
+## The Python package (crates/ayllu-py): `pip install ./crates/ayllu-py` into a venv under the
+## target dir (reused while up to date: scripts/python-venv), then its pytest suite (the rule
+## tests from Python, the simulator, sweeps, the examples and the guide's code).
+test-python:
+	@PY=$$(PYTHON=$(PYTHON) scripts/python-venv) && cd crates/ayllu-py && $$PY -m pytest -q tests
+
+## ruff and mypy (strict) on the Python package, its tests and the Python examples.
+lint-python:
+	@PY=$$(PYTHON=$(PYTHON) scripts/python-venv) && cd crates/ayllu-py && $$PY -m ruff check . \
+		&& $$PY -m ruff format --check . && $$PY -m mypy python/ayllu tests
+
+## Python benchmarks (not part of the tests): a port write, a process activation and a
+## simulation step from Python, each beside a plain Python function call timed in the same run.
+bench-python:
+	@PY=$$(PYTHON=$(PYTHON) scripts/python-venv) && $$PY crates/ayllu-py/bench/bench.py

@@ -1,0 +1,622 @@
+//! Nodes from Python: [`Node`] (one node of the runtime, on the real clock or a manual one),
+//! [`Team`] (several nodes on one manual clock and an in-process network, stepped in order,
+//! like `ayllu::Lockstep`) and [`PortHandle`] (a port resolved once, for fast writes).
+//!
+//! Promises:
+//! * Manual clock: nothing moves unless Python calls `step`/`advance`; the same calls give
+//!   the same run.
+//! * Real clock: `start()` runs the node on a background thread that sleeps on the transport
+//!   between deadlines *without the GIL*; it takes the GIL only to run Python processes.
+//!   Python calls from other threads wait for the node (with the GIL released) and so never
+//!   deadlock with it; the wait is bounded by [`WAIT_SLICE`].
+//! * A node called from inside one of its own processes raises `NodeBusyError` (use `ctx`).
+
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard, TryLockError};
+use std::thread::JoinHandle;
+
+use ayllu::{ManualClock, MemNetwork};
+use ayllu_core::{Instant, NodeId, PortRef};
+use pyo3::prelude::*;
+use pyo3::sync::MutexExt;
+use pyo3::types::{PyDict, PyList};
+
+use crate::behavior::Processes;
+use crate::errors::{self, NodeBusyError};
+use crate::value::{duration, secs, to_py, to_value};
+use crate::wiring;
+
+/// The longest a real-clock node's thread sleeps on its transport before it lets Python calls
+/// in (it holds the node while it sleeps: the transport's wait needs it).
+pub const WAIT_SLICE: std::time::Duration = std::time::Duration::from_millis(2);
+
+thread_local! {
+    static TOKEN: u8 = const { 0 };
+}
+
+/// A number unique to the calling thread while it lives.
+fn thread_token() -> usize {
+    TOKEN.with(|t| t as *const u8 as usize)
+}
+
+/// The node and who is stepping it.
+struct Shared {
+    node: Mutex<Option<ayllu::Node>>,
+    /// The thread stepping the node (running its processes), 0 when none.
+    stepping: AtomicUsize,
+    procs: Arc<Processes>,
+}
+
+impl Shared {
+    /// Lock the node: at once if free; from a process of this node, `NodeBusyError`; else wait
+    /// for it with the GIL released (the thread holding it may need the GIL to finish).
+    fn lock<'a>(&'a self, py: Python<'_>) -> PyResult<MutexGuard<'a, Option<ayllu::Node>>> {
+        match self.node.try_lock() {
+            Ok(g) => Ok(g),
+            Err(TryLockError::Poisoned(p)) => Ok(p.into_inner()),
+            Err(TryLockError::WouldBlock) => {
+                if self.stepping.load(Ordering::Acquire) == thread_token() {
+                    return Err(NodeBusyError::new_err(
+                        "the node is running one of its processes: inside a process, use its ctx (ctx.write, ctx.read)",
+                    ));
+                }
+                Ok(self.node.lock_py_attached(py).unwrap_or_else(|p| p.into_inner()))
+            }
+        }
+    }
+
+    fn with<R>(&self, py: Python<'_>, f: impl FnOnce(&mut ayllu::Node) -> PyResult<R>) -> PyResult<R> {
+        let mut g = self.lock(py)?;
+        match g.as_mut() {
+            Some(n) => f(n),
+            None => Err(errors::closed("this node")),
+        }
+    }
+
+    /// One step of the node, marking this thread as the one running its processes.
+    fn step(node: &mut ayllu::Node, stepping: &AtomicUsize) -> Option<Instant> {
+        stepping.store(thread_token(), Ordering::Release);
+        let next = node.step();
+        stepping.store(0, Ordering::Release);
+        next
+    }
+}
+
+/// An Ayllu node (see the module docs). Python's `ayllu.Node` adds the friendly signatures.
+#[pyclass(frozen, module = "ayllu._native")]
+pub struct Node {
+    id: u32,
+    shared: Arc<Shared>,
+    /// The manual clock, or None on the real clock.
+    clock: Option<ManualClock>,
+    thread: Mutex<Option<JoinHandle<()>>>,
+    stop: Arc<AtomicBool>,
+}
+
+impl Node {
+    fn build(py: Python<'_>, id: u32, node: ayllu::Node, clock: Option<ManualClock>) -> PyResult<Node> {
+        Ok(Node {
+            id,
+            shared: Arc::new(Shared {
+                node: Mutex::new(Some(node)),
+                stepping: AtomicUsize::new(0),
+                procs: Processes::new(py)?,
+            }),
+            clock,
+            thread: Mutex::new(None),
+            stop: Arc::new(AtomicBool::new(false)),
+        })
+    }
+
+    fn manual(&self) -> PyResult<&ManualClock> {
+        self.clock.as_ref().ok_or_else(|| {
+            errors::InvalidError::new_err("this node runs on the real clock: only a manual-clock node can be advanced")
+        })
+    }
+
+    fn step_now(&self, py: Python<'_>) -> PyResult<Option<f64>> {
+        let stepping = &self.shared.stepping;
+        self.shared.with(py, |n| Ok(Shared::step(n, stepping).map(secs)))
+    }
+
+    fn stop_thread(&self, py: Python<'_>) {
+        self.stop.store(true, Ordering::Release);
+        let handle = self.thread.lock().ok().and_then(|mut t| t.take());
+        if let Some(h) = handle {
+            py.detach(|| {
+                let _ = h.join();
+            });
+        }
+    }
+}
+
+#[pymethods]
+impl Node {
+    /// A node with id `id`. `url`: its transport (`udp://...`, `mem://name`); None: an
+    /// in-process network of its own. `manual=True`: a manual clock at 0 s that only
+    /// `advance`/`set_time` move; else the real monotonic clock.
+    #[new]
+    #[pyo3(signature = (id, url = None, *, manual = false))]
+    fn new(py: Python<'_>, id: u32, url: Option<&str>, manual: bool) -> PyResult<Node> {
+        let nid = NodeId(id);
+        let clock = manual.then(ManualClock::new);
+        let node = match (url, &clock) {
+            (None, Some(c)) => ayllu::Node::new(c.clone(), MemNetwork::new().attach(nid).map_err(errors::runtime)?),
+            (None, None) => {
+                ayllu::Node::new(ayllu::MonotonicClock::new(), MemNetwork::new().attach(nid).map_err(errors::runtime)?)
+            }
+            (Some(u), Some(c)) => ayllu::Node::open_with_clock(nid, u, c.clone()).map_err(errors::runtime)?,
+            (Some(u), None) => ayllu::Node::open(nid, u).map_err(errors::runtime)?,
+        };
+        Node::build(py, id, node, clock)
+    }
+
+    /// This node's id.
+    #[getter]
+    fn id(&self) -> u32 {
+        self.id
+    }
+    /// Whether the node runs on a manual clock.
+    #[getter]
+    fn is_manual(&self) -> bool {
+        self.clock.is_some()
+    }
+    /// The node's clock now (s).
+    #[getter]
+    fn now(&self, py: Python<'_>) -> PyResult<f64> {
+        self.shared.with(py, |n| Ok(secs(n.now())))
+    }
+
+    /// Define a behavior class (a subclass of `ayllu.Behavior`) on this node (rule S2).
+    fn define(&self, py: Python<'_>, cls: &Bound<'_, PyAny>) -> PyResult<()> {
+        let procs = Arc::clone(&self.shared.procs);
+        self.shared.with(py, |n| wiring::define(py, n.core_mut(), &procs, cls))
+    }
+
+    /// Whether a class of this name is defined here.
+    fn has_class(&self, py: Python<'_>, name: &str) -> PyResult<bool> {
+        self.shared.with(py, |n| Ok(n.core().has_class(name)))
+    }
+
+    /// Create behavior `name` of `cls` (an `ayllu.Behavior` subclass, defined here first if it
+    /// is not yet, or the name of a defined class). Returns the behavior's Python object.
+    fn create(&self, py: Python<'_>, cls: &Bound<'_, PyAny>, name: &str) -> PyResult<Option<Py<PyAny>>> {
+        let procs = Arc::clone(&self.shared.procs);
+        self.shared.with(py, |n| wiring::create(py, n.core_mut(), &procs, cls, name))
+    }
+
+    /// Remove behavior `name` and its connections (rule S9).
+    fn remove(&self, py: Python<'_>, name: &str) -> PyResult<()> {
+        self.shared.with(py, |n| n.remove(name).map_err(errors::runtime))?;
+        self.shared.procs.forget(name);
+        Ok(())
+    }
+
+    /// The Python object of behavior `name` (None for a behavior of a Rust class).
+    fn behavior(&self, py: Python<'_>, name: &str) -> Option<Py<PyAny>> {
+        self.shared.procs.instance(py, name)
+    }
+
+    /// Connect `source` (a port of this node) to `destination` (`ayllu.local`, `ayllu.remote`,
+    /// `ayllu.broadcast`, or a `(behavior, port)` tuple) with `kind` (default `ayllu.NORMAL`)
+    /// and `priority` (for Priority ports). Returns the connection's id.
+    #[pyo3(signature = (source, destination, kind = None, *, priority = 0))]
+    fn connect(
+        &self,
+        py: Python<'_>,
+        source: &Bound<'_, PyAny>,
+        destination: &Bound<'_, PyAny>,
+        kind: Option<&Bound<'_, PyAny>>,
+        priority: i32,
+    ) -> PyResult<u64> {
+        let (s, d, k) = (wiring::endpoint_arg(source)?, wiring::endpoint_arg(destination)?, wiring::kind_arg(kind)?);
+        self.shared.with(py, |n| wiring::connect(n.core_mut(), &s, &d, &k, priority))
+    }
+
+    /// Remove connection `id` (owned by this node).
+    fn disconnect(&self, py: Python<'_>, id: u64) -> PyResult<()> {
+        self.shared.with(py, |n| n.disconnect(ayllu_core::ConnectionId(id)).map_err(errors::runtime))
+    }
+
+    /// Join broadcast group `group`.
+    fn join(&self, py: Python<'_>, group: &str) -> PyResult<()> {
+        self.shared.with(py, |n| {
+            n.join(group);
+            Ok(())
+        })
+    }
+
+    /// Leave broadcast group `group`.
+    fn leave(&self, py: Python<'_>, group: &str) -> PyResult<()> {
+        self.shared.with(py, |n| {
+            n.leave(group);
+            Ok(())
+        })
+    }
+
+    /// Make `behavior` a BLE peer in `group` (rule S11): its eligibility goes to the peers'
+    /// `Best`, its claims write-inhibit their `output`. One call; returns what was made.
+    #[pyo3(signature = (behavior, group, output, claim_hz = 1.0, *, inhibit_period = None, network_delay = None))]
+    #[allow(clippy::too_many_arguments)]
+    fn ble_join<'py>(
+        &self,
+        py: Python<'py>,
+        behavior: &str,
+        group: &str,
+        output: &str,
+        claim_hz: f64,
+        inhibit_period: Option<f64>,
+        network_delay: Option<f64>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let d = self.shared.with(py, |n| {
+            wiring::ble_join(py, n.core_mut(), behavior, group, output, claim_hz, inhibit_period, network_delay)
+        })?;
+        // The transport joins the group too (the node syncs its groups on every step).
+        self.shared.with(py, |n| {
+            n.join(group);
+            Ok(())
+        })?;
+        Ok(d)
+    }
+
+    /// Write `behavior.port` as its behavior would, now (rule S6).
+    fn write(&self, py: Python<'_>, behavior: &str, port: &str, value: &Bound<'_, PyAny>) -> PyResult<()> {
+        let v = to_value(value)?;
+        self.shared.with(py, |n| n.write(behavior, port, v).map_err(errors::runtime))
+    }
+
+    /// The port's value now (its default while empty).
+    fn read(&self, py: Python<'_>, behavior: &str, port: &str) -> PyResult<Py<PyAny>> {
+        self.shared.with(py, |n| n.read(behavior, port).map(|v| to_py(py, &v)).map_err(errors::runtime))
+    }
+
+    /// The port's value if fresh now (rule S4), else None.
+    fn get(&self, py: Python<'_>, behavior: &str, port: &str) -> PyResult<Option<Py<PyAny>>> {
+        self.shared.with(py, |n| n.get(behavior, port).map(|v| v.map(|v| to_py(py, &v))).map_err(errors::runtime))
+    }
+
+    /// Whether the port holds a fresh value now.
+    fn fresh(&self, py: Python<'_>, behavior: &str, port: &str) -> PyResult<bool> {
+        self.shared.with(py, |n| n.fresh(behavior, port).map_err(errors::runtime))
+    }
+
+    /// Whether monostable `mono` of `behavior` is high now.
+    fn monostable(&self, py: Python<'_>, behavior: &str, mono: &str) -> PyResult<bool> {
+        self.shared.with(py, |n| n.monostable(behavior, mono).map_err(errors::runtime))
+    }
+
+    /// Trigger monostable `mono` of `behavior` for `seconds` (rule S2).
+    fn trigger(&self, py: Python<'_>, behavior: &str, mono: &str, seconds: f64) -> PyResult<()> {
+        let d = duration(seconds)?;
+        self.shared.with(py, |n| {
+            let now = n.now();
+            n.core_mut().trigger(now, behavior, mono, d).map_err(errors::core)
+        })
+    }
+
+    /// Empty an aggregating port (a Normal one returns to its default).
+    fn reset(&self, py: Python<'_>, behavior: &str, port: &str) -> PyResult<()> {
+        self.shared.with(py, |n| {
+            let r = n.core().port(behavior, port).map_err(errors::core)?;
+            n.core_mut().reset(r).map_err(errors::core)
+        })
+    }
+
+    /// A handle to `behavior.port`, resolved once: its `write` and `read` skip the name lookups.
+    fn port(slf: &Bound<'_, Self>, behavior: &str, port: &str) -> PyResult<PortHandle> {
+        let py = slf.py();
+        let r = slf.get().shared.with(py, |n| n.core().port(behavior, port).map_err(errors::core))?;
+        Ok(PortHandle { node: slf.clone().unbind(), port: r, name: format!("{behavior}.{port}") })
+    }
+
+    /// Why `behavior.port` holds what it holds and passes what it passes, now: an
+    /// `ayllu.Report` (attributes as in Rust's `PortReport`; `str()` is what `ayllu why` prints).
+    fn why(&self, py: Python<'_>, behavior: &str, port: &str) -> PyResult<Py<PyAny>> {
+        let (json, text) = self.shared.with(py, |n| {
+            let r = n.why(behavior, port).map_err(errors::runtime)?;
+            Ok((wiring::json(&r)?, r.to_string()))
+        })?;
+        wiring::report(py, &json, Some(text))
+    }
+
+    /// The whole node (behaviors, connections, counters, warnings) as an `ayllu.Report`.
+    fn report(&self, py: Python<'_>) -> PyResult<Py<PyAny>> {
+        let json = self.shared.with(py, |n| wiring::json(&n.core().report()))?;
+        wiring::report(py, &json, None)
+    }
+
+    /// A BLE member's standing (claiming, claims, local, best, inhibited_by) as an
+    /// `ayllu.Report`, or None if `behavior` is in no BLE group.
+    fn ble_status(&self, py: Python<'_>, behavior: &str) -> PyResult<Option<Py<PyAny>>> {
+        let json = self.shared.with(py, |n| match n.core().ble_status(behavior).map_err(errors::core)? {
+            Some(s) => Ok(Some(wiring::json(&s)?)),
+            None => Ok(None),
+        })?;
+        json.map(|j| wiring::report(py, &j, None)).transpose()
+    }
+
+    /// The warnings the node raised (e.g. a BLE inhibit period too short).
+    fn warnings(&self, py: Python<'_>) -> PyResult<Vec<String>> {
+        self.shared.with(py, |n| Ok(n.core().warnings().to_vec()))
+    }
+
+    /// Traffic figures: steps, sent, held, dropped, received.
+    fn stats<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let s = self.shared.with(py, |n| Ok(n.stats()))?;
+        let d = PyDict::new(py);
+        d.set_item("steps", s.steps)?;
+        d.set_item("sent", s.sent)?;
+        d.set_item("held", s.held)?;
+        d.set_item("dropped", s.dropped)?;
+        d.set_item("received", s.received)?;
+        Ok(d)
+    }
+
+    /// Where peers reach this node (`udp://` transports), or None.
+    fn address(&self, py: Python<'_>) -> PyResult<Option<String>> {
+        self.shared.with(py, |n| Ok(n.address()))
+    }
+
+    /// The Python exceptions raised in processes (the last 100): `(behavior, process, time,
+    /// traceback)`.
+    fn process_errors(&self, py: Python<'_>) -> PyResult<Vec<Py<PyAny>>> {
+        let cls = py.import("ayllu.report")?.getattr("ProcessError")?;
+        self.shared
+            .procs
+            .errors()
+            .into_iter()
+            .map(|e| Ok(cls.call1((e.behavior, e.process, e.time, e.traceback))?.unbind()))
+            .collect()
+    }
+
+    /// Exceptions raised per `(behavior, process)`, every one counted.
+    fn process_error_counts<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        for ((b, p), n) in self.shared.procs.error_counts() {
+            d.set_item((b, p), n)?;
+        }
+        Ok(d)
+    }
+
+    /// One turn: send, receive, run what is due. Returns when the node next has work (s).
+    fn step(&self, py: Python<'_>) -> PyResult<Option<f64>> {
+        self.step_now(py)
+    }
+
+    /// Manual clock only: move time forward by `seconds` (in steps of `tick` seconds, stepping
+    /// after each; one step at the end if `tick` is None).
+    #[pyo3(signature = (seconds, tick = None))]
+    fn advance(&self, py: Python<'_>, seconds: f64, tick: Option<f64>) -> PyResult<()> {
+        let clock = self.manual()?.clone();
+        advance(py, &clock, seconds, tick, |py| self.step_now(py).map(|_| ()))
+    }
+
+    /// Manual clock only: set the time to `seconds` (never backwards) and step once.
+    fn set_time(&self, py: Python<'_>, seconds: f64) -> PyResult<()> {
+        let clock = self.manual()?;
+        clock.set(Instant::ZERO + duration(seconds)?);
+        self.step_now(py).map(|_| ())
+    }
+
+    /// Real clock: step and sleep for `seconds`, here, releasing the GIL while asleep.
+    fn run_for(&self, py: Python<'_>, seconds: f64) -> PyResult<()> {
+        if self.clock.is_some() {
+            return self.advance(py, seconds, None);
+        }
+        let end = std::time::Instant::now() + std::time::Duration::from_secs_f64(seconds.max(0.0));
+        loop {
+            let next = self.step_now(py)?;
+            let now_real = std::time::Instant::now();
+            if now_real >= end {
+                return Ok(());
+            }
+            let node_now = self.now(py)?;
+            let wait = next.map_or(WAIT_SLICE.as_secs_f64(), |n| (n - node_now).max(0.0));
+            let wait = std::time::Duration::from_secs_f64(wait).min(end - now_real).min(WAIT_SLICE * 10);
+            let shared = Arc::clone(&self.shared);
+            py.detach(|| {
+                if let Ok(mut g) = shared.node.lock() {
+                    if let Some(n) = g.as_mut() {
+                        n.wait(wait.min(WAIT_SLICE));
+                    }
+                }
+            });
+            py.check_signals()?;
+        }
+    }
+
+    /// Real clock: run the node on a background thread until `stop()` (or `close()`).
+    fn start(&self) -> PyResult<()> {
+        if self.clock.is_some() {
+            return Err(errors::InvalidError::new_err(
+                "a manual-clock node moves only with advance(); only a real-clock node can start()",
+            ));
+        }
+        let mut t = self.thread.lock().map_err(|_| errors::closed("this node"))?;
+        if t.is_some() {
+            return Err(errors::InvalidError::new_err("this node is already running"));
+        }
+        self.stop.store(false, Ordering::Release);
+        let (shared, stop) = (Arc::clone(&self.shared), Arc::clone(&self.stop));
+        *t = Some(std::thread::spawn(move || run_in_background(&shared, &stop)));
+        Ok(())
+    }
+
+    /// Stop the background thread (the node keeps its state; `start()` runs it again).
+    fn stop(&self, py: Python<'_>) {
+        self.stop_thread(py);
+    }
+
+    /// Whether the background thread runs.
+    #[getter]
+    fn running(&self) -> bool {
+        self.thread.lock().map(|t| t.is_some()).unwrap_or(false) && !self.stop.load(Ordering::Acquire)
+    }
+
+    /// Stop and drop the node: its transport closes; later calls raise.
+    fn close(&self, py: Python<'_>) -> PyResult<()> {
+        self.stop_thread(py);
+        let mut g = self.shared.lock(py)?;
+        *g = None;
+        Ok(())
+    }
+}
+
+impl Drop for Node {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Release);
+    }
+}
+
+fn run_in_background(shared: &Shared, stop: &AtomicBool) {
+    while !stop.load(Ordering::Acquire) {
+        let mut g = shared.node.lock().unwrap_or_else(|p| p.into_inner());
+        let Some(n) = g.as_mut() else { return };
+        let next = Shared::step(n, &shared.stepping);
+        let now = n.now();
+        let wait =
+            next.map_or(WAIT_SLICE, |t| std::time::Duration::from_nanos(t.as_nanos().saturating_sub(now.as_nanos())));
+        if !wait.is_zero() {
+            n.wait(wait.min(WAIT_SLICE));
+        }
+        drop(g);
+    }
+}
+
+fn advance(
+    py: Python<'_>,
+    clock: &ManualClock,
+    seconds: f64,
+    tick: Option<f64>,
+    mut step: impl FnMut(Python<'_>) -> PyResult<()>,
+) -> PyResult<()> {
+    let total = duration(seconds)?;
+    let Some(tick) = tick else {
+        clock.advance(total);
+        return step(py);
+    };
+    let tick = duration(tick)?;
+    if tick.is_zero() {
+        return Err(errors::value_error("tick must be above zero"));
+    }
+    use ayllu::Clock;
+    let end = clock.now() + total;
+    while clock.now() < end {
+        let left = end - clock.now();
+        clock.advance(tick.min(left));
+        step(py)?;
+    }
+    Ok(())
+}
+
+/// A port resolved once (see `Node.port`).
+#[pyclass(frozen, module = "ayllu._native")]
+pub struct PortHandle {
+    node: Py<Node>,
+    port: PortRef,
+    name: String,
+}
+
+#[pymethods]
+impl PortHandle {
+    /// Write the port as its behavior would, now.
+    fn write(&self, py: Python<'_>, value: &Bound<'_, PyAny>) -> PyResult<()> {
+        let v = to_value(value)?;
+        self.node.get().shared.with(py, |n| {
+            let now = n.now();
+            n.core_mut().write(now, self.port, v).map_err(errors::core)
+        })
+    }
+    /// The port's value now.
+    fn read(&self, py: Python<'_>) -> PyResult<Py<PyAny>> {
+        self.node.get().shared.with(py, |n| {
+            let now = n.now();
+            n.core().read_at(now, self.port).map(|v| to_py(py, &v)).map_err(errors::core)
+        })
+    }
+    /// The port's value if fresh now, else None.
+    fn get(&self, py: Python<'_>) -> PyResult<Option<Py<PyAny>>> {
+        self.node.get().shared.with(py, |n| {
+            let now = n.now();
+            n.core().get_at(now, self.port).map(|v| v.map(|v| to_py(py, &v))).map_err(errors::core)
+        })
+    }
+    fn __repr__(&self) -> String {
+        format!("PortHandle({})", self.name)
+    }
+}
+
+/// Several manual-clock nodes on one clock and one in-process network, stepped in the order
+/// they were added (like `ayllu::Lockstep`).
+#[pyclass(frozen, module = "ayllu._native")]
+pub struct Team {
+    clock: ManualClock,
+    network: MemNetwork,
+    nodes: Mutex<Vec<Py<Node>>>,
+}
+
+#[pymethods]
+impl Team {
+    #[new]
+    fn new() -> Team {
+        Team { clock: ManualClock::new(), network: MemNetwork::new(), nodes: Mutex::new(Vec::new()) }
+    }
+
+    /// Add a node with id `id` on the team's clock and network.
+    fn add(&self, py: Python<'_>, id: u32) -> PyResult<Py<Node>> {
+        let transport = self.network.attach(NodeId(id)).map_err(errors::runtime)?;
+        let node = ayllu::Node::new(self.clock.clone(), transport);
+        let obj = Py::new(py, Node::build(py, id, node, Some(self.clock.clone()))?)?;
+        self.nodes.lock().map_err(|_| errors::closed("this team"))?.push(obj.clone_ref(py));
+        Ok(obj)
+    }
+
+    /// The live nodes, in the order they were added.
+    #[getter]
+    fn nodes<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
+        let v: Vec<Py<Node>> =
+            self.nodes.lock().map(|n| n.iter().map(|x| x.clone_ref(py)).collect()).unwrap_or_default();
+        PyList::new(py, v)
+    }
+
+    /// The team's time (s).
+    #[getter]
+    fn now(&self) -> f64 {
+        use ayllu::Clock;
+        secs(self.clock.now())
+    }
+
+    /// Step every node once at the current time.
+    fn step(&self, py: Python<'_>) -> PyResult<()> {
+        let nodes: Vec<Py<Node>> =
+            self.nodes.lock().map(|n| n.iter().map(|x| x.clone_ref(py)).collect()).unwrap_or_default();
+        for n in nodes {
+            n.get().step_now(py)?;
+        }
+        Ok(())
+    }
+
+    /// Move time forward by `seconds` in ticks of `tick` (default 10 ms), stepping every
+    /// node each tick.
+    #[pyo3(signature = (seconds, tick = 0.01))]
+    fn advance(&self, py: Python<'_>, seconds: f64, tick: f64) -> PyResult<()> {
+        advance(py, &self.clock, seconds, Some(tick), |py| self.step(py))
+    }
+
+    /// Remove node `id` as if its robot died: it steps no more and its transport detaches.
+    /// Returns whether it was in the team.
+    fn kill(&self, py: Python<'_>, id: u32) -> PyResult<bool> {
+        let victim = {
+            let mut nodes = self.nodes.lock().map_err(|_| errors::closed("this team"))?;
+            let i = nodes.iter().position(|n| n.get().id == id);
+            i.map(|i| nodes.remove(i))
+        };
+        match victim {
+            Some(n) => {
+                n.get().close(py)?;
+                Ok(true)
+            }
+            None => Ok(false),
+        }
+    }
+}

@@ -1,0 +1,75 @@
+//! Register values between Python and Rust (rule S1: never coerced).
+//!
+//! Promise: `bool` is a Bool (checked before `int`, since Python's bool is an int), `int` an
+//! Int (64-bit), `float` a Float, `str` a Text, `bytes` a Bytes, and a list or tuple of numbers
+//! a Vector; anything else raises `TypeError`. Back to Python, a Vector is a list of floats.
+//! Seconds are Python floats; [`duration`] refuses negative, NaN and infinite ones.
+
+use ayllu_core::{Duration, Instant, Value};
+use pyo3::prelude::*;
+use pyo3::types::{PyBool, PyBytes, PyFloat, PyInt, PyList, PyString, PyTuple};
+
+use crate::errors;
+
+/// A Python object as a register value.
+pub fn to_value(obj: &Bound<'_, PyAny>) -> PyResult<Value> {
+    if let Ok(f) = obj.cast_exact::<PyFloat>() {
+        return Ok(Value::Float(f.value()));
+    }
+    if obj.is_instance_of::<PyBool>() {
+        return Ok(Value::Bool(obj.is_truthy()?));
+    }
+    if obj.is_instance_of::<PyInt>() {
+        let i: i64 =
+            obj.extract().map_err(|_| errors::value_error(format!("{obj} does not fit a 64-bit integer register")))?;
+        return Ok(Value::Int(i));
+    }
+    if obj.is_instance_of::<PyFloat>() {
+        return Ok(Value::Float(obj.extract()?));
+    }
+    if let Ok(s) = obj.cast::<PyString>() {
+        return Ok(Value::text(&s.to_cow()?));
+    }
+    if let Ok(b) = obj.cast::<PyBytes>() {
+        return Ok(Value::bytes(b.as_bytes()));
+    }
+    if obj.is_instance_of::<PyList>() || obj.is_instance_of::<PyTuple>() {
+        let v: Vec<f64> =
+            obj.extract().map_err(|_| errors::type_error("a vector value is a list or tuple of numbers"))?;
+        return Ok(Value::Vector(v.into()));
+    }
+    if obj.hasattr("tolist")? {
+        // A NumPy array (or anything array-like): as a vector.
+        let v: Vec<f64> = obj
+            .call_method0("tolist")?
+            .extract()
+            .map_err(|_| errors::type_error("a vector value is a one-dimensional array of numbers"))?;
+        return Ok(Value::Vector(v.into()));
+    }
+    Err(errors::type_error(format!(
+        "Ayllu registers hold bool, int, float, str, bytes or a list of floats, not {}",
+        obj.get_type().name()?
+    )))
+}
+
+/// A register value as a Python object.
+pub fn to_py(py: Python<'_>, v: &Value) -> Py<PyAny> {
+    match v {
+        Value::Bool(b) => PyBool::new(py, *b).to_owned().into_any().unbind(),
+        Value::Int(i) => i.into_pyobject(py).map(|o| o.into_any().unbind()).unwrap_or_else(|_| py.None()),
+        Value::Float(x) => PyFloat::new(py, *x).into_any().unbind(),
+        Value::Text(s) => PyString::new(py, s).into_any().unbind(),
+        Value::Bytes(b) => PyBytes::new(py, b).into_any().unbind(),
+        Value::Vector(v) => PyList::new(py, v.iter()).map(|l| l.into_any().unbind()).unwrap_or_else(|_| py.None()),
+    }
+}
+
+/// Seconds as a duration; refuses negative, NaN and infinite seconds.
+pub fn duration(seconds: f64) -> PyResult<Duration> {
+    Duration::try_from_secs_f64(seconds).map_err(errors::core)
+}
+
+/// A node-clock instant in seconds.
+pub fn secs(t: Instant) -> f64 {
+    t.as_secs_f64()
+}

@@ -1,0 +1,158 @@
+//! Building on a node's core: defining Python classes, creating behaviors, connecting ports,
+//! joining groups and BLE. Shared by [`crate::node::Node`] (a node of the runtime) and
+//! the simulator's robot builder (a robot's node inside the simulator), so both take the same
+//! arguments and raise the same exceptions.
+//!
+//! Promise: nothing here decides semantics; each call is one call of the core's API.
+
+use std::sync::Arc;
+
+use ayllu_core::{BleConfig, ConnectOptions, ConnectionId, ConnectionKind, Endpoint, NodeCore, NodeId};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use crate::behavior::{self, Processes};
+use crate::errors;
+use crate::value::duration;
+
+/// An endpoint as Python passes it: `(behavior, port, node, group)`, node and group optional.
+pub type EndpointArg = (String, String, Option<u32>, Option<String>);
+
+/// The endpoint of a Python endpoint tuple.
+pub fn endpoint(e: &EndpointArg) -> PyResult<Endpoint> {
+    Ok(match (&e.2, &e.3) {
+        (None, None) => Endpoint::local(&e.0, &e.1),
+        (Some(n), None) => Endpoint::node(NodeId(*n), &e.0, &e.1),
+        (None, Some(g)) => Endpoint::group(g, &e.0, &e.1),
+        (Some(_), Some(_)) => return Err(errors::value_error("an endpoint is on one node or one group, not both")),
+    })
+}
+
+/// The connection kind named `name` (`normal`, `suppress`, `inhibit`, `override-in`,
+/// `override-out`, `write-inhibit`) with `period` seconds (required for every kind but normal).
+pub fn kind(name: &str, period: Option<f64>) -> PyResult<ConnectionKind> {
+    let d = match (name, period) {
+        ("normal", _) => ayllu_core::Duration::ZERO,
+        (_, Some(p)) => duration(p)?,
+        (_, None) => return Err(errors::value_error(format!("a {name} connection needs a period (seconds)"))),
+    };
+    ConnectionKind::from_name(name, d).ok_or_else(|| {
+        errors::value_error(format!(
+            "connection kind `{name}` is none of normal, suppress, inhibit, override-in, override-out, write-inhibit"
+        ))
+    })
+}
+
+/// An endpoint argument: an `ayllu.Endpoint` (a named tuple `(behavior, port, node, group)`)
+/// or a plain `(behavior, port)` tuple for a local port.
+pub fn endpoint_arg(obj: &Bound<'_, PyAny>) -> PyResult<EndpointArg> {
+    if let Ok(e) = obj.extract::<EndpointArg>() {
+        return Ok(e);
+    }
+    if let Ok((b, p)) = obj.extract::<(String, String)>() {
+        return Ok((b, p, None, None));
+    }
+    Err(errors::type_error(format!(
+        "an endpoint is ayllu.local(b, p), ayllu.remote(node, b, p), ayllu.broadcast(group, b, p) or (b, p); got {obj}"
+    )))
+}
+
+/// A connection-kind argument: an `ayllu.Kind` (a named tuple `(name, period)`); None is Normal.
+pub fn kind_arg(obj: Option<&Bound<'_, PyAny>>) -> PyResult<ConnectionKind> {
+    let Some(obj) = obj else { return Ok(ConnectionKind::Normal) };
+    if obj.is_none() {
+        return Ok(ConnectionKind::Normal);
+    }
+    let (name, period): (String, Option<f64>) = obj.extract().map_err(|_| {
+        errors::type_error(format!(
+            "a connection kind is ayllu.NORMAL or ayllu.suppress(s), inhibit(s), override_in(s), override_out(s), write_inhibit(s); got {obj}"
+        ))
+    })?;
+    kind(&name, period)
+}
+
+/// `core.connect` with Python arguments; the connection's id.
+pub fn connect(
+    core: &mut NodeCore,
+    source: &EndpointArg,
+    destination: &EndpointArg,
+    kind: &ConnectionKind,
+    priority: i32,
+) -> PyResult<u64> {
+    core.connect(&endpoint(source)?, &endpoint(destination)?, *kind, ConnectOptions { priority })
+        .map(|ConnectionId(id)| id)
+        .map_err(errors::core)
+}
+
+/// `core.ble_join`: what it made, as a dict (`eligibility`, `inhibition`, `warnings`).
+#[allow(clippy::too_many_arguments)]
+pub fn ble_join<'py>(
+    py: Python<'py>,
+    core: &mut NodeCore,
+    behavior: &str,
+    group: &str,
+    output: &str,
+    claim_hz: f64,
+    inhibit_period: Option<f64>,
+    network_delay: Option<f64>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let mut cfg = BleConfig::new(group, output, claim_hz).map_err(errors::core)?;
+    if let Some(d) = network_delay {
+        cfg = cfg.network_delay(duration(d)?);
+    }
+    if let Some(p) = inhibit_period {
+        cfg = cfg.inhibit_period(duration(p)?);
+    }
+    let g = core.ble_join(behavior, &cfg).map_err(errors::core)?;
+    let d = PyDict::new(py);
+    d.set_item("eligibility", g.eligibility.0)?;
+    d.set_item("inhibition", g.inhibition.0)?;
+    d.set_item("warnings", g.warnings)?;
+    d.set_item("inhibit_period", cfg.inhibit_period.as_secs_f64())?;
+    Ok(d)
+}
+
+/// Define a subclass of `ayllu.Behavior` (see [`behavior::define`]).
+pub fn define(py: Python<'_>, core: &mut NodeCore, procs: &Arc<Processes>, cls: &Bound<'_, PyAny>) -> PyResult<()> {
+    behavior::define(py, core, procs, cls)
+}
+
+/// Create behavior `name` of `cls` (a class name, or an `ayllu.Behavior` subclass, defined
+/// first if this node does not have it yet); the behavior's Python object (None for a Rust
+/// class).
+pub fn create(
+    py: Python<'_>,
+    core: &mut NodeCore,
+    procs: &Arc<Processes>,
+    cls: &Bound<'_, PyAny>,
+    name: &str,
+) -> PyResult<Option<Py<PyAny>>> {
+    let class: String = match cls.extract::<String>() {
+        Ok(s) => s,
+        Err(_) => {
+            let class = behavior::Declaration::of(cls)?.name;
+            if !core.has_class(&class) {
+                define(py, core, procs, cls)?;
+            }
+            class
+        }
+    };
+    core.create(&class, name).map_err(errors::core)?;
+    match procs.instantiate(py, &class, name) {
+        Ok(obj) => Ok(obj),
+        Err(e) => {
+            let _ = core.remove(name);
+            Err(e)
+        }
+    }
+}
+
+/// A report (JSON from the core's serde) as an `ayllu.Report`, with `text` as its `str()`.
+pub fn report(py: Python<'_>, json: &str, text: Option<String>) -> PyResult<Py<PyAny>> {
+    Ok(py.import("ayllu.report")?.getattr("from_json")?.call1((json, text))?.unbind())
+}
+
+/// A serde value as JSON text for Python (`json.loads` on the other side).
+pub fn json<T: serde::Serialize>(v: &T) -> PyResult<String> {
+    serde_json::to_string(v).map_err(|e| errors::value_error(e.to_string()))
+}

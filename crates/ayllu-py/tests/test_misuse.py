@@ -1,0 +1,95 @@
+"""Misuse from Python: every refused call raises a clear exception (mirrors ayllu-core's
+tests/misuse.rs)."""
+
+from __future__ import annotations
+
+import pytest
+
+import ayllu
+from conftest import Relay, wiring
+
+
+def test_unknown_names_are_lookup_errors() -> None:
+    node = wiring(["A"])
+    with pytest.raises(ayllu.NotFoundError, match="Nope"):
+        node.read("Nope", "V")
+    with pytest.raises(ayllu.NotFoundError, match="W"):
+        node.write("A", "W", 1)
+    with pytest.raises(ayllu.NotFoundError):
+        node.create("NoClass", "X")
+
+
+def test_names_used_twice_are_refused() -> None:
+    node = wiring(["A"])
+    with pytest.raises(ayllu.InvalidError, match="A"):
+        node.create("Relay", "A")
+    with pytest.raises(ayllu.InvalidError):
+        node.define(Relay)
+
+
+def test_periods_and_rates_are_checked() -> None:
+    node = wiring(["A", "B"])
+    with pytest.raises(ayllu.InvalidError):
+        node.connect(ayllu.local("A", "V"), ayllu.local("B", "V"), ayllu.suppress(0.0))
+    with pytest.raises(ayllu.InvalidError):
+        node.connect(ayllu.local("A", "V"), ayllu.local("B", "V"), ayllu.inhibit(-1.0))
+    with pytest.raises(ValueError, match="period"):
+        node.connect(ayllu.local("A", "V"), ayllu.local("B", "V"), ayllu.Kind("suppress"))
+    with pytest.raises(ValueError, match="none of"):
+        node.connect(ayllu.local("A", "V"), ayllu.local("B", "V"), ayllu.Kind("squash", 1.0))
+    with pytest.raises(ayllu.InvalidError):
+        ayllu.every(hz=0)
+    with pytest.raises(ValueError):
+        ayllu.every()
+
+
+def test_a_source_must_be_local_and_types_must_match() -> None:
+    node = wiring(["A", "B"])
+    with pytest.raises(ayllu.InvalidError):
+        node.connect(ayllu.remote(2, "A", "V"), ayllu.local("B", "V"))
+    with pytest.raises(TypeError):
+        node.connect("A.V", ayllu.local("B", "V"))  # type: ignore[arg-type]
+
+    class Text(ayllu.Behavior):
+        out = ayllu.Port("", name="Out")
+
+    node.create(Text, "T")
+    with pytest.raises(ayllu.ValueTypeError):
+        node.connect(ayllu.local("T", "Out"), ayllu.local("B", "V"))
+
+
+def test_a_manual_node_cannot_start_and_a_real_one_cannot_advance() -> None:
+    with pytest.raises(ayllu.InvalidError):
+        ayllu.Node(1, manual=True).start()
+    with pytest.raises(ayllu.InvalidError):
+        ayllu.Node(1).advance(1.0)
+
+
+def test_a_process_calling_its_node_is_told_to_use_ctx() -> None:
+    node = ayllu.Node(1, manual=True)
+
+    class Reentrant(ayllu.Behavior):
+        @ayllu.every(hz=1)
+        def poke(self, ctx: ayllu.Context) -> None:
+            node.write("R", "Local", 1.0)
+
+    node.create(Reentrant, "R")
+    node.step()
+    errors = node.process_errors()
+    assert len(errors) == 1
+    assert "NodeBusyError" in errors[0].traceback and "use its ctx" in errors[0].traceback
+
+
+def test_a_ctx_kept_after_its_process_returned_is_refused() -> None:
+    kept: list[ayllu.Context] = []
+
+    class Keeper(ayllu.Behavior):
+        @ayllu.every(hz=1)
+        def keep(self, ctx: ayllu.Context) -> None:
+            kept.append(ctx)
+
+    node = ayllu.Node(1, manual=True)
+    node.create(Keeper, "K")
+    node.step()
+    with pytest.raises(RuntimeError, match="returned"):
+        kept[0].now  # noqa: B018

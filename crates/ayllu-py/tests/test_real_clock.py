@@ -1,0 +1,67 @@
+"""Nodes on the real clock: a background thread runs processes; Python keeps control.
+Timing never decides a verdict: waits are generous and only bound how long the test may take."""
+
+from __future__ import annotations
+
+import time
+
+import ayllu
+
+
+class Counter(ayllu.Behavior):
+    out = ayllu.Port(0, name="Out")
+    n = ayllu.Slot(0)
+
+    @ayllu.every(hz=100)
+    def tick(self, ctx: ayllu.Context) -> None:
+        n = ctx.slot(self.n) + 1
+        ctx.set_slot(self.n, n)
+        ctx.write(self.out, n)
+
+
+def wait_for(cond: object, timeout: float = 20.0) -> None:
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if callable(cond) and cond():
+            return
+        time.sleep(0.01)
+    raise AssertionError("condition not met in time")
+
+
+def test_a_started_node_runs_its_processes_in_the_background() -> None:
+    node = ayllu.Node(1)
+    node.create(Counter, "C")
+    node.start()
+    assert node.running
+    wait_for(lambda: node.read("C", "Out") >= 5)
+    node.write("C", "Out", -100)  # Python calls go in while the node runs
+    node.stop()
+    assert not node.running
+    frozen = node.read("C", "Out")
+    time.sleep(0.05)
+    assert node.read("C", "Out") == frozen, "stopped: nothing runs"
+    node.close()
+
+
+def test_run_for_steps_in_the_foreground() -> None:
+    node = ayllu.Node(1)
+    node.create(Counter, "C")
+    node.run_for(0.1)
+    assert node.read("C", "Out") >= 1
+
+
+def test_two_real_nodes_over_udp_loopback() -> None:
+    a = ayllu.Node(1, "udp://127.0.0.1:0")
+    addr = a.address()
+    assert addr is not None and addr.startswith("127.0.0.1:")
+    b = ayllu.Node(2, f"udp://127.0.0.1:0?peer={addr}")
+    for n in (a, b):
+        n.create(Counter, "C")
+    b.connect(ayllu.local("C", "Out"), ayllu.remote(1, "C", "Out"), ayllu.override_in(0.5))
+    a.start()
+    b.start()
+    try:
+        wait_for(lambda: a.why("C", "Out").windows != [])
+    finally:
+        a.close()
+        b.close()
