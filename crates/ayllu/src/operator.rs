@@ -10,7 +10,7 @@
 //! of an id applied in the last [`RETRY_HORIZON`] is a retry (N2) and goes through, to be
 //! answered from memory by the core.
 //!
-//! Promises: memory is bounded ([`MAX_REQUESTERS`] windows, [`MAX_RECENT`] retries); a
+//! Promises: memory is bounded (4096 requesters' windows, 1024 retries remembered); a
 //! request that was refused moves no window.
 
 use std::collections::{BTreeMap, VecDeque};

@@ -4,7 +4,7 @@
 //! Source addresses can be forged, so a node does not trust that a requester receives at the
 //! address its requests come from until it has *proven* so: it echoed a cookie only this node
 //! can make for that (node id, address), or it authenticated with the team key. Until then
-//! every answer and challenge sent to it is charged to a [`Budget`] of three times the bytes
+//! every answer and challenge sent to it is charged to a budget of three times the bytes
 //! received from it; an answer that does not fit is replaced by a CHALLENGE.
 //!
 //! Promises: a cookie is valid for one (node id, address) and for one to two minutes of the
