@@ -2,7 +2,7 @@
 # CI (.ci/run) runs `make lint` and `make test`.
 CARGO ?= cargo
 
-.PHONY: demo test lint test-python lint-python bench-python bench bench-net bench-sim fuzz fuzz-long soak fmt
+.PHONY: demo test lint test-python lint-python bench-python bench bench-c bench-net bench-sim fuzz fuzz-long soak fmt
 
 ## Run the main demo: W-CMOMMT in the simulator (the paper's setting, a sweep, a robot killed
 ## halfway) for BLE and every baseline; prints a short summary (BLE against each baseline, whether

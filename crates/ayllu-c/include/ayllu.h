@@ -101,6 +101,12 @@ static inline ay_status ay_checked_(ay_status s, const char *what, const char *f
                                    NULL),                                                           \
               "ayVectorPort(" #Name ")")
 
+/* A bytes port (Normal or Priority): its default is the `Length` bytes at `Init`. */
+#define ayBytesPortEx(Name, Init, Length, Kind, Lifespan, Window)                                  \
+    ay_check_(ay_class_port_bytes(ayClass_, #Name, (Init), (Length), (Kind), (Lifespan), (Window), \
+                                  NULL),                                                           \
+              "ayBytesPort(" #Name ")")
+
 /* The paper's forms: a Normal port, and the MaxPort, MinPort, SumPort and PriorityPort. */
 #define ayIntPort(Name, Init) ayIntPortEx(Name, Init, ayNORMAL, 0, 0)
 #define ayMaxIntPort(Name, Init) ayIntPortEx(Name, Init, ayMAX, 0, 0)
@@ -120,6 +126,8 @@ static inline ay_status ay_checked_(ay_status s, const char *what, const char *f
 #define ayPriorityTextPort(Name, Init) ayTextPortEx(Name, Init, ayPRIORITY, 0, 0)
 #define ayVectorPort(Name, Init, Length) ayVectorPortEx(Name, Init, Length, ayNORMAL, 0, 0)
 #define aySumVectorPort(Name, Init, Length) ayVectorPortEx(Name, Init, Length, aySUM, 0, 0)
+#define ayBytesPort(Name, Init, Length) ayBytesPortEx(Name, Init, Length, ayNORMAL, 0, 0)
+#define ayPriorityBytesPort(Name, Init, Length) ayBytesPortEx(Name, Init, Length, ayPRIORITY, 0, 0)
 /* A Normal port that reads as absent `Lifespan` seconds after its last value (rule S4). */
 #define ayIntPortLifespan(Name, Init, Lifespan) ayIntPortEx(Name, Init, ayNORMAL, Lifespan, 0)
 #define ayFloatPortLifespan(Name, Init, Lifespan) ayFloatPortEx(Name, Init, ayNORMAL, Lifespan, 0)
@@ -269,6 +277,33 @@ static inline const char *ay_read_text_(ay_ctx *ctx, ay_port p, char *buffer, si
     ((void)ay_check_(ay_ctx_write_text(ayCtx_, (P), (V)), "ayWriteTextPort(" #P ")"))
 #define ayWriteVectorPort(P, V, Length) \
     ((void)ay_check_(ay_ctx_write_vector(ayCtx_, (P), (V), (Length)), "ayWriteVectorPort(" #P ")"))
+#define ayWriteBytesPort(P, V, Length) \
+    ((void)ay_check_(ay_ctx_write_bytes(ayCtx_, (P), (V), (Length)), "ayWriteBytesPort(" #P ")"))
+/* Vectors and bytes: copy into `Buffer` (`Capacity` items); the length, 0 on failure. */
+static inline size_t ay_read_vector_(ay_ctx *ctx, ay_port p, double *buffer, size_t capacity,
+                                     const char *what, const char *file, int line) {
+    size_t length = 0;
+    ay_status s = ay_ctx_read_vector(ctx, p, buffer, capacity, &length);
+    if (s != AY_OK && s != AY_ERR_ABSENT) {
+        ay_report_error((int32_t)s, what, file, line);
+        return 0;
+    }
+    return length;
+}
+static inline size_t ay_read_bytes_(ay_ctx *ctx, ay_port p, uint8_t *buffer, size_t capacity,
+                                    const char *what, const char *file, int line) {
+    size_t length = 0;
+    ay_status s = ay_ctx_read_bytes(ctx, p, buffer, capacity, &length);
+    if (s != AY_OK && s != AY_ERR_ABSENT) {
+        ay_report_error((int32_t)s, what, file, line);
+        return 0;
+    }
+    return length;
+}
+#define ayReadVectorPort(P, Buffer, Capacity) \
+    ay_read_vector_(ayCtx_, (P), (Buffer), (Capacity), "ayReadVectorPort(" #P ")", __FILE__, __LINE__)
+#define ayReadBytesPort(P, Buffer, Capacity) \
+    ay_read_bytes_(ayCtx_, (P), (Buffer), (Capacity), "ayReadBytesPort(" #P ")", __FILE__, __LINE__)
 /* Empty an aggregating port now (the paper's end of "the current cycle"). */
 #define ayResetPort(P) ((void)ay_check_(ay_ctx_reset(ayCtx_, (P)), "ayResetPort(" #P ")"))
 

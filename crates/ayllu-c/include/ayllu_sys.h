@@ -1065,6 +1065,27 @@ ay_status ay_ctx_read_vector(ay_ctx *ctx,
                              size_t capacity,
                              size_t *length);
 
+// Read a bytes port into `buffer` (`capacity` bytes); `*length` (may be NULL) receives the
+// length even when the buffer is too small. Fresh as for [`ay_ctx_read_int`].
+//
+// Errors, ownership, threads: as [`ay_ctx_read_text`].
+//
+// # Safety
+// As [`ay_ctx_read_text`], with `buffer` valid for `capacity` bytes.
+ay_status ay_ctx_read_bytes(ay_ctx *ctx,
+                            ay_port port,
+                            uint8_t *buffer,
+                            size_t capacity,
+                            size_t *length);
+
+// Write a bytes port of the running behavior (`length` bytes, copied). As
+// [`ay_ctx_write_int`].
+//
+// # Safety
+// `ctx` is NULL or a context passed to a process; `value` is NULL (length 0) or valid for
+// `length` reads.
+ay_status ay_ctx_write_bytes(ay_ctx *ctx, ay_port port, const uint8_t *value, size_t length);
+
 // Write a text port of the running behavior (the text is copied). As [`ay_ctx_write_int`];
 // also `AY_ERR_INVALID` for text that is not UTF-8.
 //

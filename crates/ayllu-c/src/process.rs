@@ -529,6 +529,58 @@ pub unsafe extern "C" fn ay_ctx_read_vector(
     })
 }
 
+/// Read a bytes port into `buffer` (`capacity` bytes); `*length` (may be NULL) receives the
+/// length even when the buffer is too small. Fresh as for [`ay_ctx_read_int`].
+///
+/// Errors, ownership, threads: as [`ay_ctx_read_text`].
+///
+/// # Safety
+/// As [`ay_ctx_read_text`], with `buffer` valid for `capacity` bytes.
+#[no_mangle]
+pub unsafe extern "C" fn ay_ctx_read_bytes(
+    ctx: *mut ay_ctx,
+    port: ay_port,
+    buffer: *mut u8,
+    capacity: usize,
+    length: *mut usize,
+) -> ay_status {
+    boundary("ay_ctx_read_bytes", || {
+        with_ctx(ctx, |c, regs| {
+            let p = port_of(regs, port)?;
+            let v = c.read(p);
+            let s = v.as_bytes().ok_or_else(|| {
+                Fail::new(ay_status::AY_ERR_TYPE, format!("the port holds a {}, not bytes", v.ty().name()))
+            })?;
+            // SAFETY: the C caller's promises on buffer/capacity/length.
+            unsafe { copy_out(s, false, buffer, capacity, length) }?;
+            freshness(c.fresh(p))
+        })
+    })
+}
+
+/// Write a bytes port of the running behavior (`length` bytes, copied). As
+/// [`ay_ctx_write_int`].
+///
+/// # Safety
+/// `ctx` is NULL or a context passed to a process; `value` is NULL (length 0) or valid for
+/// `length` reads.
+#[no_mangle]
+pub unsafe extern "C" fn ay_ctx_write_bytes(
+    ctx: *mut ay_ctx,
+    port: ay_port,
+    value: *const u8,
+    length: usize,
+) -> ay_status {
+    boundary("ay_ctx_write_bytes", || {
+        with_ctx(ctx, |c, regs| {
+            let p = port_of(regs, port)?;
+            // SAFETY: the C caller's promise on value/length.
+            let v = unsafe { slice(value, length, "value") }?;
+            written(c.write(p, Value::bytes(v)))
+        })
+    })
+}
+
 /// Write a text port of the running behavior (the text is copied). As [`ay_ctx_write_int`];
 /// also `AY_ERR_INVALID` for text that is not UTF-8.
 ///

@@ -222,3 +222,35 @@ pub unsafe extern "C" fn ay_report_error(status: i32, what: *const c_char, file:
     let _ = writeln!(std::io::stderr(), "ayllu: {}:{line}: {}: {message}", show(file), show(what));
     std::process::exit(70);
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn last() -> String {
+        // SAFETY: ay_last_error always returns a valid NUL-terminated string.
+        unsafe { std::ffi::CStr::from_ptr(ay_last_error()) }.to_string_lossy().into_owned()
+    }
+
+    #[test]
+    fn a_panic_is_caught_at_the_boundary_and_reported() {
+        let status = boundary("ay_example", || panic!("a bug inside"));
+        assert_eq!(status, ay_status::AY_ERR_PANIC);
+        assert!(last().contains("ay_example: internal error") && last().contains("a bug inside"), "{}", last());
+        // The boundary still works afterwards, and success leaves the message alone.
+        assert_eq!(boundary("ay_example", || Ok(())), ay_status::AY_OK);
+        assert_eq!(boundary("ay_other", || Err(Fail::invalid("why"))), ay_status::AY_ERR_INVALID);
+        assert_eq!(last(), "ay_other: why");
+    }
+
+    #[test]
+    fn every_status_has_its_name() {
+        for (code, name) in
+            [(0, "AY_OK"), (5, "AY_ERR_PERIOD"), (13, "AY_ERR_PANIC"), (14, "AY_ERR_?"), (-1, "AY_ERR_?")]
+        {
+            // SAFETY: ay_status_name returns a static NUL-terminated string.
+            let got = unsafe { std::ffi::CStr::from_ptr(ay_status_name(code)) };
+            assert_eq!(got.to_str().unwrap(), name);
+        }
+    }
+}

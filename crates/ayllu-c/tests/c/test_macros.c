@@ -25,6 +25,10 @@ struct seen {
     uint32_t node;
     char text[16];
     bool stale_life;
+    size_t vec_len;
+    double vec0;
+    size_t blob_len;
+    uint8_t blob2;
 };
 static struct seen seen;
 
@@ -48,6 +52,9 @@ ayDefBehaviorClass(Everything) {
         ayPriorityTextPort(PrioT, "idle");
         ayVectorPort(Vec, zero2, 2);
         aySumVectorPort(SumVec, zero2, 2);
+        ayBytesPort(Blob, NULL, 0);
+        ayPriorityBytesPort(PrioBlob, NULL, 0);
+        ayBytesPortEx(BlobLife, NULL, 0, ayNORMAL, seconds(0.3), 0);
         ayIntPortLifespan(LifeI, 0, seconds(0.3));
         ayFloatPortLifespan(LifeF, 0, seconds(0.3));
         ayBoolPortLifespan(LifeB, false, seconds(0.3));
@@ -72,7 +79,7 @@ ayDefBehaviorClass(Everything) {
 }
 
 ayDefProcess(Tick) {
-    ayLocalPort(F, B, T, Vec, SumI, SumF, LifeI, BLE_Local);
+    ayLocalPort(F, B, T, Vec, SumI, SumF, LifeI, BLE_Local, Blob);
     ayLocalSlot(Count, Acc, Flag);
     double v[2];
     int64_t n = ayReadIntSlot(Count) + 1;
@@ -85,6 +92,16 @@ ayDefProcess(Tick) {
     v[0] = (double)n;
     v[1] = -(double)n;
     ayWriteVectorPort(Vec, v, 2);
+    {
+        const uint8_t bytes[3] = {1, 2, (uint8_t)n};
+        uint8_t back[8];
+        double vec[4];
+        ayWriteBytesPort(Blob, bytes, 3);
+        seen.blob_len = ayReadBytesPort(Blob, back, sizeof back);
+        seen.blob2 = back[2];
+        seen.vec_len = ayReadVectorPort(Vec, vec, 4);
+        seen.vec0 = vec[0];
+    }
     ayWriteIntPort(SumI, 1);
     ayWriteFloatPort(SumF, 0.25);
     ayWriteFloatPort(BLE_Local, 0.5);
@@ -151,6 +168,10 @@ static void everything(void) {
     CHECK_NEAR(seen.now, 0.2);
     CHECK(strcmp(seen.text, "odd") == 0);
     CHECK(seen.stale_life);
+    CHECK_EQ_INT(seen.blob_len, 3);
+    CHECK_EQ_INT(seen.blob2, 3);
+    CHECK_EQ_INT(seen.vec_len, 2);
+    CHECK_NEAR(seen.vec0, 3);
     CHECK_NEAR(ayReadFloatPortOf(X, F), 1.5);
     CHECK(ayReadBoolPortOf(X, B)); /* toggled three times */
     CHECK_EQ_INT(ayReadIntPortOf(X, SumI), 3);
