@@ -25,6 +25,7 @@ struct seen {
     uint32_t node;
     char text[16];
     bool stale_life;
+    bool b_read;
     size_t vec_len;
     double vec0;
     size_t blob_len;
@@ -88,6 +89,7 @@ ayDefProcess(Tick) {
     ayWriteBoolSlot(Flag, !ayReadBoolSlot(Flag));
     ayWriteFloatPort(F, ayReadFloatSlot(Acc));
     ayWriteBoolPort(B, ayReadBoolSlot(Flag));
+    seen.b_read = ayReadBoolPort(B);
     ayWriteTextPort(T, n % 2 ? "odd" : "even");
     v[0] = (double)n;
     v[1] = -(double)n;
@@ -174,6 +176,7 @@ static void everything(void) {
     CHECK_NEAR(seen.vec0, 3);
     CHECK_NEAR(ayReadFloatPortOf(X, F), 1.5);
     CHECK(ayReadBoolPortOf(X, B)); /* toggled three times */
+    CHECK(seen.b_read);
     CHECK_EQ_INT(ayReadIntPortOf(X, SumI), 3);
     CHECK_NEAR(ayReadFloatPortOf(X, SumF), 0.75);
     CHECK_NEAR(ayReadFloatPortOf(X, BLE_Local), 0.5);
@@ -326,6 +329,8 @@ static void remote_and_broadcast_connections(void) {
     ayRemoteOverrideIn(E, V, 2, D, V, seconds(0.1));
     ayRemoteOverrideOut(E, V, 2, E, V, seconds(0.1));
     ayRemoteInhibitWrite(S, V, 2, A, V, seconds(0.1));
+    CHECK(ayConnectEndpoints(AY_NORMAL, ayAt(S, V), ayOn(2, E, V), 0) != 0);
+    CHECK(ayConnectEndpoints(AY_INHIBIT, ayAt(S, V), ayIn(peers, S, V), aySeconds(0.1)) != 0);
     ayWriteIntPortOf(A, V, 6); /* 1.A -> 2.A (and locally 1.D, 1.E -> 2.D by override) */
     step_both(one, two);
     OK(ay_set_default_node(two));
@@ -417,7 +422,7 @@ static void stop_after_three(ay_ctx *ctx, void *user) {
 
 ayDefBehaviorClass(Stopper) {
     ayPROCESSES {
-        ayInitProcess(StopAfterThree, ratepersecond(100));
+        ayInitProcess(StopAfterThree, ayRatePerSecond(100));
     }
 }
 

@@ -616,6 +616,62 @@ static void reports_and_handles(void) {
     OK(ay_node_free(node));
 }
 
+/* ---- the rest of the node's functions ---- */
+
+static char behavior_name[16];
+
+static void name_it(ay_ctx *ctx, void *user) {
+    size_t len = 0;
+    (void)user;
+    OK(ay_ctx_behavior(ctx, behavior_name, sizeof behavior_name, &len));
+    CHECK_EQ_INT(len, 3);
+}
+
+static void declare_flags(ay_class *cls, void *user) {
+    (void)user;
+    OK(ay_class_port_bool(cls, "On", false, AY_PORT_NORMAL, 0, 0, NULL));
+    OK(ay_class_port_float(cls, "Level", 0, AY_PORT_NORMAL, 0, 0, NULL));
+    OK(ay_class_every_hz(cls, "NameIt", 1.0, name_it, NULL));
+}
+
+static void node_odds_and_ends(void) {
+    ay_node *node = NULL;
+    ay_port_ref on, level;
+    uint32_t id = 0;
+    double t = 0;
+    bool b = false;
+    double f = 0;
+    char address[8];
+    size_t len = 99;
+    OK(ay_node_open_manual(7, "mem://rules-odds", clock_, &node));
+    OK(ay_node_id(node, &id));
+    CHECK_EQ_INT(id, 7);
+    at(1500);
+    OK(ay_node_now(node, &t));
+    CHECK_NEAR(t, 1.5);
+    OK(ay_clock_now(clock_, &t));
+    CHECK_NEAR(t, 1.5);
+    OK(ay_node_address(node, address, sizeof address, &len)); /* mem:// has no address */
+    CHECK_EQ_INT(len, 0);
+    CHECK(address[0] == '\0');
+    OK(ay_node_define_with(node, "Flags", declare_flags, NULL));
+    OK(ay_node_create(node, "Flags", "FL1"));
+    OK(ay_node_step(node, NULL));
+    CHECK(strcmp(behavior_name, "FL1") == 0);
+    OK(ay_node_port(node, "FL1", "On", &on));
+    OK(ay_node_port(node, "FL1", "Level", &level));
+    OK(ay_node_write_bool_ref(node, on, true));
+    OK(ay_node_write_float_ref(node, level, 0.75));
+    OK(ay_node_read_bool_ref(node, on, &b));
+    OK(ay_node_read_float_ref(node, level, &f));
+    CHECK(b);
+    CHECK_NEAR(f, 0.75);
+    CHECK(ay_node_read_float_ref(node, level, NULL) == AY_ERR_NULL);
+    OK(ay_node_join(node, "G"));
+    OK(ay_node_leave(node, "G"));
+    OK(ay_node_free(node));
+}
+
 /* Each test starts at time 0 on a clock of its own (a manual clock never goes back). */
 static void run(void (*test)(void)) {
     OK(ay_clock_new(&clock_));
@@ -638,5 +694,6 @@ int main(void) {
     run(remote_and_group);
     run(ble);
     run(reports_and_handles);
+    run(node_odds_and_ends);
     return check_exit("test_rules");
 }
