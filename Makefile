@@ -94,12 +94,15 @@ fmt:
 ## target dir (reused while up to date: scripts/python-venv), then its pytest suite (the rule
 ## tests from Python, the simulator, sweeps, the examples and the guide's code).
 test-python:
-	@PY=$$(PYTHON=$(PYTHON) scripts/python-venv) && cd crates/ayllu-py && $$PY -m pytest -q tests
+	@PY=$$(PYTHON=$(PYTHON) scripts/python-venv) && cd crates/ayllu-py \
+		&& AYLLU_BIN=$(abspath $(TARGET_DIR))/debug/ayllu $$PY -m pytest -q tests
 
 ## ruff and mypy (strict) on the Python package, its tests and the Python examples.
 lint-python:
-	@PY=$$(PYTHON=$(PYTHON) scripts/python-venv) && cd crates/ayllu-py && $$PY -m ruff check . \
-		&& $$PY -m ruff format --check . && $$PY -m mypy python/ayllu tests
+	@PY=$$(PYTHON=$(PYTHON) scripts/python-venv) && cd crates/ayllu-py \
+		&& $$PY -m ruff check --config pyproject.toml . ../../examples/cmommt/python \
+		&& $$PY -m ruff format --config pyproject.toml --check . ../../examples/cmommt/python \
+		&& MYPYPATH=../../examples/cmommt/python $$PY -m mypy python/ayllu tests ../../examples/cmommt/python
 
 ## Python benchmarks (not part of the tests): a port write, a process activation and a
 ## simulation step from Python, each beside a plain Python function call timed in the same run.

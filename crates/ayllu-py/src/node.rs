@@ -173,6 +173,32 @@ impl Node {
         self.shared.with(py, |n| wiring::define(py, n.core_mut(), &procs, cls))
     }
 
+    /// Define one of the standard library's classes (the paper's `ayllustd.h`): `SafeVelocity`,
+    /// `RandomWander` (`hz`, `seed`), `Wander` (`hz`), `Observer`, `Vision` (`targets`), `Base`,
+    /// `Sonar` (`beams`, `max_range`).
+    #[pyo3(signature = (name, *, hz = 10.0, seed = 1, targets = 4, beams = 16, max_range = 5.0))]
+    #[allow(clippy::too_many_arguments)]
+    fn define_stdlib(
+        &self,
+        py: Python<'_>,
+        name: &str,
+        hz: f64,
+        seed: u64,
+        targets: u32,
+        beams: usize,
+        max_range: f64,
+    ) -> PyResult<()> {
+        self.shared.with(py, |n| wiring::define_stdlib(n.core_mut(), name, hz, seed, targets, beams, max_range))
+    }
+
+    /// Make this node robot `id`'s controller node for a world served by `ayllu sim serve`:
+    /// its body (VISION, SONAR, BASE) as local behaviors the server writes and reads
+    /// (`ayllu_sim::served_robot`). Then build the controller on it as in the simulator.
+    #[pyo3(signature = (targets = 4))]
+    fn install_served_body(&self, py: Python<'_>, targets: usize) -> PyResult<()> {
+        self.shared.with(py, |n| ayllu_sim::served_robot::install(n.core_mut(), targets).map_err(errors::core))
+    }
+
     /// Whether a class of this name is defined here.
     fn has_class(&self, py: Python<'_>, name: &str) -> PyResult<bool> {
         self.shared.with(py, |n| Ok(n.core().has_class(name)))

@@ -1,7 +1,347 @@
-//! The simulator from Python (filled in by the next milestone).
-use pyo3::prelude::*;
+//! The simulator from Python: scenarios in, outcomes (and per-tick traces) out, with the
+//! controllers of `ayllu-sim` or one written in Python running on every robot's node.
+//!
+//! Promises:
+//! * A run is `ayllu_sim`'s own ([`Sim`]): the same scenario gives the same outcome, bit for
+//!   bit, as the Rust simulator (same trace hash). Scenarios cross as the serde JSON of
+//!   `ayllu_sim::scenario::Scenario`, so every field of the Rust type is settable from Python.
+//! * Runs with Rust controllers release the GIL, so Python threads run beside them.
+//! * A Python controller is a callable given a [`RobotBuilder`] per robot (valid only during
+//!   that call); its processes run inside the simulator's step like any other process, and
+//!   exceptions they raise are counted per process and returned with the outcome.
 
-/// Register the simulator's functions on the module.
-pub fn register(_m: &Bound<'_, PyModule>) -> PyResult<()> {
+use std::sync::atomic::{AtomicPtr, Ordering};
+use std::sync::Arc;
+
+use ayllu::stdlib;
+use ayllu_core::{Error as CoreError, NodeCore};
+use ayllu_sim::controller::{Brain, Controller, ControllerConfig};
+use ayllu_sim::scenario::{node_id, Scenario, Sim};
+use pyo3::exceptions::PyRuntimeError;
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyTuple};
+
+use crate::behavior::Processes;
+use crate::errors;
+use crate::wiring;
+
+/// Register the simulator's functions and classes on the module.
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(scenario_json, m)?)?;
+    m.add_function(wrap_pyfunction!(controller_names, m)?)?;
+    m.add_function(wrap_pyfunction!(run_scenario, m)?)?;
+    m.add_class::<RobotBuilder>()?;
     Ok(())
+}
+
+/// The JSON of `Scenario::sized(controller, robots, targets, seed)`: `robots` robots and
+/// `targets` targets with priorities targets..1 in a room scaled to keep the paper's density.
+#[pyfunction]
+fn scenario_json(controller: &str, robots: usize, targets: usize, seed: u64) -> PyResult<String> {
+    let c = parse_controller(controller)?;
+    wiring::json(&Scenario::sized(c, robots, targets, seed))
+}
+
+/// The built-in controllers' names, in the tables' order.
+#[pyfunction]
+fn controller_names() -> Vec<&'static str> {
+    Controller::ALL.iter().map(|c| c.name()).collect()
+}
+
+fn parse_controller(name: &str) -> PyResult<Controller> {
+    Controller::parse(name).ok_or_else(|| {
+        errors::value_error(format!("unknown controller `{name}`: one of {}", controller_names().join(", ")))
+    })
+}
+
+fn sim_error(e: CoreError) -> PyErr {
+    errors::core(e)
+}
+
+/// One robot's node while a Python controller builds on it: the same building methods as
+/// `ayllu.Node` (`define`, `create`, `connect`, `join`, `leave`, `ble_join`,
+/// `define_stdlib`), plus the robot's `id`, the targets' `priorities` and the controllers'
+/// tunables (`claim_hz`, `wander_seed`).
+#[pyclass(frozen, module = "ayllu._native")]
+pub struct RobotBuilder {
+    core: AtomicPtr<NodeCore>,
+    procs: Arc<Processes>,
+    #[pyo3(get)]
+    id: u32,
+    #[pyo3(get)]
+    priorities: Vec<f64>,
+    #[pyo3(get)]
+    claim_hz: f64,
+    #[pyo3(get)]
+    wander_seed: u64,
+}
+
+impl RobotBuilder {
+    fn with<R>(&self, f: impl FnOnce(&mut NodeCore) -> PyResult<R>) -> PyResult<R> {
+        let p = self.core.load(Ordering::Acquire);
+        if p.is_null() {
+            return Err(PyRuntimeError::new_err(
+                "this robot builder belongs to a controller call that has returned: build only inside it",
+            ));
+        }
+        // SAFETY: `p` is the `&mut NodeCore` that `run_scenario`'s build closure holds for the
+        // duration of the Python controller call; it is stored right before that call and cleared
+        // right after, and nothing else touches the core meanwhile. Every method runs with the
+        // GIL held and does not release it, so no two `&mut` made from it coexist.
+        let core = unsafe { &mut *p };
+        f(core)
+    }
+}
+
+#[pymethods]
+impl RobotBuilder {
+    /// Define an `ayllu.Behavior` subclass on the robot's node.
+    fn define(&self, py: Python<'_>, cls: &Bound<'_, PyAny>) -> PyResult<()> {
+        self.with(|c| wiring::define(py, c, &self.procs, cls))
+    }
+    /// Create behavior `name` of `cls` (a class or the name of a defined one).
+    fn create(&self, py: Python<'_>, cls: &Bound<'_, PyAny>, name: &str) -> PyResult<Option<Py<PyAny>>> {
+        self.with(|c| wiring::create(py, c, &self.procs, cls, name))
+    }
+    /// Define one of the standard library's classes (see `ayllu.Node.define_stdlib`).
+    #[pyo3(signature = (name, *, hz = 10.0, seed = 1, targets = 4, beams = 16, max_range = 5.0))]
+    fn define_stdlib(
+        &self,
+        name: &str,
+        hz: f64,
+        seed: u64,
+        targets: u32,
+        beams: usize,
+        max_range: f64,
+    ) -> PyResult<()> {
+        self.with(|c| wiring::define_stdlib(c, name, hz, seed, targets, beams, max_range))
+    }
+    /// Whether a class of this name is defined on the robot's node.
+    fn has_class(&self, name: &str) -> PyResult<bool> {
+        self.with(|c| Ok(c.has_class(name)))
+    }
+    /// Connect two ports (see `ayllu.Node.connect`); the connection's id.
+    #[pyo3(signature = (source, destination, kind = None, *, priority = 0))]
+    fn connect(
+        &self,
+        source: &Bound<'_, PyAny>,
+        destination: &Bound<'_, PyAny>,
+        kind: Option<&Bound<'_, PyAny>>,
+        priority: i32,
+    ) -> PyResult<u64> {
+        let (s, d, k) = (wiring::endpoint_arg(source)?, wiring::endpoint_arg(destination)?, wiring::kind_arg(kind)?);
+        self.with(|c| wiring::connect(c, &s, &d, &k, priority))
+    }
+    /// Join broadcast group `group`.
+    fn join(&self, group: &str) -> PyResult<()> {
+        self.with(|c| {
+            c.join(group);
+            Ok(())
+        })
+    }
+    /// Leave broadcast group `group`.
+    fn leave(&self, group: &str) -> PyResult<()> {
+        self.with(|c| {
+            c.leave(group);
+            Ok(())
+        })
+    }
+    /// Make `behavior` a BLE peer (see `ayllu.Node.ble_join`).
+    #[pyo3(signature = (behavior, group, output, claim_hz = 1.0, *, inhibit_period = None, network_delay = None))]
+    #[allow(clippy::too_many_arguments)]
+    fn ble_join<'py>(
+        &self,
+        py: Python<'py>,
+        behavior: &str,
+        group: &str,
+        output: &str,
+        claim_hz: f64,
+        inhibit_period: Option<f64>,
+        network_delay: Option<f64>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        self.with(|c| wiring::ble_join(py, c, behavior, group, output, claim_hz, inhibit_period, network_delay))
+    }
+}
+
+/// What a Python controller returned: None (wander: nothing drives), `("drive", (b, p))` (an
+/// int port holding the target driving, 0 none) or `("chain", [(b, p), ...])` (observer layers
+/// from the highest: the highest that wrote its port within the override period drives).
+fn brain(core: &NodeCore, spec: &Bound<'_, PyAny>) -> PyResult<Brain> {
+    if spec.is_none() {
+        return Ok(Brain::Wander);
+    }
+    let bad = || {
+        errors::type_error(
+            "a controller returns None, ayllu.sim.drive(behavior, port) or ayllu.sim.chain([(behavior, port), ...])",
+        )
+    };
+    let t = spec.cast::<PyTuple>().map_err(|_| bad())?;
+    let what: String = t.get_item(0)?.extract().map_err(|_| bad())?;
+    match what.as_str() {
+        "drive" => {
+            let (b, p): (String, String) = t.get_item(1)?.extract().map_err(|_| bad())?;
+            Ok(Brain::Drive(core.port(&b, &p).map_err(errors::core)?))
+        }
+        "chain" => {
+            let layers: Vec<(String, String)> = t.get_item(1)?.extract().map_err(|_| bad())?;
+            let refs = layers.iter().map(|(b, p)| core.port(b, p)).collect::<Result<_, _>>().map_err(errors::core)?;
+            Ok(Brain::Chain(refs))
+        }
+        _ => Err(bad()),
+    }
+}
+
+/// Per-tick state: time, and per robot and tick x, y, theta, alive, drive; per target x, y.
+#[derive(Default)]
+struct Trace {
+    t: Vec<f64>,
+    robot: [Vec<f64>; 3],
+    alive: Vec<bool>,
+    drive: Vec<u32>,
+    target: [Vec<f64>; 2],
+}
+
+impl Trace {
+    fn sample(&mut self, sim: &Sim) {
+        let w = sim.world();
+        self.t.push(sim.now().as_secs_f64());
+        for (i, r) in w.robots.iter().enumerate() {
+            self.robot[0].push(r.pose.x);
+            self.robot[1].push(r.pose.y);
+            self.robot[2].push(r.pose.theta);
+            self.alive.push(r.alive);
+            self.drive.push(if r.alive { sim.drive(i) } else { 0 });
+        }
+        for tg in &w.targets {
+            self.target[0].push(tg.x);
+            self.target[1].push(tg.y);
+        }
+    }
+
+    fn to_py<'py>(&self, py: Python<'py>, robots: usize, targets: usize) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        d.set_item("t", &self.t)?;
+        d.set_item("robots", robots)?;
+        d.set_item("targets", targets)?;
+        d.set_item("x", &self.robot[0])?;
+        d.set_item("y", &self.robot[1])?;
+        d.set_item("theta", &self.robot[2])?;
+        d.set_item("alive", &self.alive)?;
+        d.set_item("drive", &self.drive)?;
+        d.set_item("target_x", &self.target[0])?;
+        d.set_item("target_y", &self.target[1])?;
+        Ok(d)
+    }
+}
+
+fn simulate(mut sim: Sim, trace: Option<&mut Trace>) -> Result<ayllu_sim::scenario::Outcome, CoreError> {
+    match trace {
+        Some(tr) => {
+            tr.sample(&sim);
+            while !sim.done() {
+                sim.step()?;
+                tr.sample(&sim);
+            }
+        }
+        None => {
+            while !sim.done() {
+                sim.step()?;
+            }
+        }
+    }
+    Ok(sim.finish())
+}
+
+/// Run the scenario (its serde JSON) to its end. `controller`: None for the scenario's
+/// built-in one, else a Python callable building each robot's controller. `trace`: also return
+/// the per-tick state. Returns `(outcome JSON, trace dict or None, process errors)`.
+#[pyfunction]
+#[pyo3(signature = (scenario, controller = None, trace = false))]
+#[allow(clippy::type_complexity)]
+fn run_scenario<'py>(
+    py: Python<'py>,
+    scenario: &str,
+    controller: Option<Py<PyAny>>,
+    trace: bool,
+) -> PyResult<(String, Option<Bound<'py, PyDict>>, Vec<(u32, String, String, f64, String)>)> {
+    let scenario: Scenario =
+        serde_json::from_str(scenario).map_err(|e| errors::value_error(format!("not a scenario: {e}")))?;
+    let (robots, targets) = (scenario.robots, scenario.world.targets.len());
+    let mut tr = trace.then(Trace::default);
+    let mut all_procs: Vec<(u32, Arc<Processes>)> = Vec::new();
+    let outcome = match controller {
+        None => {
+            let sim = py.detach(|| Sim::new(&scenario)).map_err(sim_error)?;
+            py.detach(|| simulate(sim, tr.as_mut())).map_err(sim_error)?
+        }
+        Some(ctrl) => {
+            let mut failure: Option<PyErr> = None;
+            let mut index = 0usize;
+            let mut build = |core: &mut NodeCore, prios: &[f64], cfg: &ControllerConfig| -> Result<Brain, CoreError> {
+                let id = node_id(index).0;
+                index += 1;
+                let built = (|| -> PyResult<Brain> {
+                    let procs = Processes::new(py)?;
+                    let builder = Py::new(
+                        py,
+                        RobotBuilder {
+                            core: AtomicPtr::new(std::ptr::null_mut()),
+                            procs: Arc::clone(&procs),
+                            id,
+                            priorities: prios.to_vec(),
+                            claim_hz: cfg.claim_hz,
+                            wander_seed: cfg.wander_seed,
+                        },
+                    )?;
+                    builder.get().core.store(core as *mut NodeCore, Ordering::Release);
+                    let result = ctrl.call1(py, (builder.clone_ref(py),));
+                    builder.get().core.store(std::ptr::null_mut(), Ordering::Release);
+                    all_procs.push((id, procs));
+                    brain(core, result?.bind(py))
+                })();
+                built.map_err(|e| {
+                    failure = Some(e);
+                    CoreError::NotAllowed { what: "the Python controller raised".into() }
+                })
+            };
+            let sim = Sim::with_controller(&scenario, &mut build);
+            if let Some(e) = failure {
+                return Err(e);
+            }
+            simulate(sim.map_err(sim_error)?, tr.as_mut()).map_err(sim_error)?
+        }
+    };
+    let json = wiring::json(&outcome)?;
+    let trace = tr.map(|t| t.to_py(py, robots, targets)).transpose()?;
+    let errs = all_procs
+        .iter()
+        .flat_map(|(id, p)| p.errors().into_iter().map(move |e| (*id, e.behavior, e.process, e.time, e.traceback)))
+        .collect();
+    Ok((json, trace, errs))
+}
+
+/// The standard library's classes a Python controller may reuse (like the paper's
+/// `ayllustd.h`); see `ayllu.Node.define_stdlib`.
+pub fn define_stdlib_class(
+    name: &str,
+    hz: f64,
+    seed: u64,
+    targets: u32,
+    beams: usize,
+    max_range: f64,
+) -> Result<ayllu_core::BehaviorClass, CoreError> {
+    match name {
+        "SafeVelocity" => stdlib::safe_velocity_class(stdlib::SafeVelocity::default()),
+        "RandomWander" => stdlib::random_wander_class(hz, seed),
+        "Wander" => stdlib::wander_class(hz),
+        "Observer" => stdlib::observer_class(),
+        "Vision" => stdlib::vision_class(targets),
+        "Base" => stdlib::base_class(),
+        "Sonar" => stdlib::sonar_class(beams, max_range),
+        other => Err(CoreError::UnknownClass {
+            class: format!(
+                "{other} (the standard library has SafeVelocity, RandomWander, Wander, Observer, Vision, Base, Sonar)"
+            ),
+        }),
+    }
 }

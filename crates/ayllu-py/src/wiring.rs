@@ -156,3 +156,17 @@ pub fn report(py: Python<'_>, json: &str, text: Option<String>) -> PyResult<Py<P
 pub fn json<T: serde::Serialize>(v: &T) -> PyResult<String> {
     serde_json::to_string(v).map_err(|e| errors::value_error(e.to_string()))
 }
+
+/// Define one of the standard library's classes on `core` (see [`crate::sim::define_stdlib_class`]).
+pub fn define_stdlib(
+    core: &mut NodeCore,
+    name: &str,
+    hz: f64,
+    seed: u64,
+    targets: u32,
+    beams: usize,
+    max_range: f64,
+) -> PyResult<()> {
+    let class = crate::sim::define_stdlib_class(name, hz, seed, targets, beams, max_range).map_err(errors::core)?;
+    core.define(class).map_err(errors::core)
+}

@@ -184,6 +184,10 @@ pub struct Sim {
     oracle_messages: u64,
 }
 
+/// Builds one robot's controller on its node for [`Sim::with_controller`]: the node (body
+/// installed), the targets' priorities, the controllers' tunables; returns how to read it.
+pub type BuildController<'a> = dyn FnMut(&mut NodeCore, &[f64], &ControllerConfig) -> Result<Brain, Error> + 'a;
+
 /// Node id of robot index `i`.
 pub fn node_id(i: usize) -> NodeId {
     NodeId(i as u32 + 1)
@@ -193,6 +197,16 @@ impl Sim {
     /// A simulation of `scenario` at time 0: world, bodies and controllers built; errors if a
     /// controller cannot be built.
     pub fn new(scenario: &Scenario) -> Result<Sim, Error> {
+        let controller = scenario.controller;
+        Sim::with_controller(scenario, &mut |core, prios, cfg| build(core, controller, prios, cfg))
+    }
+
+    /// [`Sim::new`] with every robot's controller built by `build` instead of
+    /// `scenario.controller`'s (which still names the run and, for `Centralized`, runs the
+    /// planner). `build` gets each robot's node with its body (VISION, SONAR, BASE) installed,
+    /// the targets' priorities in decreasing order, and `scenario.controllers`; it is how
+    /// controllers written elsewhere (the Python package's) run beside the built-in ones.
+    pub fn with_controller(scenario: &Scenario, build: &mut BuildController<'_>) -> Result<Sim, Error> {
         let mut scenario = scenario.clone();
         scenario.world = scenario.world.by_priority();
         let prios: Vec<f64> = scenario.world.targets.iter().map(|t| t.priority).collect();
@@ -203,7 +217,7 @@ impl Sim {
         for i in 0..scenario.robots {
             let mut core = NodeCore::new(node_id(i));
             let body = Body::install(&mut core, prios.len(), &scenario.world)?;
-            let brain = build(&mut core, scenario.controller, &prios, &scenario.controllers)?;
+            let brain = build(&mut core, &prios, &scenario.controllers)?;
             radio.set_groups(i, core.groups());
             robots.push(RobotNode { core, body, brain });
         }
