@@ -44,8 +44,8 @@ use crate::fail::Fail;
 use crate::text::{listening_json, round3};
 use crate::{parse_node, positive_secs, signals};
 
-/// The body of robot K is node `BODY_BASE + K`.
-pub const BODY_BASE: u32 = 1000;
+/// The body of robot K is node `BODY_BASE + K` (the robot's side: `ayllu_sim::served_robot`).
+pub use ayllu_sim::served_robot::BODY_BASE;
 /// Robots are numbered 1..=N below the bodies' ids.
 const MAX_ROBOTS: u64 = BODY_BASE as u64 - 1;
 /// The world's tick and its camera/sonar divider (the in-process defaults).
@@ -124,7 +124,7 @@ fn parse_distributed_controller(s: &str) -> Result<Controller, String> {
 }
 
 fn body_id(robot: u32) -> NodeId {
-    NodeId(BODY_BASE + robot)
+    ayllu_sim::served_robot::body_node(robot)
 }
 
 /// The udp:// config of node `id`, named `name` unless the URL names it.
@@ -346,19 +346,14 @@ pub fn robot(args: &RobotArgs) -> Result<(), Fail> {
     }
     let targets = args.targets as usize;
     let prios = priorities(targets);
-    // Only the sensor classes' shapes matter here (beams, range), and they do not depend on
-    // the room's size.
-    let world = WorldConfig::lab(&prios);
     let config = udp_config(&args.udp, format!("robot-{k}"))?;
     let mut node = Node::new(MonotonicClock::new(), UdpTransport::bind(args.id, config)?);
-    // The body's ports, as local behaviors the server writes (sensors) and reads (motors).
-    Body::install(node.core_mut(), targets, &world)?;
+    // The body's ports, as local behaviors the server writes (sensors) and reads (motors), the
+    // motors sent to the body on the server (as the C library's ayInitSimBody does).
+    ayllu_sim::served_robot::install(node.core_mut(), targets)?;
     let cfg = ControllerConfig { claim_hz: args.claim_hz, wander_seed: args.seed, ..ControllerConfig::default() };
     let brain = build(node.core_mut(), args.controller, &prios, &cfg)?;
     let body = body_id(k);
-    for port in ["Rotate", "Translate"] {
-        node.connect(&Endpoint::local(BASE, port), &Endpoint::node(body, BASE, port), ConnectionKind::Normal)?;
-    }
     let vision: Vec<PortRef> =
         (1..=targets).map(|n| node.core().port(VISION, &format!("Target{n}Angle"))).collect::<Result<_, _>>()?;
     signals::install();
