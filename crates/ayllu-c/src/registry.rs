@@ -3,7 +3,9 @@
 //! `AY_ERR_HANDLE` before it is touched (use after free is detected as long as the memory
 //! was not handed out again for a handle of the same type).
 
+use std::cell::Cell;
 use std::collections::HashMap;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{LazyLock, Mutex, MutexGuard};
 
 use crate::status::{ay_status, Fail};
@@ -27,6 +29,16 @@ impl Kind {
 }
 
 static LIVE: LazyLock<Mutex<HashMap<usize, Kind>>> = LazyLock::new(Mutex::default);
+
+/// Bumped whenever a handle is removed: a thread's memory of the last handle it checked is
+/// good only while no handle has been removed since.
+static REMOVALS: AtomicU64 = AtomicU64::new(0);
+
+thread_local! {
+    /// The last handle this thread found live: (key, kind, REMOVALS then). A hot loop of calls
+    /// on one node checks it without the lock.
+    static LAST: Cell<(usize, Option<Kind>, u64)> = const { Cell::new((0, None, 0)) };
+}
 
 /// The key of a handle: its address inverted, so that the registry does not look to a leak
 /// checker (LeakSanitizer, valgrind) like a pointer to the handle — a handle the program
@@ -52,8 +64,15 @@ pub(crate) fn check<T>(p: *const T, kind: Kind, what: &str) -> Result<(), Fail> 
     if p.is_null() {
         return Err(Fail::null(what));
     }
+    let removals = REMOVALS.load(Ordering::Acquire);
+    if LAST.with(Cell::get) == (key(p), Some(kind), removals) {
+        return Ok(());
+    }
     match live().get(&key(p)) {
-        Some(k) if *k == kind => Ok(()),
+        Some(k) if *k == kind => {
+            LAST.with(|l| l.set((key(p), Some(kind), removals)));
+            Ok(())
+        }
         Some(k) => {
             Err(Fail::new(ay_status::AY_ERR_HANDLE, format!("{what} is a {} handle, not a {}", k.name(), kind.name())))
         }
@@ -67,6 +86,9 @@ pub(crate) fn check<T>(p: *const T, kind: Kind, what: &str) -> Result<(), Fail> 
 /// Unregister `p` (checked as by [`check`]); the caller then frees it.
 pub(crate) fn remove<T>(p: *const T, kind: Kind, what: &str) -> Result<(), Fail> {
     check(p, kind, what)?;
-    live().remove(&key(p));
+    let mut live = live();
+    live.remove(&key(p));
+    // Under the lock, before the caller frees it: no thread can still take it for live.
+    REMOVALS.fetch_add(1, Ordering::AcqRel);
     Ok(())
 }
