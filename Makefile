@@ -102,7 +102,7 @@ lint-python:
 	@PY=$$(PYTHON=$(PYTHON) scripts/python-venv) && cd crates/ayllu-py \
 		&& $$PY -m ruff check --config pyproject.toml . ../../examples/cmommt/python \
 		&& $$PY -m ruff format --config pyproject.toml --check . ../../examples/cmommt/python \
-		&& MYPYPATH=../../examples/cmommt/python $$PY -m mypy python/ayllu tests ../../examples/cmommt/python
+		&& MYPYPATH=../../examples/cmommt/python $$PY -m mypy python/ayllu tests bench ../../examples/cmommt/python
 
 ## Python benchmarks (not part of the tests): a port write, a process activation and a
 ## simulation step from Python, each beside a plain Python function call timed in the same run.

@@ -29,6 +29,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<node::Node>()?;
     m.add_class::<node::Team>()?;
     m.add_class::<node::PortHandle>()?;
+    m.add_function(wrap_pyfunction!(node::stop_all, m)?)?;
     sim::register(m)?;
     m.add("DROP_CAUSES", ayllu_core::DropCause::ALL.iter().map(|c| c.name()).collect::<Vec<_>>())?;
     Ok(())

@@ -8,7 +8,10 @@
 //! * Real clock: `start()` runs the node on a background thread that sleeps on the transport
 //!   between deadlines *without the GIL*; it takes the GIL only to run Python processes.
 //!   Python calls from other threads wait for the node (with the GIL released) and so never
-//!   deadlock with it; the wait is bounded by [`WAIT_SLICE`].
+//!   deadlock with it. The thread sleeps on the transport holding the node (its wait needs
+//!   it), until the next deadline but at most [`IDLE_SLICE`]; once another thread has asked
+//!   for the node, at most [`BUSY_SLICE`] for a while ([`BUSY_SPELL`]): an idle node wakes
+//!   rarely, a node Python talks to answers within a millisecond.
 //! * A node called from inside one of its own processes raises `NodeBusyError` (use `ctx`).
 
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -26,9 +29,19 @@ use crate::errors::{self, NodeBusyError};
 use crate::value::{duration, secs, to_py, to_value};
 use crate::wiring;
 
-/// The longest a real-clock node's thread sleeps on its transport before it lets Python calls
-/// in (it holds the node while it sleeps: the transport's wait needs it).
-pub const WAIT_SLICE: std::time::Duration = std::time::Duration::from_millis(2);
+/// The longest a real-clock node's thread sleeps on its transport while nobody else asks for
+/// the node (it holds the node while it sleeps: the transport's wait needs it).
+pub const IDLE_SLICE: std::time::Duration = std::time::Duration::from_millis(50);
+/// The longest it sleeps at a time while other threads are asking for the node.
+pub const BUSY_SLICE: std::time::Duration = std::time::Duration::from_millis(1);
+/// How long after another thread last waited for the node the short slice is kept.
+pub const BUSY_SPELL: std::time::Duration = std::time::Duration::from_millis(500);
+
+/// Milliseconds since the first call: a cheap shared clock for `Shared::wanted_at`.
+fn millis() -> u64 {
+    static ORIGIN: std::sync::OnceLock<std::time::Instant> = std::sync::OnceLock::new();
+    ORIGIN.get_or_init(std::time::Instant::now).elapsed().as_millis() as u64
+}
 
 thread_local! {
     static TOKEN: u8 = const { 0 };
@@ -44,6 +57,8 @@ struct Shared {
     node: Mutex<Option<ayllu::Node>>,
     /// The thread stepping the node (running its processes), 0 when none.
     stepping: AtomicUsize,
+    /// When (see [`millis`]) another thread last had to wait for the node; `u64::MAX`: never.
+    wanted_at: std::sync::atomic::AtomicU64,
     procs: Arc<Processes>,
 }
 
@@ -60,6 +75,7 @@ impl Shared {
                         "the node is running one of its processes: inside a process, use its ctx (ctx.write, ctx.read)",
                     ));
                 }
+                self.wanted_at.store(millis(), Ordering::Release);
                 Ok(self.node.lock_py_attached(py).unwrap_or_else(|p| p.into_inner()))
             }
         }
@@ -70,6 +86,28 @@ impl Shared {
         match g.as_mut() {
             Some(n) => f(n),
             None => Err(errors::closed("this node")),
+        }
+    }
+
+    /// How long the node may sleep on its transport now, holding it (see the module docs).
+    fn slice(&self) -> std::time::Duration {
+        let at = self.wanted_at.load(Ordering::Acquire);
+        if at != u64::MAX && millis().saturating_sub(at) < BUSY_SPELL.as_millis() as u64 {
+            BUSY_SLICE
+        } else {
+            IDLE_SLICE
+        }
+    }
+
+    /// Sleep on the node's transport until `next` (node time), for at most `limit` and one
+    /// slice.
+    fn wait(&self, node: &mut ayllu::Node, next: Option<Instant>, limit: std::time::Duration) {
+        let now = node.now();
+        let until =
+            next.map_or(limit, |t| std::time::Duration::from_nanos(t.as_nanos().saturating_sub(now.as_nanos())));
+        let wait = until.min(limit).min(self.slice());
+        if !wait.is_zero() {
+            node.wait(wait);
         }
     }
 
@@ -89,8 +127,46 @@ pub struct Node {
     shared: Arc<Shared>,
     /// The manual clock, or None on the real clock.
     clock: Option<ManualClock>,
-    thread: Mutex<Option<JoinHandle<()>>>,
-    stop: Arc<AtomicBool>,
+    thread: Arc<Runner>,
+}
+
+/// A node's background thread and its stop flag (shared with [`RUNNERS`]).
+#[derive(Default)]
+struct Runner {
+    handle: Mutex<Option<JoinHandle<()>>>,
+    stop: AtomicBool,
+}
+
+impl Runner {
+    /// Ask the thread to stop and wait for it, with the GIL released.
+    fn stop(&self, py: Python<'_>) {
+        self.stop.store(true, Ordering::Release);
+        let handle = self.handle.lock().ok().and_then(|mut t| t.take());
+        if let Some(h) = handle {
+            py.detach(|| {
+                let _ = h.join();
+            });
+        }
+    }
+}
+
+/// Every started node's runner, so that [`stop_all`] can stop them before the interpreter
+/// shuts down (a thread must not run Python code then).
+static RUNNERS: Mutex<Vec<std::sync::Weak<Runner>>> = Mutex::new(Vec::new());
+
+/// Stop every running node's background thread (called by `atexit`, see `ayllu/__init__.py`).
+#[pyfunction]
+pub fn stop_all(py: Python<'_>) {
+    let runners: Vec<Arc<Runner>> = RUNNERS
+        .lock()
+        .map(|mut r| {
+            r.retain(|w| w.strong_count() > 0);
+            r.iter().filter_map(std::sync::Weak::upgrade).collect()
+        })
+        .unwrap_or_default();
+    for r in runners {
+        r.stop(py);
+    }
 }
 
 impl Node {
@@ -100,11 +176,11 @@ impl Node {
             shared: Arc::new(Shared {
                 node: Mutex::new(Some(node)),
                 stepping: AtomicUsize::new(0),
+                wanted_at: std::sync::atomic::AtomicU64::new(u64::MAX),
                 procs: Processes::new(py)?,
             }),
             clock,
-            thread: Mutex::new(None),
-            stop: Arc::new(AtomicBool::new(false)),
+            thread: Arc::new(Runner::default()),
         })
     }
 
@@ -120,13 +196,7 @@ impl Node {
     }
 
     fn stop_thread(&self, py: Python<'_>) {
-        self.stop.store(true, Ordering::Release);
-        let handle = self.thread.lock().ok().and_then(|mut t| t.take());
-        if let Some(h) = handle {
-            py.detach(|| {
-                let _ = h.join();
-            });
-        }
+        self.thread.stop(py);
     }
 }
 
@@ -430,21 +500,19 @@ impl Node {
             return self.advance(py, seconds, None);
         }
         let end = std::time::Instant::now() + std::time::Duration::from_secs_f64(seconds.max(0.0));
+        let shared = Arc::clone(&self.shared);
         loop {
-            let next = self.step_now(py)?;
-            let now_real = std::time::Instant::now();
-            if now_real >= end {
+            let stepping = &self.shared.stepping;
+            let next = self.shared.with(py, |n| Ok(Shared::step(n, stepping)))?;
+            let left = end.saturating_duration_since(std::time::Instant::now());
+            if left.is_zero() {
                 return Ok(());
             }
-            let node_now = self.now(py)?;
-            let wait = next.map_or(WAIT_SLICE.as_secs_f64(), |n| (n - node_now).max(0.0));
-            let wait = std::time::Duration::from_secs_f64(wait).min(end - now_real).min(WAIT_SLICE * 10);
-            let shared = Arc::clone(&self.shared);
+            // Asleep without the GIL (other Python threads run), then Ctrl-C is honoured.
             py.detach(|| {
-                if let Ok(mut g) = shared.node.lock() {
-                    if let Some(n) = g.as_mut() {
-                        n.wait(wait.min(WAIT_SLICE));
-                    }
+                let mut g = shared.node.lock().unwrap_or_else(|p| p.into_inner());
+                if let Some(n) = g.as_mut() {
+                    shared.wait(n, next, left);
                 }
             });
             py.check_signals()?;
@@ -458,13 +526,20 @@ impl Node {
                 "a manual-clock node moves only with advance(); only a real-clock node can start()",
             ));
         }
-        let mut t = self.thread.lock().map_err(|_| errors::closed("this node"))?;
+        let mut t = self.thread.handle.lock().map_err(|_| errors::closed("this node"))?;
         if t.is_some() {
             return Err(errors::InvalidError::new_err("this node is already running"));
         }
-        self.stop.store(false, Ordering::Release);
-        let (shared, stop) = (Arc::clone(&self.shared), Arc::clone(&self.stop));
-        *t = Some(std::thread::spawn(move || run_in_background(&shared, &stop)));
+        self.thread.stop.store(false, Ordering::Release);
+        let (shared, runner) = (Arc::clone(&self.shared), Arc::clone(&self.thread));
+        // Attached once and detached at once: the thread keeps its Python thread state, so each
+        // Python process it runs only re-takes the GIL instead of making a thread state anew.
+        *t = Some(std::thread::spawn(move || {
+            Python::attach(|py| py.detach(|| run_in_background(&shared, &runner.stop)));
+        }));
+        if let Ok(mut r) = RUNNERS.lock() {
+            r.push(Arc::downgrade(&self.thread));
+        }
         Ok(())
     }
 
@@ -476,7 +551,7 @@ impl Node {
     /// Whether the background thread runs.
     #[getter]
     fn running(&self) -> bool {
-        self.thread.lock().map(|t| t.is_some()).unwrap_or(false) && !self.stop.load(Ordering::Acquire)
+        self.thread.handle.lock().map(|t| t.is_some()).unwrap_or(false) && !self.thread.stop.load(Ordering::Acquire)
     }
 
     /// Stop and drop the node: its transport closes; later calls raise.
@@ -490,7 +565,7 @@ impl Node {
 
 impl Drop for Node {
     fn drop(&mut self) {
-        self.stop.store(true, Ordering::Release);
+        self.thread.stop.store(true, Ordering::Release);
     }
 }
 
@@ -499,12 +574,7 @@ fn run_in_background(shared: &Shared, stop: &AtomicBool) {
         let mut g = shared.node.lock().unwrap_or_else(|p| p.into_inner());
         let Some(n) = g.as_mut() else { return };
         let next = Shared::step(n, &shared.stepping);
-        let now = n.now();
-        let wait =
-            next.map_or(WAIT_SLICE, |t| std::time::Duration::from_nanos(t.as_nanos().saturating_sub(now.as_nanos())));
-        if !wait.is_zero() {
-            n.wait(wait.min(WAIT_SLICE));
-        }
+        shared.wait(n, next, IDLE_SLICE);
         drop(g);
     }
 }

@@ -65,3 +65,18 @@ def test_two_real_nodes_over_udp_loopback() -> None:
     finally:
         a.close()
         b.close()
+
+
+def test_a_program_may_exit_with_its_nodes_running() -> None:
+    import subprocess
+    import sys
+
+    code = (
+        "import time, ayllu\n"
+        "class C(ayllu.Behavior):\n"
+        "    @ayllu.every(hz=100)\n"
+        "    def t(self, ctx): pass\n"
+        "n = ayllu.Node(1); n.create(C, 'C'); n.start(); time.sleep(0.1); print('bye')\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert (out.returncode, out.stdout) == (0, "bye\n"), out.stderr

@@ -23,8 +23,10 @@ time and reads results.
 
 from __future__ import annotations
 
+import atexit
 from typing import Any, Callable, NamedTuple, Optional, TypeVar, Union
 
+from ayllu import _native
 from ayllu._native import (
     DROP_CAUSES,
     AylluError,
@@ -42,6 +44,10 @@ from ayllu._native import MonoDecl as Monostable
 from ayllu._native import PortDecl as Port
 from ayllu._native import SlotDecl as Slot
 from ayllu.report import ProcessError, Report
+
+# Background threads of started nodes must not run Python code while the interpreter shuts
+# down: stop them first.
+atexit.register(_native.stop_all)
 
 __all__ = [
     "DROP_CAUSES",
