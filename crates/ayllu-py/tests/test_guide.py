@@ -8,9 +8,10 @@ import os
 import re
 from pathlib import Path
 
+import pytest
+
 import ayllu
 import ayllu.sim
-import pytest
 
 ROOT = Path(__file__).resolve().parents[3]
 
