@@ -42,3 +42,15 @@ def test_a_dask_cluster_gives_the_serial_outcomes() -> None:
         Client(cluster) as client,
     ):
         assert hashes(sim.sweep(grid(), executor=client)) == hashes(serial)
+
+
+@pytest.mark.skipif(importlib.util.find_spec("ray") is None, reason="ray not installed (too heavy for the test venv)")
+def test_a_ray_cluster_gives_the_serial_outcomes() -> None:
+    import ray
+
+    serial = sim.sweep(grid(), executor="serial")
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    try:
+        assert hashes(sim.sweep(grid(), executor=ray)) == hashes(serial)
+    finally:
+        ray.shutdown()
