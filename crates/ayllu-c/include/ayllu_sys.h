@@ -398,6 +398,8 @@ ay_status ay_clock_free(ay_clock *clock);
 // Thread-safety: any thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_PERIOD` (zero,
 // negative, NaN or infinite).
 //
+// Ownership: borrows its arguments for the call; keeps nothing.
+//
 // # Safety
 // `clock` is NULL or a pointer from this library.
 ay_status ay_clock_advance(ay_clock *clock, double seconds);
@@ -408,6 +410,8 @@ ay_status ay_clock_advance(ay_clock *clock, double seconds);
 // Thread-safety: any thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_PERIOD`
 // (negative, NaN or infinite).
 //
+// Ownership: borrows its arguments for the call; keeps nothing.
+//
 // # Safety
 // `clock` is NULL or a pointer from this library.
 ay_status ay_clock_set(ay_clock *clock, double seconds);
@@ -415,6 +419,8 @@ ay_status ay_clock_set(ay_clock *clock, double seconds);
 // The clock's time (seconds since its origin) into `*out`.
 //
 // Thread-safety: any thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`.
+//
+// Ownership: borrows its arguments for the call; keeps nothing.
 //
 // # Safety
 // `clock` is NULL or a pointer from this library; `out` is NULL or valid for a write.
@@ -466,6 +472,8 @@ ay_status ay_node_request_connect(ay_node *node,
 // Thread-safety: the node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`,
 // `AY_ERR_UNKNOWN` (no such request from this node).
 //
+// Ownership: borrows its arguments for the call; keeps nothing.
+//
 // # Safety
 // `node` is NULL or a pointer from this library; `out` is NULL or valid for a write.
 ay_status ay_node_request_status(ay_node *node, uint64_t request, int32_t *out);
@@ -474,6 +482,8 @@ ay_status ay_node_request_status(ay_node *node, uint64_t request, int32_t *out);
 //
 // Thread-safety: the node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`,
 // `AY_ERR_UNKNOWN` (no such connection).
+//
+// Ownership: borrows its arguments for the call; keeps nothing.
 //
 // # Safety
 // `node` is NULL or a pointer from this library.
@@ -540,18 +550,26 @@ ay_status ay_set_default_node(ay_node *node);
 ay_node *ay_default_node(void);
 
 // Ask every running loop (`ay_node_run`, `ay_node_run_for`) to return soon (within 50 ms).
-// Async-signal-safe: call it from a SIGINT/SIGTERM handler. Errors: none.
+//
+// Ownership: nothing. Thread-safety: any thread, and async-signal-safe: call it from a
+// SIGINT/SIGTERM handler. Errors: none.
 void ay_request_stop(void);
 
 // Whether a stop was requested (and not cleared). Thread-safety: any thread.
+//
+// Ownership: nothing. Errors: none.
 bool ay_stop_requested(void);
 
 // Forget a stop request, so that loops run again. Thread-safety: any thread.
+//
+// Ownership: nothing. Errors: none.
 void ay_clear_stop(void);
 
 // The node's id into `*out`.
 //
 // Thread-safety: the node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`.
+//
+// Ownership: borrows its arguments for the call; keeps nothing.
 //
 // # Safety
 // `node` is NULL or a pointer from this library; `out` is NULL or valid for a write.
@@ -563,6 +581,8 @@ ay_status ay_node_id(ay_node *node, uint32_t *out);
 // Thread-safety: the node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`,
 // `AY_ERR_BUFFER` (nothing copied; `*length` says how much is needed).
 //
+// Ownership: borrows its arguments for the call; keeps nothing.
+//
 // # Safety
 // `node` is NULL or a pointer from this library; `buffer` is NULL or valid for `capacity`
 // bytes; `length` is NULL or valid for a write.
@@ -571,6 +591,8 @@ ay_status ay_node_address(ay_node *node, char *buffer, size_t capacity, size_t *
 // The node's clock now (seconds since the clock's origin) into `*out`.
 //
 // Thread-safety: the node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`.
+//
+// Ownership: borrows its arguments for the call; keeps nothing.
 //
 // # Safety
 // `node` is NULL or a pointer from this library; `out` is NULL or valid for a write.
@@ -583,6 +605,8 @@ ay_status ay_node_now(ay_node *node, double *out);
 // Thread-safety: the node's thread; the node's C processes run inside this call. Errors:
 // `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY` (called from one of its own processes).
 //
+// Ownership: borrows its arguments for the call; keeps nothing.
+//
 // # Safety
 // `node` is NULL or a pointer from this library; `next` is NULL or valid for a write.
 ay_status ay_node_step(ay_node *node, double *next);
@@ -594,6 +618,8 @@ ay_status ay_node_step(ay_node *node, double *next);
 // Thread-safety: the node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`,
 // `AY_ERR_PERIOD` (negative, NaN or infinite seconds).
 //
+// Ownership: borrows its arguments for the call; keeps nothing.
+//
 // # Safety
 // `node` is NULL or a pointer from this library.
 ay_status ay_node_run_for(ay_node *node, double seconds);
@@ -603,6 +629,8 @@ ay_status ay_node_run_for(ay_node *node, double seconds);
 // set: `ay_clear_stop` to run again).
 //
 // Thread-safety: the node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`.
+//
+// Ownership: borrows its arguments for the call; keeps nothing.
 //
 // # Safety
 // `node` is NULL or a pointer from this library.
@@ -652,6 +680,8 @@ ay_status ay_node_init_behavior(ay_node *node,
 // Thread-safety: the node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`,
 // `AY_ERR_UNKNOWN` (no such class), `AY_ERR_INVALID` (empty or taken name).
 //
+// Ownership: borrows its arguments for the call; keeps nothing.
+//
 // # Safety
 // `node` is NULL or a pointer from this library; the names are NULL or NUL-terminated.
 ay_status ay_node_create(ay_node *node, const char *class_name, const char *behavior);
@@ -660,6 +690,8 @@ ay_status ay_node_create(ay_node *node, const char *class_name, const char *beha
 //
 // Thread-safety: the node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`,
 // `AY_ERR_UNKNOWN`.
+//
+// Ownership: borrows its arguments for the call; keeps nothing.
 //
 // # Safety
 // `node` is NULL or a pointer from this library; `behavior` is NULL or NUL-terminated.
@@ -695,6 +727,8 @@ ay_status ay_node_read_bool_ref(ay_node *node, ay_port_ref port, bool *out);
 // Thread-safety: the node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`,
 // `AY_ERR_UNKNOWN` (behavior or port), `AY_ERR_TYPE` (the port holds another type).
 //
+// Ownership: borrows its arguments for the call; keeps nothing.
+//
 // # Safety
 // `node` is NULL or a pointer from this library; the names are NULL or NUL-terminated.
 ay_status ay_node_write_int(ay_node *node, const char *behavior, const char *port, int64_t value);
@@ -711,6 +745,8 @@ ay_status ay_node_read_int(ay_node *node, const char *behavior, const char *port
 
 // Write through a port handle from `ay_node_port` (no name lookups). As
 // [`ay_node_write_int`]; `AY_ERR_UNKNOWN` also for a handle whose behavior was removed.
+//
+// Ownership: keeps nothing. Thread-safety: the node's thread.
 //
 // # Safety
 // `node` is NULL or a pointer from this library.
@@ -817,6 +853,8 @@ ay_status ay_node_read_bytes(ay_node *node,
 // Thread-safety: the node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`,
 // `AY_ERR_UNKNOWN`.
 //
+// Ownership: borrows its arguments for the call; keeps nothing.
+//
 // # Safety
 // `node` is NULL or a pointer from this library; the names are NULL or NUL-terminated;
 // `out` is NULL or valid for a write.
@@ -826,6 +864,8 @@ ay_status ay_node_fresh(ay_node *node, const char *behavior, const char *port, b
 //
 // Thread-safety: the node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`,
 // `AY_ERR_UNKNOWN`.
+//
+// Ownership: borrows its arguments for the call; keeps nothing.
 //
 // # Safety
 // `node` is NULL or a pointer from this library; the names are NULL or NUL-terminated;
@@ -837,6 +877,8 @@ ay_status ay_node_port(ay_node *node, const char *behavior, const char *port, ay
 // Thread-safety: the node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`,
 // `AY_ERR_UNKNOWN`.
 //
+// Ownership: borrows its arguments for the call; keeps nothing.
+//
 // # Safety
 // `node` is NULL or a pointer from this library; the names are NULL or NUL-terminated.
 ay_status ay_node_reset(ay_node *node, const char *behavior, const char *port);
@@ -845,6 +887,8 @@ ay_status ay_node_reset(ay_node *node, const char *behavior, const char *port);
 //
 // Thread-safety: the node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`,
 // `AY_ERR_UNKNOWN`, `AY_ERR_PERIOD` (zero, negative, NaN, infinite).
+//
+// Ownership: borrows its arguments for the call; keeps nothing.
 //
 // # Safety
 // `node` is NULL or a pointer from this library; the names are NULL or NUL-terminated.
@@ -855,6 +899,8 @@ ay_status ay_node_trigger(ay_node *node, const char *behavior, const char *mono,
 // Thread-safety: the node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`,
 // `AY_ERR_UNKNOWN`.
 //
+// Ownership: borrows its arguments for the call; keeps nothing.
+//
 // # Safety
 // `node` is NULL or a pointer from this library; the names are NULL or NUL-terminated;
 // `out` is NULL or valid for a write.
@@ -864,6 +910,8 @@ ay_status ay_node_monostable(ay_node *node, const char *behavior, const char *mo
 //
 // Thread-safety: the node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`,
 // `AY_ERR_INVALID` (empty name).
+//
+// Ownership: borrows its arguments for the call; keeps nothing.
 //
 // # Safety
 // `node` is NULL or a pointer from this library; `group` is NULL or NUL-terminated.
@@ -885,6 +933,8 @@ ay_status ay_node_leave(ay_node *node, const char *group);
 // `AY_ERR_UNKNOWN` (behavior or output port), `AY_ERR_RATE` (claim rate), `AY_ERR_PERIOD`
 // (negative, NaN or infinite inhibit period), `AY_ERR_INVALID` (empty group, already a peer).
 //
+// Ownership: borrows its arguments for the call; keeps nothing.
+//
 // # Safety
 // `node` is NULL or a pointer from this library; the strings are NULL or NUL-terminated.
 ay_status ay_node_ble_join(ay_node *node,
@@ -899,6 +949,8 @@ ay_status ay_node_ble_join(ay_node *node,
 //
 // Thread-safety: the node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`,
 // `AY_ERR_UNKNOWN`.
+//
+// Ownership: borrows its arguments for the call; keeps nothing.
 //
 // # Safety
 // `node` is NULL or a pointer from this library; `behavior` is NULL or NUL-terminated;
@@ -920,6 +972,8 @@ ay_status ay_open_default(uint32_t id, const char *url);
 // that used `ayInitIPComms` returns.
 //
 // Thread-safety: the node's thread. Errors: `AY_ERR_BUSY` (from one of its processes).
+//
+// Ownership: borrows its arguments for the call; keeps nothing.
 ay_status ay_close_default(void);
 
 // The handle of the running behavior's port `name` (the paper's `ayLocalPort`; `BLE_Local`,
@@ -1081,6 +1135,9 @@ ay_status ay_ctx_read_bytes(ay_ctx *ctx,
 // Write a bytes port of the running behavior (`length` bytes, copied). As
 // [`ay_ctx_write_int`].
 //
+// Ownership: copies the value; keeps nothing. Thread-safety: only inside the process `ctx`
+// was given to.
+//
 // # Safety
 // `ctx` is NULL or a context passed to a process; `value` is NULL (length 0) or valid for
 // `length` reads.
@@ -1095,6 +1152,9 @@ ay_status ay_ctx_write_text(ay_ctx *ctx, ay_port port, const char *value);
 
 // Write a vector port of the running behavior (`length` doubles, copied). As
 // [`ay_ctx_write_int`]; a length other than the port's shape is `AY_ERR_TYPE`.
+//
+// Ownership: copies the value; keeps nothing. Thread-safety: only inside the process `ctx`
+// was given to.
 //
 // # Safety
 // `ctx` is NULL or a context passed to a process; `value` is NULL (length 0) or valid for
@@ -1113,6 +1173,8 @@ ay_status ay_ctx_fresh(ay_ctx *ctx, ay_port port, bool *out);
 // Empty an aggregating port of the running behavior now (the paper's end of "the current
 // cycle"). Errors: `AY_ERR_NULL`, `AY_ERR_CONTEXT`, `AY_ERR_UNKNOWN`.
 //
+// Ownership: keeps nothing. Thread-safety: only inside the process `ctx` was given to.
+//
 // # Safety
 // `ctx` is NULL or a context passed to a process.
 ay_status ay_ctx_reset(ay_ctx *ctx, ay_port port);
@@ -1123,6 +1185,8 @@ ay_status ay_ctx_reset(ay_ctx *ctx, ay_port port);
 // Errors: `AY_ERR_NULL`, `AY_ERR_CONTEXT`, `AY_ERR_UNKNOWN`, `AY_ERR_PERIOD` (zero, negative,
 // NaN or infinite seconds).
 //
+// Ownership: keeps nothing. Thread-safety: only inside the process `ctx` was given to.
+//
 // # Safety
 // `ctx` is NULL or a context passed to a process.
 ay_status ay_ctx_trigger(ay_ctx *ctx, ay_mono mono, double seconds);
@@ -1130,6 +1194,8 @@ ay_status ay_ctx_trigger(ay_ctx *ctx, ay_mono mono, double seconds);
 // Whether a monostable of the running behavior is high now, into `*out`.
 //
 // Errors: `AY_ERR_NULL`, `AY_ERR_CONTEXT`, `AY_ERR_UNKNOWN`.
+//
+// Ownership: keeps nothing. Thread-safety: only inside the process `ctx` was given to.
 //
 // # Safety
 // `ctx` is NULL or a context passed to a process; `out` is NULL or valid for a write.
@@ -1139,6 +1205,8 @@ ay_status ay_ctx_is_high(ay_ctx *ctx, ay_mono mono, bool *out);
 //
 // Errors: `AY_ERR_NULL`, `AY_ERR_CONTEXT`.
 //
+// Ownership: keeps nothing. Thread-safety: only inside the process `ctx` was given to.
+//
 // # Safety
 // `ctx` is NULL or a context passed to a process; `out` is NULL or valid for a write.
 ay_status ay_ctx_now(ay_ctx *ctx, double *out);
@@ -1146,6 +1214,8 @@ ay_status ay_ctx_now(ay_ctx *ctx, double *out);
 // This node's id into `*out`.
 //
 // Errors: `AY_ERR_NULL`, `AY_ERR_CONTEXT`.
+//
+// Ownership: keeps nothing. Thread-safety: only inside the process `ctx` was given to.
 //
 // # Safety
 // `ctx` is NULL or a context passed to a process; `out` is NULL or valid for a write.
@@ -1224,6 +1294,8 @@ void ay_report_error(int32_t status, const char *what, const char *file, int32_t
 // Thread-safety: the node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`,
 // `AY_ERR_INVALID` (empty or taken name).
 //
+// Ownership: borrows the names for the call (they are copied).
+//
 // # Safety
 // `node` is NULL or a pointer from this library; `name` is NULL or NUL-terminated.
 ay_status ay_std_safe_velocity(ay_node *node, const char *name);
@@ -1237,6 +1309,8 @@ ay_status ay_std_safe_velocity(ay_node *node, const char *name);
 // Thread-safety: the node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`,
 // `AY_ERR_INVALID` (empty or taken name).
 //
+// Ownership: borrows the names for the call (they are copied).
+//
 // # Safety
 // `node` is NULL or a pointer from this library; `name` is NULL or NUL-terminated.
 ay_status ay_std_wander(ay_node *node, const char *name, uint64_t seed);
@@ -1249,6 +1323,8 @@ ay_status ay_std_wander(ay_node *node, const char *name, uint64_t seed);
 //
 // Thread-safety: the node's thread. Errors: `AY_ERR_NULL` (node, next), `AY_ERR_HANDLE`,
 // `AY_ERR_BUSY`, `AY_ERR_UNKNOWN` (no VISION or `next`), `AY_ERR_RATE`, `AY_ERR_INVALID`.
+//
+// Ownership: borrows the names for the call (they are copied).
 //
 // # Safety
 // `node` is NULL or a pointer from this library; `next` and `group` are NULL or
@@ -1268,6 +1344,8 @@ ay_status ay_std_observer(ay_node *node,
 // Thread-safety: the node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`,
 // `AY_ERR_INVALID` (a node id that is no robot number, `targets` 0 or above 64, a body
 // already installed).
+//
+// Ownership: borrows the names for the call (they are copied).
 //
 // # Safety
 // `node` is NULL or a pointer from this library.

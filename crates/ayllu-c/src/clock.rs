@@ -67,6 +67,8 @@ pub unsafe extern "C" fn ay_clock_free(clock: *mut ay_clock) -> ay_status {
 /// Thread-safety: any thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_PERIOD` (zero,
 /// negative, NaN or infinite).
 ///
+/// Ownership: borrows its arguments for the call; keeps nothing.
+///
 /// # Safety
 /// `clock` is NULL or a pointer from this library.
 #[no_mangle]
@@ -86,6 +88,8 @@ pub unsafe extern "C" fn ay_clock_advance(clock: *mut ay_clock, seconds: f64) ->
 /// Thread-safety: any thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_PERIOD`
 /// (negative, NaN or infinite).
 ///
+/// Ownership: borrows its arguments for the call; keeps nothing.
+///
 /// # Safety
 /// `clock` is NULL or a pointer from this library.
 #[no_mangle]
@@ -102,6 +106,8 @@ pub unsafe extern "C" fn ay_clock_set(clock: *mut ay_clock, seconds: f64) -> ay_
 /// The clock's time (seconds since its origin) into `*out`.
 ///
 /// Thread-safety: any thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`.
+///
+/// Ownership: borrows its arguments for the call; keeps nothing.
 ///
 /// # Safety
 /// `clock` is NULL or a pointer from this library; `out` is NULL or valid for a write.

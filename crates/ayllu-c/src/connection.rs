@@ -174,6 +174,8 @@ pub unsafe extern "C" fn ay_node_request_connect(
 /// Thread-safety: the node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`,
 /// `AY_ERR_UNKNOWN` (no such request from this node).
 ///
+/// Ownership: borrows its arguments for the call; keeps nothing.
+///
 /// # Safety
 /// `node` is NULL or a pointer from this library; `out` is NULL or valid for a write.
 #[no_mangle]
@@ -198,6 +200,8 @@ pub unsafe extern "C" fn ay_node_request_status(node: *mut ay_node, request: u64
 ///
 /// Thread-safety: the node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`,
 /// `AY_ERR_UNKNOWN` (no such connection).
+///
+/// Ownership: borrows its arguments for the call; keeps nothing.
 ///
 /// # Safety
 /// `node` is NULL or a pointer from this library.

@@ -200,19 +200,25 @@ pub extern "C" fn ay_default_node() -> *mut ay_node {
 }
 
 /// Ask every running loop (`ay_node_run`, `ay_node_run_for`) to return soon (within 50 ms).
-/// Async-signal-safe: call it from a SIGINT/SIGTERM handler. Errors: none.
+///
+/// Ownership: nothing. Thread-safety: any thread, and async-signal-safe: call it from a
+/// SIGINT/SIGTERM handler. Errors: none.
 #[no_mangle]
 pub extern "C" fn ay_request_stop() {
     STOP.store(true, Ordering::SeqCst);
 }
 
 /// Whether a stop was requested (and not cleared). Thread-safety: any thread.
+///
+/// Ownership: nothing. Errors: none.
 #[no_mangle]
 pub extern "C" fn ay_stop_requested() -> bool {
     STOP.load(Ordering::SeqCst)
 }
 
 /// Forget a stop request, so that loops run again. Thread-safety: any thread.
+///
+/// Ownership: nothing. Errors: none.
 #[no_mangle]
 pub extern "C" fn ay_clear_stop() {
     STOP.store(false, Ordering::SeqCst);
@@ -221,6 +227,8 @@ pub extern "C" fn ay_clear_stop() {
 /// The node's id into `*out`.
 ///
 /// Thread-safety: the node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`.
+///
+/// Ownership: borrows its arguments for the call; keeps nothing.
 ///
 /// # Safety
 /// `node` is NULL or a pointer from this library; `out` is NULL or valid for a write.
@@ -237,6 +245,8 @@ pub unsafe extern "C" fn ay_node_id(node: *mut ay_node, out: *mut u32) -> ay_sta
 ///
 /// Thread-safety: the node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`,
 /// `AY_ERR_BUFFER` (nothing copied; `*length` says how much is needed).
+///
+/// Ownership: borrows its arguments for the call; keeps nothing.
 ///
 /// # Safety
 /// `node` is NULL or a pointer from this library; `buffer` is NULL or valid for `capacity`
@@ -261,6 +271,8 @@ pub unsafe extern "C" fn ay_node_address(
 ///
 /// Thread-safety: the node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`.
 ///
+/// Ownership: borrows its arguments for the call; keeps nothing.
+///
 /// # Safety
 /// `node` is NULL or a pointer from this library; `out` is NULL or valid for a write.
 #[no_mangle]
@@ -277,6 +289,8 @@ pub unsafe extern "C" fn ay_node_now(node: *mut ay_node, out: *mut f64) -> ay_st
 ///
 /// Thread-safety: the node's thread; the node's C processes run inside this call. Errors:
 /// `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY` (called from one of its own processes).
+///
+/// Ownership: borrows its arguments for the call; keeps nothing.
 ///
 /// # Safety
 /// `node` is NULL or a pointer from this library; `next` is NULL or valid for a write.
@@ -324,6 +338,8 @@ fn run(s: &mut NodeState, seconds: Option<f64>) {
 /// Thread-safety: the node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`,
 /// `AY_ERR_PERIOD` (negative, NaN or infinite seconds).
 ///
+/// Ownership: borrows its arguments for the call; keeps nothing.
+///
 /// # Safety
 /// `node` is NULL or a pointer from this library.
 #[no_mangle]
@@ -342,6 +358,8 @@ pub unsafe extern "C" fn ay_node_run_for(node: *mut ay_node, seconds: f64) -> ay
 /// set: `ay_clear_stop` to run again).
 ///
 /// Thread-safety: the node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`.
+///
+/// Ownership: borrows its arguments for the call; keeps nothing.
 ///
 /// # Safety
 /// `node` is NULL or a pointer from this library.
@@ -449,6 +467,8 @@ pub unsafe extern "C" fn ay_node_init_behavior(
 /// Thread-safety: the node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`,
 /// `AY_ERR_UNKNOWN` (no such class), `AY_ERR_INVALID` (empty or taken name).
 ///
+/// Ownership: borrows its arguments for the call; keeps nothing.
+///
 /// # Safety
 /// `node` is NULL or a pointer from this library; the names are NULL or NUL-terminated.
 #[no_mangle]
@@ -468,6 +488,8 @@ pub unsafe extern "C" fn ay_node_create(
 ///
 /// Thread-safety: the node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`,
 /// `AY_ERR_UNKNOWN`.
+///
+/// Ownership: borrows its arguments for the call; keeps nothing.
 ///
 /// # Safety
 /// `node` is NULL or a pointer from this library; `behavior` is NULL or NUL-terminated.
@@ -577,6 +599,8 @@ pub unsafe extern "C" fn ay_node_read_bool_ref(node: *mut ay_node, port: ay_port
 /// Thread-safety: the node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`,
 /// `AY_ERR_UNKNOWN` (behavior or port), `AY_ERR_TYPE` (the port holds another type).
 ///
+/// Ownership: borrows its arguments for the call; keeps nothing.
+///
 /// # Safety
 /// `node` is NULL or a pointer from this library; the names are NULL or NUL-terminated.
 #[no_mangle]
@@ -612,6 +636,8 @@ pub unsafe extern "C" fn ay_node_read_int(
 
 /// Write through a port handle from `ay_node_port` (no name lookups). As
 /// [`ay_node_write_int`]; `AY_ERR_UNKNOWN` also for a handle whose behavior was removed.
+///
+/// Ownership: keeps nothing. Thread-safety: the node's thread.
 ///
 /// # Safety
 /// `node` is NULL or a pointer from this library.
@@ -843,6 +869,8 @@ pub unsafe extern "C" fn ay_node_read_bytes(
 /// Thread-safety: the node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`,
 /// `AY_ERR_UNKNOWN`.
 ///
+/// Ownership: borrows its arguments for the call; keeps nothing.
+///
 /// # Safety
 /// `node` is NULL or a pointer from this library; the names are NULL or NUL-terminated;
 /// `out` is NULL or valid for a write.
@@ -866,6 +894,8 @@ pub unsafe extern "C" fn ay_node_fresh(
 ///
 /// Thread-safety: the node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`,
 /// `AY_ERR_UNKNOWN`.
+///
+/// Ownership: borrows its arguments for the call; keeps nothing.
 ///
 /// # Safety
 /// `node` is NULL or a pointer from this library; the names are NULL or NUL-terminated;
@@ -904,6 +934,8 @@ pub unsafe extern "C" fn ay_node_port(
 /// Thread-safety: the node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`,
 /// `AY_ERR_UNKNOWN`.
 ///
+/// Ownership: borrows its arguments for the call; keeps nothing.
+///
 /// # Safety
 /// `node` is NULL or a pointer from this library; the names are NULL or NUL-terminated.
 #[no_mangle]
@@ -922,6 +954,8 @@ pub unsafe extern "C" fn ay_node_reset(node: *mut ay_node, behavior: *const c_ch
 ///
 /// Thread-safety: the node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`,
 /// `AY_ERR_UNKNOWN`, `AY_ERR_PERIOD` (zero, negative, NaN, infinite).
+///
+/// Ownership: borrows its arguments for the call; keeps nothing.
 ///
 /// # Safety
 /// `node` is NULL or a pointer from this library; the names are NULL or NUL-terminated.
@@ -948,6 +982,8 @@ pub unsafe extern "C" fn ay_node_trigger(
 /// Thread-safety: the node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`,
 /// `AY_ERR_UNKNOWN`.
 ///
+/// Ownership: borrows its arguments for the call; keeps nothing.
+///
 /// # Safety
 /// `node` is NULL or a pointer from this library; the names are NULL or NUL-terminated;
 /// `out` is NULL or valid for a write.
@@ -971,6 +1007,8 @@ pub unsafe extern "C" fn ay_node_monostable(
 ///
 /// Thread-safety: the node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`,
 /// `AY_ERR_INVALID` (empty name).
+///
+/// Ownership: borrows its arguments for the call; keeps nothing.
 ///
 /// # Safety
 /// `node` is NULL or a pointer from this library; `group` is NULL or NUL-terminated.
@@ -1015,6 +1053,8 @@ pub unsafe extern "C" fn ay_node_leave(node: *mut ay_node, group: *const c_char)
 /// `AY_ERR_UNKNOWN` (behavior or output port), `AY_ERR_RATE` (claim rate), `AY_ERR_PERIOD`
 /// (negative, NaN or infinite inhibit period), `AY_ERR_INVALID` (empty group, already a peer).
 ///
+/// Ownership: borrows its arguments for the call; keeps nothing.
+///
 /// # Safety
 /// `node` is NULL or a pointer from this library; the strings are NULL or NUL-terminated.
 #[no_mangle]
@@ -1042,6 +1082,8 @@ pub unsafe extern "C" fn ay_node_ble_join(
 ///
 /// Thread-safety: the node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`,
 /// `AY_ERR_UNKNOWN`.
+///
+/// Ownership: borrows its arguments for the call; keeps nothing.
 ///
 /// # Safety
 /// `node` is NULL or a pointer from this library; `behavior` is NULL or NUL-terminated;
@@ -1102,6 +1144,8 @@ fn last_message() -> String {
 /// that used `ayInitIPComms` returns.
 ///
 /// Thread-safety: the node's thread. Errors: `AY_ERR_BUSY` (from one of its processes).
+///
+/// Ownership: borrows its arguments for the call; keeps nothing.
 #[no_mangle]
 pub extern "C" fn ay_close_default() -> ay_status {
     let p = DEFAULT.load(Ordering::SeqCst) as *mut ay_node;

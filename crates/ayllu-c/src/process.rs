@@ -561,6 +561,9 @@ pub unsafe extern "C" fn ay_ctx_read_bytes(
 /// Write a bytes port of the running behavior (`length` bytes, copied). As
 /// [`ay_ctx_write_int`].
 ///
+/// Ownership: copies the value; keeps nothing. Thread-safety: only inside the process `ctx`
+/// was given to.
+///
 /// # Safety
 /// `ctx` is NULL or a context passed to a process; `value` is NULL (length 0) or valid for
 /// `length` reads.
@@ -600,6 +603,9 @@ pub unsafe extern "C" fn ay_ctx_write_text(ctx: *mut ay_ctx, port: ay_port, valu
 
 /// Write a vector port of the running behavior (`length` doubles, copied). As
 /// [`ay_ctx_write_int`]; a length other than the port's shape is `AY_ERR_TYPE`.
+///
+/// Ownership: copies the value; keeps nothing. Thread-safety: only inside the process `ctx`
+/// was given to.
 ///
 /// # Safety
 /// `ctx` is NULL or a context passed to a process; `value` is NULL (length 0) or valid for
@@ -642,6 +648,8 @@ pub unsafe extern "C" fn ay_ctx_fresh(ctx: *mut ay_ctx, port: ay_port, out: *mut
 /// Empty an aggregating port of the running behavior now (the paper's end of "the current
 /// cycle"). Errors: `AY_ERR_NULL`, `AY_ERR_CONTEXT`, `AY_ERR_UNKNOWN`.
 ///
+/// Ownership: keeps nothing. Thread-safety: only inside the process `ctx` was given to.
+///
 /// # Safety
 /// `ctx` is NULL or a context passed to a process.
 #[no_mangle]
@@ -659,6 +667,8 @@ pub unsafe extern "C" fn ay_ctx_reset(ctx: *mut ay_ctx, port: ay_port) -> ay_sta
 ///
 /// Errors: `AY_ERR_NULL`, `AY_ERR_CONTEXT`, `AY_ERR_UNKNOWN`, `AY_ERR_PERIOD` (zero, negative,
 /// NaN or infinite seconds).
+///
+/// Ownership: keeps nothing. Thread-safety: only inside the process `ctx` was given to.
 ///
 /// # Safety
 /// `ctx` is NULL or a context passed to a process.
@@ -678,6 +688,8 @@ pub unsafe extern "C" fn ay_ctx_trigger(ctx: *mut ay_ctx, mono: ay_mono, seconds
 ///
 /// Errors: `AY_ERR_NULL`, `AY_ERR_CONTEXT`, `AY_ERR_UNKNOWN`.
 ///
+/// Ownership: keeps nothing. Thread-safety: only inside the process `ctx` was given to.
+///
 /// # Safety
 /// `ctx` is NULL or a context passed to a process; `out` is NULL or valid for a write.
 #[no_mangle]
@@ -695,6 +707,8 @@ pub unsafe extern "C" fn ay_ctx_is_high(ctx: *mut ay_ctx, mono: ay_mono, out: *m
 ///
 /// Errors: `AY_ERR_NULL`, `AY_ERR_CONTEXT`.
 ///
+/// Ownership: keeps nothing. Thread-safety: only inside the process `ctx` was given to.
+///
 /// # Safety
 /// `ctx` is NULL or a context passed to a process; `out` is NULL or valid for a write.
 #[no_mangle]
@@ -708,6 +722,8 @@ pub unsafe extern "C" fn ay_ctx_now(ctx: *mut ay_ctx, out: *mut f64) -> ay_statu
 /// This node's id into `*out`.
 ///
 /// Errors: `AY_ERR_NULL`, `AY_ERR_CONTEXT`.
+///
+/// Ownership: keeps nothing. Thread-safety: only inside the process `ctx` was given to.
 ///
 /// # Safety
 /// `ctx` is NULL or a context passed to a process; `out` is NULL or valid for a write.

@@ -33,6 +33,8 @@ fn wire(core: &mut NodeCore, from: (&str, &str), to: (&str, &str)) -> Result<(),
 /// Thread-safety: the node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`,
 /// `AY_ERR_INVALID` (empty or taken name).
 ///
+/// Ownership: borrows the names for the call (they are copied).
+///
 /// # Safety
 /// `node` is NULL or a pointer from this library; `name` is NULL or NUL-terminated.
 #[no_mangle]
@@ -66,6 +68,8 @@ pub unsafe extern "C" fn ay_std_safe_velocity(node: *mut ay_node, name: *const c
 /// Thread-safety: the node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`,
 /// `AY_ERR_INVALID` (empty or taken name).
 ///
+/// Ownership: borrows the names for the call (they are copied).
+///
 /// # Safety
 /// `node` is NULL or a pointer from this library; `name` is NULL or NUL-terminated.
 #[no_mangle]
@@ -95,6 +99,8 @@ pub unsafe extern "C" fn ay_std_wander(node: *mut ay_node, name: *const c_char, 
 ///
 /// Thread-safety: the node's thread. Errors: `AY_ERR_NULL` (node, next), `AY_ERR_HANDLE`,
 /// `AY_ERR_BUSY`, `AY_ERR_UNKNOWN` (no VISION or `next`), `AY_ERR_RATE`, `AY_ERR_INVALID`.
+///
+/// Ownership: borrows the names for the call (they are copied).
 ///
 /// # Safety
 /// `node` is NULL or a pointer from this library; `next` and `group` are NULL or
@@ -150,6 +156,8 @@ pub unsafe extern "C" fn ay_std_observer(
 /// Thread-safety: the node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`,
 /// `AY_ERR_INVALID` (a node id that is no robot number, `targets` 0 or above 64, a body
 /// already installed).
+///
+/// Ownership: borrows the names for the call (they are copied).
 ///
 /// # Safety
 /// `node` is NULL or a pointer from this library.
