@@ -173,6 +173,19 @@ impl MonoDecl {
     }
 }
 
+/// Give a declaration its handle. A declaration shared by classes (a base and its subclasses)
+/// must have the same handle in each, since processes find registers by it.
+fn claim(index: &AtomicU32, handle: u16, class: &str, name: &str) -> PyResult<()> {
+    let old = index.swap(u32::from(handle), Ordering::Relaxed);
+    if old != UNASSIGNED && old != u32::from(handle) {
+        index.store(old, Ordering::Relaxed);
+        return Err(errors::InvalidError::new_err(format!(
+            "{class}.{name} is a declaration another class has at another position: declare a new one in each class"
+        )));
+    }
+    Ok(())
+}
+
 fn assigned(index: &AtomicU32, what: &str, name: &OnceLock<String>) -> PyResult<u16> {
     let i = index.load(Ordering::Relaxed);
     if i == UNASSIGNED {
@@ -350,7 +363,7 @@ pub fn define(py: Python<'_>, core: &mut NodeCore, procs: &Arc<Processes>, cls: 
             spec = spec.window(duration(w)?);
         }
         let h = class.port(spec).map_err(errors::core)?;
-        decl.index.store(u32::from(h.0), Ordering::Relaxed);
+        claim(&decl.index, h.0, name, &pname)?;
         port_decls.push(p.unbind());
     }
     for s in slots.try_iter()? {
@@ -358,7 +371,7 @@ pub fn define(py: Python<'_>, core: &mut NodeCore, procs: &Arc<Processes>, cls: 
         let decl = s.cast::<SlotDecl>()?.get();
         let sname = decl.name.get().cloned().ok_or_else(|| errors::InvalidError::new_err("a slot without a name"))?;
         let h = class.slot(&sname, to_value(decl.default.bind(py))?).map_err(errors::core)?;
-        decl.index.store(u32::from(h.0), Ordering::Relaxed);
+        claim(&decl.index, h.0, name, &sname)?;
     }
     for m in monos.try_iter()? {
         let m = m?;
@@ -366,7 +379,7 @@ pub fn define(py: Python<'_>, core: &mut NodeCore, procs: &Arc<Processes>, cls: 
         let mname =
             decl.name.get().cloned().ok_or_else(|| errors::InvalidError::new_err("a monostable without a name"))?;
         let h = class.monostable(&mname).map_err(errors::core)?;
-        decl.index.store(u32::from(h.0), Ordering::Relaxed);
+        claim(&decl.index, h.0, name, &mname)?;
     }
     for item in processes.try_iter()? {
         let item = item?;

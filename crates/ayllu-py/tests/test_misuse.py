@@ -93,3 +93,19 @@ def test_a_ctx_kept_after_its_process_returned_is_refused() -> None:
     node.step()
     with pytest.raises(RuntimeError, match="returned"):
         kept[0].now  # noqa: B018
+
+
+def test_a_declaration_shared_at_two_positions_is_refused() -> None:
+    shared = ayllu.Port(0, name="Shared")
+
+    class First(ayllu.Behavior):
+        s = shared
+
+    class Second(ayllu.Behavior):
+        other = ayllu.Port(0, name="Other")
+        s = shared
+
+    node = ayllu.Node(1, manual=True)
+    node.define(First)
+    with pytest.raises(ayllu.InvalidError, match="another position"):
+        node.define(Second)

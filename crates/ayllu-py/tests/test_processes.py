@@ -125,3 +125,28 @@ def test_each_behavior_has_its_own_python_object() -> None:
     node.step()
     assert (a.n, b.n) == (2, 1)
     assert node.behavior("A") is a
+
+
+def test_a_subclass_inherits_declarations_and_may_override_processes() -> None:
+    class Base(ayllu.Behavior):
+        out = ayllu.Port(0, name="Out")
+
+        @ayllu.every(hz=1)
+        def work(self, ctx: ayllu.Context) -> None:
+            ctx.write(self.out, 1)
+
+    class Derived(Base, name="Derived"):
+        extra = ayllu.Port(0.0, name="Extra")
+
+        @ayllu.every(hz=1)
+        def work(self, ctx: ayllu.Context) -> None:
+            ctx.write(self.out, 2)
+            ctx.write(self.extra, 0.5)
+
+    node = ayllu.Node(1, manual=True)
+    node.create(Base, "B")
+    node.create(Derived, "D")
+    node.step()
+    assert (node.read("B", "Out"), node.read("D", "Out"), node.read("D", "Extra")) == (1, 2, 0.5)
+    assert [p.name for p in node.report().behaviors[1].ports][3:] == ["Out", "Extra"]
+    assert len(node.report().behaviors[1].processes) == 1

@@ -208,30 +208,23 @@ class Behavior:
 
     def __init_subclass__(cls, name: Optional[str] = None, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
-        ports: list[Port] = []
-        slots: list[Slot] = []
-        monos: list[Monostable] = []
-        procs: list[tuple[str, str, Any, Callable[..., Any]]] = []
-        seen: set[str] = set()
+        # Base classes first; a subclass's attribute of the same name replaces the base's.
+        decls: dict[str, Union[Port, Slot, Monostable]] = {}
+        procs: dict[str, tuple[str, str, Any, Callable[..., Any]]] = {}
         for klass in reversed(cls.__mro__):
             for attr, value in vars(klass).items():
-                if attr in seen and not callable(value):
+                if isinstance(value, (Port, Slot, Monostable)):
+                    decls[attr] = value
                     continue
-                if isinstance(value, Port):
-                    ports.append(value)
-                elif isinstance(value, Slot):
-                    slots.append(value)
-                elif isinstance(value, Monostable):
-                    monos.append(value)
-                else:
-                    mark = getattr(value, "__ayllu_process__", None)
-                    if mark is not None:
-                        procs = [p for p in procs if p[0] != attr]
-                        procs.append((attr, mark[0], mark[1], value))
-                        continue
-                    continue
-                seen.add(attr)
-        cls.__ayllu__ = (name or cls.__name__, ports, slots, monos, procs)
+                mark = getattr(value, "__ayllu_process__", None)
+                if mark is not None:
+                    procs[attr] = (attr, mark[0], mark[1], value)
+                elif attr in procs:
+                    del procs[attr]  # overridden by a plain method: no longer a process
+        ports = [d for d in decls.values() if isinstance(d, Port)]
+        slots = [d for d in decls.values() if isinstance(d, Slot)]
+        monos = [d for d in decls.values() if isinstance(d, Monostable)]
+        cls.__ayllu__ = (name or cls.__name__, ports, slots, monos, list(procs.values()))
 
 
 PortValue = Union[bool, int, float, str, bytes, list[float]]
