@@ -12,7 +12,6 @@ call (``f(x)`` returning its argument), so the numbers can be read on any machin
 
 from __future__ import annotations
 
-import statistics
 import sys
 import time
 from pathlib import Path
@@ -153,7 +152,7 @@ def main() -> None:
         f"real-clock node, one 100 Hz Python process       {busy * 100:8.2f} % of a core  "
         f"(idle real-clock node {quiet * 100:.2f} %)"
     )
-    print(f"(best of {REPEATS}; Python {sys.version.split()[0]}; statistics {statistics.__name__})")
+    print(f"(best of {REPEATS}; Python {sys.version.split()[0]})")
 
 
 if __name__ == "__main__":

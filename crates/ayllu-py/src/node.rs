@@ -554,6 +554,11 @@ impl Node {
         self.thread.handle.lock().map(|t| t.is_some()).unwrap_or(false) && !self.thread.stop.load(Ordering::Acquire)
     }
 
+    fn __repr__(&self) -> String {
+        let clock = if self.clock.is_some() { "manual clock" } else { "real clock" };
+        format!("Node({}, {clock}{})", self.id, if self.running() { ", running" } else { "" })
+    }
+
     /// Stop and drop the node: its transport closes; later calls raise.
     fn close(&self, py: Python<'_>) -> PyResult<()> {
         self.stop_thread(py);
