@@ -109,3 +109,14 @@ def test_a_declaration_shared_at_two_positions_is_refused() -> None:
     node.define(First)
     with pytest.raises(ayllu.InvalidError, match="another position"):
         node.define(Second)
+
+
+def test_bad_urls_and_duplicate_nodes_are_refused() -> None:
+    with pytest.raises(ayllu.InvalidError, match="unknown transport"):
+        ayllu.Node(1, "bogus://x")
+    with pytest.raises(ayllu.InvalidError, match="HOST:PORT"):
+        ayllu.Node(1, "udp://not-an-address")
+    team = ayllu.Team()
+    team.add(1)
+    with pytest.raises(ayllu.InvalidError, match="already"):
+        team.add(1)
