@@ -58,7 +58,7 @@ pub use auth::{mac, parse_key_hex, verify_mac, Key, ReplayWindow};
 pub use decode::{decode, decode_with, Datagram, DropReason, NameCache, ReceiverConfig};
 pub use encode::{encode_datagram, encoded_len, DatagramWriter, EncodeError};
 pub use message::{ReplyPart, WireMessage};
-pub use operator::{OperatorPublic, OperatorSecret, OperatorSignature};
+pub use operator::{OperatorPublic, OperatorSecret, OperatorSignature, SignedRequest};
 pub use reply::{reply_messages, report_slice_capacity, AssembleError, ReplyAssembler};
 
 // Re-exported so users of the wire types need not name the core crate for them.

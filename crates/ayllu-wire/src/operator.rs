@@ -5,7 +5,7 @@
 //! apart — could rewire every other. A node started with an *operator public key* accepts
 //! structure changes (CONNECT, DISCONNECT) only in REQUESTs signed with the matching secret,
 //! which stays with the operator's tools. The signature is Ed25519 over
-//! [`signed_request_bytes`]: a context string, the team, the requester, the **receiver** and
+//! [`SignedRequest::bytes`]: a context string, the team, the requester, the **receiver** and
 //! the request as encoded, so a signed request cannot be re-aimed at another team, another
 //! node, or under another requester's id. Freshness (a captured signed request replayed later)
 //! is the receiver's to check, by the request id (`spec/protocol.md`, "Operator signature").
@@ -33,24 +33,36 @@ pub type OperatorSignature = [u8; SIGNATURE_LEN];
 /// a signature over something else made with the same key.
 const CONTEXT: &[u8] = b"ayllu operator request v1\0";
 
-/// The bytes an operator signature covers: the context, `team`, `requester` and `receiver`
-/// (each `u32` LE), then the REQUEST body as encoded (`id` and the operation with its
-/// arguments), without the signature itself.
-pub fn signed_request_bytes(
-    team: u32,
-    requester: NodeId,
-    receiver: NodeId,
-    id: u64,
-    body: &ControlBody,
-) -> Result<Vec<u8>, EncodeError> {
-    let mut b = Vec::with_capacity(CONTEXT.len() + 12 + 8 + 64);
-    b.extend_from_slice(CONTEXT);
-    b.extend_from_slice(&team.to_le_bytes());
-    b.extend_from_slice(&requester.0.to_le_bytes());
-    b.extend_from_slice(&receiver.0.to_le_bytes());
-    b.extend_from_slice(&id.to_le_bytes());
-    put_request(&mut b, body)?;
-    Ok(b)
+/// What an operator signature covers: request `id` asking `body` of node `receiver`, sent by
+/// `requester` in `team`.
+#[derive(Clone, Copy, Debug)]
+pub struct SignedRequest<'a> {
+    /// The team id of the datagram.
+    pub team: u32,
+    /// The requesting node (the datagram's sender).
+    pub requester: NodeId,
+    /// The node asked (so a signed request cannot be re-aimed at another node).
+    pub receiver: NodeId,
+    /// The request's id (its freshness is the receiver's to check).
+    pub id: u64,
+    /// What is asked.
+    pub body: &'a ControlBody,
+}
+
+impl SignedRequest<'_> {
+    /// The bytes the signature covers: the context, `team`, `requester` and `receiver` (each
+    /// `u32` LE), then the REQUEST body as encoded (`id` and the operation with its
+    /// arguments), without the signature itself.
+    pub fn bytes(&self) -> Result<Vec<u8>, EncodeError> {
+        let mut b = Vec::with_capacity(CONTEXT.len() + 12 + 8 + 64);
+        b.extend_from_slice(CONTEXT);
+        b.extend_from_slice(&self.team.to_le_bytes());
+        b.extend_from_slice(&self.requester.0.to_le_bytes());
+        b.extend_from_slice(&self.receiver.0.to_le_bytes());
+        b.extend_from_slice(&self.id.to_le_bytes());
+        put_request(&mut b, self.body)?;
+        Ok(b)
+    }
 }
 
 /// The operator's secret: signs requests. Kept by the operator's tools, never by robots.
@@ -73,17 +85,9 @@ impl OperatorSecret {
         OperatorPublic(self.0.verifying_key())
     }
 
-    /// Sign request `id` asking `body` of node `receiver`, sent by `requester` in `team`.
-    pub fn sign(
-        &self,
-        team: u32,
-        requester: NodeId,
-        receiver: NodeId,
-        id: u64,
-        body: &ControlBody,
-    ) -> Result<OperatorSignature, EncodeError> {
-        let bytes = signed_request_bytes(team, requester, receiver, id, body)?;
-        Ok(self.0.sign(&bytes).to_bytes())
+    /// Sign `request`.
+    pub fn sign(&self, request: &SignedRequest<'_>) -> Result<OperatorSignature, EncodeError> {
+        Ok(self.0.sign(&request.bytes()?).to_bytes())
     }
 }
 
@@ -115,19 +119,10 @@ impl OperatorPublic {
         self.0.to_bytes()
     }
 
-    /// Whether `signature` is this key's signature of request `id` asking `body` of
-    /// `receiver`, sent by `requester` in `team`. Strict verification (no malleable
-    /// signatures); never panics.
-    pub fn verify(
-        &self,
-        team: u32,
-        requester: NodeId,
-        receiver: NodeId,
-        id: u64,
-        body: &ControlBody,
-        signature: &OperatorSignature,
-    ) -> bool {
-        let Ok(bytes) = signed_request_bytes(team, requester, receiver, id, body) else { return false };
+    /// Whether `signature` is this key's signature of `request`. Strict verification (no
+    /// malleable signatures); never panics.
+    pub fn verify(&self, request: &SignedRequest<'_>, signature: &OperatorSignature) -> bool {
+        let Ok(bytes) = request.bytes() else { return false };
         self.0.verify_strict(&bytes, &Signature::from_bytes(signature)).is_ok()
     }
 }
@@ -172,21 +167,28 @@ mod tests {
         let secret = OperatorSecret::from_seed(&[7; 32]);
         let public = secret.public();
         let body = ControlBody::Disconnect { conn: ConnectionId(4) };
-        let sig = secret.sign(9, NodeId(1), NodeId(2), 77, &body).unwrap();
-        assert!(public.verify(9, NodeId(1), NodeId(2), 77, &body, &sig));
-        assert!(!public.verify(8, NodeId(1), NodeId(2), 77, &body, &sig), "another team");
-        assert!(!public.verify(9, NodeId(3), NodeId(2), 77, &body, &sig), "another requester");
-        assert!(!public.verify(9, NodeId(1), NodeId(3), 77, &body, &sig), "another receiver");
-        assert!(!public.verify(9, NodeId(1), NodeId(2), 78, &body, &sig), "another id");
+        let req = |team, requester, receiver, id, body| SignedRequest {
+            team,
+            requester: NodeId(requester),
+            receiver: NodeId(receiver),
+            id,
+            body,
+        };
+        let sig = secret.sign(&req(9, 1, 2, 77, &body)).unwrap();
+        assert!(public.verify(&req(9, 1, 2, 77, &body), &sig));
+        assert!(!public.verify(&req(8, 1, 2, 77, &body), &sig), "another team");
+        assert!(!public.verify(&req(9, 3, 2, 77, &body), &sig), "another requester");
+        assert!(!public.verify(&req(9, 1, 3, 77, &body), &sig), "another receiver");
+        assert!(!public.verify(&req(9, 1, 2, 78, &body), &sig), "another id");
         let other = ControlBody::Disconnect { conn: ConnectionId(5) };
-        assert!(!public.verify(9, NodeId(1), NodeId(2), 77, &other, &sig), "another request");
+        assert!(!public.verify(&req(9, 1, 2, 77, &other), &sig), "another request");
         let mut bent = sig;
         bent[10] ^= 1;
-        assert!(!public.verify(9, NodeId(1), NodeId(2), 77, &body, &bent));
+        assert!(!public.verify(&req(9, 1, 2, 77, &body), &bent));
         let stranger = OperatorSecret::from_seed(&[8; 32]).public();
-        assert!(!stranger.verify(9, NodeId(1), NodeId(2), 77, &body, &sig), "another operator");
-        assert!(!public.verify(9, NodeId(1), NodeId(2), 77, &body, &[0; 64]));
-        assert!(!public.verify(9, NodeId(1), NodeId(2), 77, &body, &[0xff; 64]));
+        assert!(!stranger.verify(&req(9, 1, 2, 77, &body), &sig), "another operator");
+        assert!(!public.verify(&req(9, 1, 2, 77, &body), &[0; 64]));
+        assert!(!public.verify(&req(9, 1, 2, 77, &body), &[0xff; 64]));
     }
 
     #[test]

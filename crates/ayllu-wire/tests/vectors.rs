@@ -89,7 +89,8 @@ fn vector_operator() -> ayllu_wire::OperatorSecret {
 }
 
 fn signed_request(id: u64, body: ControlBody) -> WireMessage {
-    let signature = Some(vector_operator().sign(7, NodeId(3), NodeId(9), id, &body).unwrap());
+    let request = ayllu_wire::SignedRequest { team: 7, requester: NodeId(3), receiver: NodeId(9), id, body: &body };
+    let signature = Some(vector_operator().sign(&request).unwrap());
     WireMessage::Request { id, body, signature }
 }
 

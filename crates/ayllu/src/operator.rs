@@ -15,8 +15,8 @@
 
 use std::collections::{BTreeMap, VecDeque};
 
-use ayllu_core::{ControlBody, Duration, Instant, NodeId};
-use ayllu_wire::{OperatorPublic, OperatorSignature, ReplayWindow};
+use ayllu_core::{Duration, Instant, NodeId};
+use ayllu_wire::{OperatorPublic, OperatorSignature, ReplayWindow, SignedRequest};
 
 /// Requesters whose signed-request windows are kept (the least recently used is forgotten
 /// first: it can then replay requests older than its newest applied one).
@@ -64,26 +64,22 @@ impl OperatorGate {
         OperatorGate { key, windows, recent: VecDeque::new(), dirty: false }
     }
 
-    /// Whether request `id` from `requester` to `receiver` may be applied. Only structure
-    /// changes are gated; other requests always may.
-    #[allow(clippy::too_many_arguments)]
+    /// Whether `request` may be applied. Only structure changes are gated; other requests
+    /// always may.
     pub(crate) fn admit(
         &mut self,
         now: Instant,
-        team: u32,
-        requester: NodeId,
-        receiver: NodeId,
-        id: u64,
-        body: &ControlBody,
+        request: &SignedRequest<'_>,
         signature: Option<&OperatorSignature>,
     ) -> Result<(), Refusal> {
-        if !ayllu_wire::operator::changes_structure(body) {
+        if !ayllu_wire::operator::changes_structure(request.body) {
             return Ok(());
         }
         let sig = signature.ok_or(Refusal::Unsigned)?;
-        if !self.key.verify(team, requester, receiver, id, body, sig) {
+        if !self.key.verify(request, sig) {
             return Err(Refusal::BadSignature);
         }
+        let (requester, id) = (request.requester, request.id);
         while self.recent.front().is_some_and(|(_, _, at)| *at + RETRY_HORIZON <= now) {
             self.recent.pop_front();
         }
@@ -139,7 +135,7 @@ pub fn keygen(path: &std::path::Path) -> Result<OperatorPublic, crate::error::Er
 #[cfg(test)]
 mod tests {
     use super::*;
-    use ayllu_core::ConnectionId;
+    use ayllu_core::{ConnectionId, ControlBody};
     use ayllu_wire::OperatorSecret;
 
     fn t(ms: u64) -> Instant {
@@ -151,23 +147,30 @@ mod tests {
         let secret = OperatorSecret::from_seed(&[3; 32]);
         let mut gate = OperatorGate::new(secret.public(), BTreeMap::new());
         let body = ControlBody::Disconnect { conn: ConnectionId(1) };
-        let sig = secret.sign(0, NodeId(5), NodeId(1), 100, &body).unwrap();
-        assert_eq!(gate.admit(t(0), 0, NodeId(5), NodeId(1), 100, &ControlBody::List, None), Ok(()), "reads are open");
-        assert_eq!(gate.admit(t(0), 0, NodeId(5), NodeId(1), 100, &body, None), Err(Refusal::Unsigned));
-        assert_eq!(gate.admit(t(0), 0, NodeId(6), NodeId(1), 100, &body, Some(&sig)), Err(Refusal::BadSignature));
-        assert_eq!(gate.admit(t(0), 0, NodeId(5), NodeId(1), 100, &body, Some(&sig)), Ok(()));
-        assert_eq!(gate.admit(t(200), 0, NodeId(5), NodeId(1), 100, &body, Some(&sig)), Ok(()), "a retry");
-        assert_eq!(gate.admit(t(11_000), 0, NodeId(5), NodeId(1), 100, &body, Some(&sig)), Err(Refusal::Replayed));
+        let req = |requester, id, body| SignedRequest {
+            team: 0,
+            requester: NodeId(requester),
+            receiver: NodeId(1),
+            id,
+            body,
+        };
+        let sig = secret.sign(&req(5, 100, &body)).unwrap();
+        assert_eq!(gate.admit(t(0), &req(5, 100, &ControlBody::List), None), Ok(()), "reads are open");
+        assert_eq!(gate.admit(t(0), &req(5, 100, &body), None), Err(Refusal::Unsigned));
+        assert_eq!(gate.admit(t(0), &req(6, 100, &body), Some(&sig)), Err(Refusal::BadSignature));
+        assert_eq!(gate.admit(t(0), &req(5, 100, &body), Some(&sig)), Ok(()));
+        assert_eq!(gate.admit(t(200), &req(5, 100, &body), Some(&sig)), Ok(()), "a retry");
+        assert_eq!(gate.admit(t(11_000), &req(5, 100, &body), Some(&sig)), Err(Refusal::Replayed));
         let restarted =
             OperatorGate::new(secret.public(), gate.marks().map(|(n, id)| (n, ReplayWindow::after(id))).collect());
         let mut restarted = restarted;
         assert_eq!(
-            restarted.admit(t(0), 0, NodeId(5), NodeId(1), 100, &body, Some(&sig)),
+            restarted.admit(t(0), &req(5, 100, &body), Some(&sig)),
             Err(Refusal::Replayed),
             "after a restart with its marks"
         );
-        let newer = secret.sign(0, NodeId(5), NodeId(1), 101, &body).unwrap();
-        assert_eq!(restarted.admit(t(0), 0, NodeId(5), NodeId(1), 101, &body, Some(&newer)), Ok(()));
+        let newer = secret.sign(&req(5, 101, &body)).unwrap();
+        assert_eq!(restarted.admit(t(0), &req(5, 101, &body), Some(&newer)), Ok(()));
     }
 
     #[test]

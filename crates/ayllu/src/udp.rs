@@ -24,7 +24,8 @@ use std::net::{IpAddr, SocketAddr};
 
 use ayllu_core::{ControlBody, ControlMessage, Destination, Duration, Instant, Message, NodeId};
 use ayllu_wire::{
-    decode_with, DatagramWriter, EncodeError, NameCache, ReceiverConfig, ReplayWindow, ReplyAssembler, WireMessage,
+    decode_with, DatagramWriter, EncodeError, NameCache, ReceiverConfig, ReplayWindow, ReplyAssembler, SignedRequest,
+    WireMessage,
 };
 
 use crate::datagram::{DatagramSocket, OsSocket};
@@ -593,7 +594,10 @@ impl<S: DatagramSocket> UdpTransport<S> {
                 WireMessage::Request { id, body, signature } => {
                     let team = self.config.team;
                     let verdict = match &mut self.operator {
-                        Some(gate) => gate.admit(now, team, sender, self.id, id, &body, signature.as_ref()),
+                        Some(gate) => {
+                            let request = SignedRequest { team, requester: sender, receiver: self.id, id, body: &body };
+                            gate.admit(now, &request, signature.as_ref())
+                        }
                         None => Ok(()),
                     };
                     match verdict {
@@ -842,7 +846,9 @@ impl<S: DatagramSocket> UdpTransport<S> {
         for m in parts {
             if let WireMessage::Request { id, body, signature } = m {
                 if ayllu_wire::operator::changes_structure(body) {
-                    *signature = secret.sign(self.config.team, self.id, to, *id, body).ok();
+                    let request =
+                        SignedRequest { team: self.config.team, requester: self.id, receiver: to, id: *id, body };
+                    *signature = secret.sign(&request).ok();
                 }
             }
         }

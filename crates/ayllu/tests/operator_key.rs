@@ -10,7 +10,7 @@ use ayllu::{
     BehaviorClass, ConnectionKind, ControlBody, Duration, Endpoint, Lockstep, Node, NodeId, PortSpec, RequestStatus,
     UdpConfig, UdpTransport,
 };
-use ayllu_wire::{decode, encode_datagram, OperatorSecret, ReceiverConfig, ReplyPart, WireMessage};
+use ayllu_wire::{decode, encode_datagram, OperatorSecret, ReceiverConfig, ReplyPart, SignedRequest, WireMessage};
 
 const TICK: Duration = Duration::from_millis(1);
 const TEAM: u32 = 7;
@@ -120,7 +120,8 @@ fn signed_connect(id: u64, seq: u64) -> Vec<u8> {
         kind: ConnectionKind::Normal,
         priority: 0,
     };
-    let signature = Some(operator().sign(TEAM, NodeId(5), NodeId(1), id, &body).unwrap());
+    let request = SignedRequest { team: TEAM, requester: NodeId(5), receiver: NodeId(1), id, body: &body };
+    let signature = Some(operator().sign(&request).unwrap());
     encode_datagram(TEAM, NodeId(5), seq, None, &[WireMessage::Request { id, body, signature }]).unwrap()
 }
 
