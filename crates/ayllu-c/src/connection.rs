@@ -102,6 +102,29 @@ fn kind(kind: u32, period: f64) -> Result<ConnectionKind, Fail> {
     })
 }
 
+/// The body of `ay_node_connect` and `ay_node_request_connect`: read the endpoints and the
+/// kind from C, `make` the connection (or the request for it) with them, and put its id into
+/// `*out` (may be NULL).
+///
+/// # Safety
+/// The endpoints are NULL or valid with NULL-or-NUL-terminated strings; `out` is NULL or valid
+/// for a write.
+unsafe fn connect_from_c(
+    source: *const ay_endpoint,
+    destination: *const ay_endpoint,
+    kind_: u32,
+    period: f64,
+    out: *mut u64,
+    make: impl FnOnce(&Endpoint, &Endpoint, ConnectionKind) -> Result<u64, Fail>,
+) -> Result<(), Fail> {
+    // SAFETY: forwarded promises on the endpoints.
+    let (s, d) = unsafe { (endpoint(source, "source")?, endpoint(destination, "destination")?) };
+    let id = make(&s, &d, kind(kind_, period)?)?;
+    // SAFETY: forwarded promise on `out`.
+    unsafe { put_optional(out, id) };
+    Ok(())
+}
+
 /// Connect `source` (a port of this node) to `destination` with `kind` (`AY_NORMAL` ..
 /// `AY_WRITE_INHIBIT`) and `period` seconds (0 for `AY_NORMAL`, above zero for the others);
 /// `priority` is the connection's priority at a Priority port. The new connection's id goes
@@ -128,13 +151,12 @@ pub unsafe extern "C" fn ay_node_connect(
     out: *mut u64,
 ) -> ay_status {
     boundary("ay_node_connect", || {
-        // SAFETY: the C caller's promises on the endpoints.
-        let (s, d) = unsafe { (endpoint(source, "source")?, endpoint(destination, "destination")?) };
-        let k = kind(kind_, period)?;
-        let id = with_node(node, |n| Ok(n.node.connect_with(&s, &d, k, ConnectOptions { priority })?))?;
-        // SAFETY: the C caller's promise on `out`.
-        unsafe { put_optional(out, id.0) };
-        Ok(())
+        // SAFETY: the C caller's promises on the endpoints and `out`.
+        unsafe {
+            connect_from_c(source, destination, kind_, period, out, |s, d, k| {
+                with_node(node, |n| Ok(n.node.connect_with(s, d, k, ConnectOptions { priority })?.0))
+            })
+        }
     })
 }
 
@@ -158,13 +180,12 @@ pub unsafe extern "C" fn ay_node_request_connect(
     out: *mut u64,
 ) -> ay_status {
     boundary("ay_node_request_connect", || {
-        // SAFETY: the C caller's promises on the endpoints.
-        let (s, d) = unsafe { (endpoint(source, "source")?, endpoint(destination, "destination")?) };
-        let k = kind(kind_, period)?;
-        let id = with_node(node, |n| Ok(n.node.core_mut().request_connect(&s, &d, k, ConnectOptions { priority })?))?;
-        // SAFETY: the C caller's promise on `out`.
-        unsafe { put_optional(out, id.0) };
-        Ok(())
+        // SAFETY: the C caller's promises on the endpoints and `out`.
+        unsafe {
+            connect_from_c(source, destination, kind_, period, out, |s, d, k| {
+                with_node(node, |n| Ok(n.node.core_mut().request_connect(s, d, k, ConnectOptions { priority })?.0))
+            })
+        }
     })
 }
 

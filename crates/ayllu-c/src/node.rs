@@ -12,7 +12,7 @@ use ayllu::{BleConfig, Node, NodeId, PortRef, Value};
 use crate::class::{self, ay_class, optional_secs, required_secs};
 use crate::clock::with_clock;
 use crate::cstr::{copy_out, put, text};
-use crate::process::{deliver, freshness, scalar, slice, Scalar};
+use crate::process::{copy_items, deliver, freshness, scalar, slice, Scalar};
 use crate::registry::{self, Kind};
 use crate::status::{ay_status, boundary, Fail};
 
@@ -530,6 +530,25 @@ fn port_ref(s: &NodeState, r: ay_port_ref) -> Result<PortRef, Fail> {
     })
 }
 
+/// Write through a port handle now (the `ay_node_write_*_ref`).
+fn write_ref(node: *mut ay_node, port: ay_port_ref, value: Value) -> Result<(), Fail> {
+    with_node(node, |s| {
+        let r = port_ref(s, port)?;
+        let now = s.node.now();
+        Ok(s.node.core_mut().write(now, r, value)?)
+    })
+}
+
+/// Read through a port handle now, and whether the value is fresh (the `ay_node_read_*_ref`).
+fn read_ref(node: *mut ay_node, port: ay_port_ref) -> Result<(Value, bool), Fail> {
+    with_node(node, |s| {
+        let r = port_ref(s, port)?;
+        let now = s.node.now();
+        let core = s.node.core();
+        Ok((core.read_at(now, r)?, core.fresh_at(now, r)?))
+    })
+}
+
 /// As [`ay_node_write_int`], for a bool port.
 ///
 /// # Safety
@@ -567,13 +586,7 @@ pub unsafe extern "C" fn ay_node_read_bool(
 /// As [`ay_node_write_int_ref`].
 #[no_mangle]
 pub unsafe extern "C" fn ay_node_write_bool_ref(node: *mut ay_node, port: ay_port_ref, value: bool) -> ay_status {
-    boundary("ay_node_write_bool_ref", || {
-        with_node(node, |s| {
-            let r = port_ref(s, port)?;
-            let now = s.node.now();
-            Ok(s.node.core_mut().write(now, r, value.into_value())?)
-        })
-    })
+    boundary("ay_node_write_bool_ref", || write_ref(node, port, value.into_value()))
 }
 
 /// As [`ay_node_read_int_ref`], for a bool port.
@@ -583,12 +596,7 @@ pub unsafe extern "C" fn ay_node_write_bool_ref(node: *mut ay_node, port: ay_por
 #[no_mangle]
 pub unsafe extern "C" fn ay_node_read_bool_ref(node: *mut ay_node, port: ay_port_ref, out: *mut bool) -> ay_status {
     boundary("ay_node_read_bool_ref", || {
-        let (v, fresh) = with_node(node, |s| {
-            let r = port_ref(s, port)?;
-            let now = s.node.now();
-            let core = s.node.core();
-            Ok((core.read_at(now, r)?, core.fresh_at(now, r)?))
-        })?;
+        let (v, fresh) = read_ref(node, port)?;
         deliver(out, scalar::<bool>(&v, "the port")?, fresh)
     })
 }
@@ -643,13 +651,7 @@ pub unsafe extern "C" fn ay_node_read_int(
 /// `node` is NULL or a pointer from this library.
 #[no_mangle]
 pub unsafe extern "C" fn ay_node_write_int_ref(node: *mut ay_node, port: ay_port_ref, value: i64) -> ay_status {
-    boundary("ay_node_write_int_ref", || {
-        with_node(node, |s| {
-            let r = port_ref(s, port)?;
-            let now = s.node.now();
-            Ok(s.node.core_mut().write(now, r, value.into_value())?)
-        })
-    })
+    boundary("ay_node_write_int_ref", || write_ref(node, port, value.into_value()))
 }
 
 /// Read through a port handle from `ay_node_port`. As [`ay_node_read_int`].
@@ -659,12 +661,7 @@ pub unsafe extern "C" fn ay_node_write_int_ref(node: *mut ay_node, port: ay_port
 #[no_mangle]
 pub unsafe extern "C" fn ay_node_read_int_ref(node: *mut ay_node, port: ay_port_ref, out: *mut i64) -> ay_status {
     boundary("ay_node_read_int_ref", || {
-        let (v, fresh) = with_node(node, |s| {
-            let r = port_ref(s, port)?;
-            let now = s.node.now();
-            let core = s.node.core();
-            Ok((core.read_at(now, r)?, core.fresh_at(now, r)?))
-        })?;
+        let (v, fresh) = read_ref(node, port)?;
         deliver(out, scalar::<i64>(&v, "the port")?, fresh)
     })
 }
@@ -706,13 +703,7 @@ pub unsafe extern "C" fn ay_node_read_float(
 /// As [`ay_node_write_int_ref`].
 #[no_mangle]
 pub unsafe extern "C" fn ay_node_write_float_ref(node: *mut ay_node, port: ay_port_ref, value: f64) -> ay_status {
-    boundary("ay_node_write_float_ref", || {
-        with_node(node, |s| {
-            let r = port_ref(s, port)?;
-            let now = s.node.now();
-            Ok(s.node.core_mut().write(now, r, value.into_value())?)
-        })
-    })
+    boundary("ay_node_write_float_ref", || write_ref(node, port, value.into_value()))
 }
 
 /// As [`ay_node_read_int_ref`], for a float port.
@@ -722,12 +713,7 @@ pub unsafe extern "C" fn ay_node_write_float_ref(node: *mut ay_node, port: ay_po
 #[no_mangle]
 pub unsafe extern "C" fn ay_node_read_float_ref(node: *mut ay_node, port: ay_port_ref, out: *mut f64) -> ay_status {
     boundary("ay_node_read_float_ref", || {
-        let (v, fresh) = with_node(node, |s| {
-            let r = port_ref(s, port)?;
-            let now = s.node.now();
-            let core = s.node.core();
-            Ok((core.read_at(now, r)?, core.fresh_at(now, r)?))
-        })?;
+        let (v, fresh) = read_ref(node, port)?;
         deliver(out, scalar::<f64>(&v, "the port")?, fresh)
     })
 }
@@ -805,11 +791,10 @@ pub unsafe extern "C" fn ay_node_read_text(
 ) -> ay_status {
     boundary("ay_node_read_text", || {
         let (v, fresh) = read_value(node, behavior, port)?;
-        let s = v.as_text().ok_or_else(|| {
-            Fail::new(ay_status::AY_ERR_TYPE, format!("the port holds a {}, not text", v.ty().name()))
-        })?;
         // SAFETY: the C caller's promises on buffer/capacity/length.
-        unsafe { copy_out(s.as_bytes(), true, buffer.cast::<u8>(), capacity, length) }?;
+        unsafe {
+            copy_items(&v, |v| v.as_text().map(str::as_bytes), "text", true, buffer.cast::<u8>(), capacity, length)
+        }?;
         freshness(fresh)
     })
 }
@@ -830,11 +815,8 @@ pub unsafe extern "C" fn ay_node_read_vector(
 ) -> ay_status {
     boundary("ay_node_read_vector", || {
         let (v, fresh) = read_value(node, behavior, port)?;
-        let s = v.as_vector().ok_or_else(|| {
-            Fail::new(ay_status::AY_ERR_TYPE, format!("the port holds a {}, not a vector", v.ty().name()))
-        })?;
         // SAFETY: the C caller's promises on buffer/capacity/length.
-        unsafe { copy_out(s, false, buffer, capacity, length) }?;
+        unsafe { copy_items(&v, Value::as_vector, "a vector", false, buffer, capacity, length) }?;
         freshness(fresh)
     })
 }
@@ -855,11 +837,8 @@ pub unsafe extern "C" fn ay_node_read_bytes(
 ) -> ay_status {
     boundary("ay_node_read_bytes", || {
         let (v, fresh) = read_value(node, behavior, port)?;
-        let s = v.as_bytes().ok_or_else(|| {
-            Fail::new(ay_status::AY_ERR_TYPE, format!("the port holds a {}, not bytes", v.ty().name()))
-        })?;
         // SAFETY: the C caller's promises on buffer/capacity/length.
-        unsafe { copy_out(s, false, buffer, capacity, length) }?;
+        unsafe { copy_items(&v, Value::as_bytes, "bytes", false, buffer, capacity, length) }?;
         freshness(fresh)
     })
 }

@@ -273,19 +273,71 @@ pub(crate) fn written(r: Result<(), DropCause>) -> Result<(), Fail> {
     }
 }
 
+/// Copy the items `get` finds in a read value into `buffer` (NUL-terminated if `terminate`;
+/// `*length` gets their count, as [`copy_out`]); `AY_ERR_TYPE` naming `what` (e.g. "a
+/// vector") when the value holds another type.
+///
+/// # Safety
+/// As [`copy_out`]: `buffer` is NULL or valid for `capacity` items, `length` is NULL or valid
+/// for a write.
+pub(crate) unsafe fn copy_items<T: Copy + Default>(
+    v: &Value,
+    get: impl FnOnce(&Value) -> Option<&[T]>,
+    what: &str,
+    terminate: bool,
+    buffer: *mut T,
+    capacity: usize,
+    length: *mut usize,
+) -> Result<(), Fail> {
+    let items = get(v)
+        .ok_or_else(|| Fail::new(ay_status::AY_ERR_TYPE, format!("the port holds a {}, not {what}", v.ty().name())))?;
+    // SAFETY: forwarded promises on buffer/capacity/length.
+    unsafe { copy_out(items, terminate, buffer, capacity, length) }
+}
+
+/// Read the running behavior's `port` as a `T` into `*out` (the scalar `ay_ctx_read_*`).
+fn read_scalar<T: Scalar>(ctx: *mut ay_ctx, port: ay_port, out: *mut T) -> Result<(), Fail> {
+    with_ctx(ctx, |c, regs| {
+        let p = port_of(regs, port)?;
+        let v = scalar::<T>(&c.read(p), "the port")?;
+        deliver(out, v, c.fresh(p))
+    })
+}
+
+/// Write the running behavior's `port` with the value `value` makes once the context and the
+/// port are known to be good (the `ay_ctx_write_*`).
+fn write_port(ctx: *mut ay_ctx, port: ay_port, value: impl FnOnce() -> Result<Value, Fail>) -> Result<(), Fail> {
+    with_ctx(ctx, |c, regs| {
+        let p = port_of(regs, port)?;
+        written(c.write(p, value()?))
+    })
+}
+
+/// Read the running behavior's `slot` as a `T` into `*out` (the `ay_ctx_slot_get_*`).
+fn get_slot<T: Scalar>(ctx: *mut ay_ctx, slot: ay_slot, out: *mut T) -> Result<(), Fail> {
+    with_ctx(ctx, |c, regs| {
+        let s = slot_of(regs, slot)?;
+        let v = scalar::<T>(&c.slot(s), "the slot")?;
+        // SAFETY: the exported callers forward the C caller's promise on `out`.
+        unsafe { put(out, v, "out") }
+    })
+}
+
+/// Set the running behavior's `slot` (the `ay_ctx_slot_set_*`).
+fn set_slot(ctx: *mut ay_ctx, slot: ay_slot, value: Value) -> Result<(), Fail> {
+    with_ctx(ctx, |c, regs| {
+        let s = slot_of(regs, slot)?;
+        Ok(c.set_slot(s, value)?)
+    })
+}
+
 /// As [`ay_ctx_read_int`], for a bool port.
 ///
 /// # Safety
 /// As [`ay_ctx_read_int`].
 #[no_mangle]
 pub unsafe extern "C" fn ay_ctx_read_bool(ctx: *mut ay_ctx, port: ay_port, out: *mut bool) -> ay_status {
-    boundary("ay_ctx_read_bool", || {
-        with_ctx(ctx, |c, regs| {
-            let p = port_of(regs, port)?;
-            let v = scalar::<bool>(&c.read(p), "the port")?;
-            deliver(out, v, c.fresh(p))
-        })
-    })
+    boundary("ay_ctx_read_bool", || read_scalar(ctx, port, out))
 }
 
 /// As [`ay_ctx_write_int`], for a bool port.
@@ -294,12 +346,7 @@ pub unsafe extern "C" fn ay_ctx_read_bool(ctx: *mut ay_ctx, port: ay_port, out: 
 /// As [`ay_ctx_write_int`].
 #[no_mangle]
 pub unsafe extern "C" fn ay_ctx_write_bool(ctx: *mut ay_ctx, port: ay_port, value: bool) -> ay_status {
-    boundary("ay_ctx_write_bool", || {
-        with_ctx(ctx, |c, regs| {
-            let p = port_of(regs, port)?;
-            written(c.write(p, value.into_value()))
-        })
-    })
+    boundary("ay_ctx_write_bool", || write_port(ctx, port, || Ok(value.into_value())))
 }
 
 /// As [`ay_ctx_slot_get_int`], for a bool slot.
@@ -308,14 +355,7 @@ pub unsafe extern "C" fn ay_ctx_write_bool(ctx: *mut ay_ctx, port: ay_port, valu
 /// As [`ay_ctx_slot_get_int`].
 #[no_mangle]
 pub unsafe extern "C" fn ay_ctx_slot_get_bool(ctx: *mut ay_ctx, slot: ay_slot, out: *mut bool) -> ay_status {
-    boundary("ay_ctx_slot_get_bool", || {
-        with_ctx(ctx, |c, regs| {
-            let s = slot_of(regs, slot)?;
-            let v = scalar::<bool>(&c.slot(s), "the slot")?;
-            // SAFETY: the C caller's promise on `out`.
-            unsafe { put(out, v, "out") }
-        })
-    })
+    boundary("ay_ctx_slot_get_bool", || get_slot(ctx, slot, out))
 }
 
 /// As [`ay_ctx_slot_set_int`], for a bool slot.
@@ -324,12 +364,7 @@ pub unsafe extern "C" fn ay_ctx_slot_get_bool(ctx: *mut ay_ctx, slot: ay_slot, o
 /// As [`ay_ctx_slot_set_int`].
 #[no_mangle]
 pub unsafe extern "C" fn ay_ctx_slot_set_bool(ctx: *mut ay_ctx, slot: ay_slot, value: bool) -> ay_status {
-    boundary("ay_ctx_slot_set_bool", || {
-        with_ctx(ctx, |c, regs| {
-            let s = slot_of(regs, slot)?;
-            Ok(c.set_slot(s, value.into_value())?)
-        })
-    })
+    boundary("ay_ctx_slot_set_bool", || set_slot(ctx, slot, value.into_value()))
 }
 
 /// Read the running behavior's port: `*out` receives what the port reads as (its default
@@ -344,13 +379,7 @@ pub unsafe extern "C" fn ay_ctx_slot_set_bool(ctx: *mut ay_ctx, slot: ay_slot, v
 /// `ctx` is NULL or a context passed to a process; `out` is NULL or valid for a write.
 #[no_mangle]
 pub unsafe extern "C" fn ay_ctx_read_int(ctx: *mut ay_ctx, port: ay_port, out: *mut i64) -> ay_status {
-    boundary("ay_ctx_read_int", || {
-        with_ctx(ctx, |c, regs| {
-            let p = port_of(regs, port)?;
-            let v = scalar::<i64>(&c.read(p), "the port")?;
-            deliver(out, v, c.fresh(p))
-        })
-    })
+    boundary("ay_ctx_read_int", || read_scalar(ctx, port, out))
 }
 
 /// Write the running behavior's own port (never blocked by suppression; inhibition, another's
@@ -364,12 +393,7 @@ pub unsafe extern "C" fn ay_ctx_read_int(ctx: *mut ay_ctx, port: ay_port, out: *
 /// `ctx` is NULL or a context passed to a process.
 #[no_mangle]
 pub unsafe extern "C" fn ay_ctx_write_int(ctx: *mut ay_ctx, port: ay_port, value: i64) -> ay_status {
-    boundary("ay_ctx_write_int", || {
-        with_ctx(ctx, |c, regs| {
-            let p = port_of(regs, port)?;
-            written(c.write(p, value.into_value()))
-        })
-    })
+    boundary("ay_ctx_write_int", || write_port(ctx, port, || Ok(value.into_value())))
 }
 
 /// Read a slot of the running behavior into `*out`.
@@ -381,14 +405,7 @@ pub unsafe extern "C" fn ay_ctx_write_int(ctx: *mut ay_ctx, port: ay_port, value
 /// `ctx` is NULL or a context passed to a process; `out` is NULL or valid for a write.
 #[no_mangle]
 pub unsafe extern "C" fn ay_ctx_slot_get_int(ctx: *mut ay_ctx, slot: ay_slot, out: *mut i64) -> ay_status {
-    boundary("ay_ctx_slot_get_int", || {
-        with_ctx(ctx, |c, regs| {
-            let s = slot_of(regs, slot)?;
-            let v = scalar::<i64>(&c.slot(s), "the slot")?;
-            // SAFETY: the C caller's promise on `out`.
-            unsafe { put(out, v, "out") }
-        })
-    })
+    boundary("ay_ctx_slot_get_int", || get_slot(ctx, slot, out))
 }
 
 /// Set a slot of the running behavior (never propagated: slots are not connectable).
@@ -400,12 +417,7 @@ pub unsafe extern "C" fn ay_ctx_slot_get_int(ctx: *mut ay_ctx, slot: ay_slot, ou
 /// `ctx` is NULL or a context passed to a process.
 #[no_mangle]
 pub unsafe extern "C" fn ay_ctx_slot_set_int(ctx: *mut ay_ctx, slot: ay_slot, value: i64) -> ay_status {
-    boundary("ay_ctx_slot_set_int", || {
-        with_ctx(ctx, |c, regs| {
-            let s = slot_of(regs, slot)?;
-            Ok(c.set_slot(s, value.into_value())?)
-        })
-    })
+    boundary("ay_ctx_slot_set_int", || set_slot(ctx, slot, value.into_value()))
 }
 
 /// As [`ay_ctx_read_int`], for a float port.
@@ -414,13 +426,7 @@ pub unsafe extern "C" fn ay_ctx_slot_set_int(ctx: *mut ay_ctx, slot: ay_slot, va
 /// As [`ay_ctx_read_int`].
 #[no_mangle]
 pub unsafe extern "C" fn ay_ctx_read_float(ctx: *mut ay_ctx, port: ay_port, out: *mut f64) -> ay_status {
-    boundary("ay_ctx_read_float", || {
-        with_ctx(ctx, |c, regs| {
-            let p = port_of(regs, port)?;
-            let v = scalar::<f64>(&c.read(p), "the port")?;
-            deliver(out, v, c.fresh(p))
-        })
-    })
+    boundary("ay_ctx_read_float", || read_scalar(ctx, port, out))
 }
 
 /// As [`ay_ctx_write_int`], for a float port.
@@ -429,12 +435,7 @@ pub unsafe extern "C" fn ay_ctx_read_float(ctx: *mut ay_ctx, port: ay_port, out:
 /// As [`ay_ctx_write_int`].
 #[no_mangle]
 pub unsafe extern "C" fn ay_ctx_write_float(ctx: *mut ay_ctx, port: ay_port, value: f64) -> ay_status {
-    boundary("ay_ctx_write_float", || {
-        with_ctx(ctx, |c, regs| {
-            let p = port_of(regs, port)?;
-            written(c.write(p, value.into_value()))
-        })
-    })
+    boundary("ay_ctx_write_float", || write_port(ctx, port, || Ok(value.into_value())))
 }
 
 /// As [`ay_ctx_slot_get_int`], for a float slot.
@@ -443,14 +444,7 @@ pub unsafe extern "C" fn ay_ctx_write_float(ctx: *mut ay_ctx, port: ay_port, val
 /// As [`ay_ctx_slot_get_int`].
 #[no_mangle]
 pub unsafe extern "C" fn ay_ctx_slot_get_float(ctx: *mut ay_ctx, slot: ay_slot, out: *mut f64) -> ay_status {
-    boundary("ay_ctx_slot_get_float", || {
-        with_ctx(ctx, |c, regs| {
-            let s = slot_of(regs, slot)?;
-            let v = scalar::<f64>(&c.slot(s), "the slot")?;
-            // SAFETY: the C caller's promise on `out`.
-            unsafe { put(out, v, "out") }
-        })
-    })
+    boundary("ay_ctx_slot_get_float", || get_slot(ctx, slot, out))
 }
 
 /// As [`ay_ctx_slot_set_int`], for a float slot.
@@ -459,12 +453,7 @@ pub unsafe extern "C" fn ay_ctx_slot_get_float(ctx: *mut ay_ctx, slot: ay_slot, 
 /// As [`ay_ctx_slot_set_int`].
 #[no_mangle]
 pub unsafe extern "C" fn ay_ctx_slot_set_float(ctx: *mut ay_ctx, slot: ay_slot, value: f64) -> ay_status {
-    boundary("ay_ctx_slot_set_float", || {
-        with_ctx(ctx, |c, regs| {
-            let s = slot_of(regs, slot)?;
-            Ok(c.set_slot(s, value.into_value())?)
-        })
-    })
+    boundary("ay_ctx_slot_set_float", || set_slot(ctx, slot, value.into_value()))
 }
 
 /// Read a text port into `buffer` (`capacity` bytes, NUL-terminated); `*length` (may be NULL)
@@ -489,12 +478,18 @@ pub unsafe extern "C" fn ay_ctx_read_text(
     boundary("ay_ctx_read_text", || {
         with_ctx(ctx, |c, regs| {
             let p = port_of(regs, port)?;
-            let v = c.read(p);
-            let s = v.as_text().ok_or_else(|| {
-                Fail::new(ay_status::AY_ERR_TYPE, format!("the port holds a {}, not text", v.ty().name()))
-            })?;
             // SAFETY: the C caller's promises on buffer/capacity/length.
-            unsafe { copy_out(s.as_bytes(), true, buffer.cast::<u8>(), capacity, length) }?;
+            unsafe {
+                copy_items(
+                    &c.read(p),
+                    |v| v.as_text().map(str::as_bytes),
+                    "text",
+                    true,
+                    buffer.cast::<u8>(),
+                    capacity,
+                    length,
+                )
+            }?;
             freshness(c.fresh(p))
         })
     })
@@ -518,12 +513,8 @@ pub unsafe extern "C" fn ay_ctx_read_vector(
     boundary("ay_ctx_read_vector", || {
         with_ctx(ctx, |c, regs| {
             let p = port_of(regs, port)?;
-            let v = c.read(p);
-            let s = v.as_vector().ok_or_else(|| {
-                Fail::new(ay_status::AY_ERR_TYPE, format!("the port holds a {}, not a vector", v.ty().name()))
-            })?;
             // SAFETY: the C caller's promises on buffer/capacity/length.
-            unsafe { copy_out(s, false, buffer, capacity, length) }?;
+            unsafe { copy_items(&c.read(p), Value::as_vector, "a vector", false, buffer, capacity, length) }?;
             freshness(c.fresh(p))
         })
     })
@@ -547,12 +538,8 @@ pub unsafe extern "C" fn ay_ctx_read_bytes(
     boundary("ay_ctx_read_bytes", || {
         with_ctx(ctx, |c, regs| {
             let p = port_of(regs, port)?;
-            let v = c.read(p);
-            let s = v.as_bytes().ok_or_else(|| {
-                Fail::new(ay_status::AY_ERR_TYPE, format!("the port holds a {}, not bytes", v.ty().name()))
-            })?;
             // SAFETY: the C caller's promises on buffer/capacity/length.
-            unsafe { copy_out(s, false, buffer, capacity, length) }?;
+            unsafe { copy_items(&c.read(p), Value::as_bytes, "bytes", false, buffer, capacity, length) }?;
             freshness(c.fresh(p))
         })
     })
@@ -575,11 +562,10 @@ pub unsafe extern "C" fn ay_ctx_write_bytes(
     length: usize,
 ) -> ay_status {
     boundary("ay_ctx_write_bytes", || {
-        with_ctx(ctx, |c, regs| {
-            let p = port_of(regs, port)?;
+        write_port(ctx, port, || {
             // SAFETY: the C caller's promise on value/length.
             let v = unsafe { slice(value, length, "value") }?;
-            written(c.write(p, Value::bytes(v)))
+            Ok(Value::bytes(v))
         })
     })
 }
@@ -592,11 +578,10 @@ pub unsafe extern "C" fn ay_ctx_write_bytes(
 #[no_mangle]
 pub unsafe extern "C" fn ay_ctx_write_text(ctx: *mut ay_ctx, port: ay_port, value: *const c_char) -> ay_status {
     boundary("ay_ctx_write_text", || {
-        with_ctx(ctx, |c, regs| {
-            let p = port_of(regs, port)?;
+        write_port(ctx, port, || {
             // SAFETY: the C caller's promise on `value`.
             let v = unsafe { text(value, "value") }?;
-            written(c.write(p, Value::text(v)))
+            Ok(Value::text(v))
         })
     })
 }
@@ -618,11 +603,10 @@ pub unsafe extern "C" fn ay_ctx_write_vector(
     length: usize,
 ) -> ay_status {
     boundary("ay_ctx_write_vector", || {
-        with_ctx(ctx, |c, regs| {
-            let p = port_of(regs, port)?;
+        write_port(ctx, port, || {
             // SAFETY: the C caller's promise on value/length.
             let v = unsafe { slice(value, length, "value") }?;
-            written(c.write(p, Value::vector(v)))
+            Ok(Value::vector(v))
         })
     })
 }
