@@ -35,6 +35,23 @@ pub struct PortDecl {
     index: AtomicU32,
 }
 
+/// A declaration's name: `name=` if given, else the attribute's, from `__set_name__`.
+fn name_cell(name: Option<String>) -> OnceLock<String> {
+    name.map_or_else(OnceLock::new, OnceLock::from)
+}
+
+/// `__set_name__`: the attribute's name, unless the declaration has one already.
+fn set_name(cell: &OnceLock<String>, name: String) {
+    if cell.get().is_none() {
+        let _ = cell.set(name);
+    }
+}
+
+/// A declaration's name in reprs and messages (`?` while it has none).
+fn shown(cell: &OnceLock<String>) -> &str {
+    cell.get().map_or("?", |s| s)
+}
+
 fn kind_from_name(kind: &str) -> PyResult<PortKind> {
     Ok(match kind {
         "normal" => PortKind::Normal,
@@ -59,12 +76,8 @@ impl PortDecl {
         window: Option<f64>,
         name: Option<String>,
     ) -> PyResult<Self> {
-        let cell = OnceLock::new();
-        if let Some(n) = name {
-            let _ = cell.set(n);
-        }
         Ok(PortDecl {
-            name: cell,
+            name: name_cell(name),
             default,
             kind: kind_from_name(kind)?,
             lifespan,
@@ -73,9 +86,7 @@ impl PortDecl {
         })
     }
     fn __set_name__(&self, _owner: &Bound<'_, PyAny>, name: String) -> PyResult<()> {
-        if self.name.get().is_none() {
-            let _ = self.name.set(name);
-        }
+        set_name(&self.name, name);
         Ok(())
     }
     /// The port's name on the node (the attribute's name unless `name=` was given).
@@ -100,7 +111,7 @@ impl PortDecl {
         (i != UNASSIGNED).then_some(i)
     }
     fn __repr__(&self) -> String {
-        format!("Port({}, kind={})", self.name.get().map_or("?", |s| s), self.kind.name())
+        format!("Port({}, kind={})", shown(&self.name), self.kind.name())
     }
 }
 
@@ -117,16 +128,10 @@ impl SlotDecl {
     #[new]
     #[pyo3(signature = (default, *, name = None))]
     fn new(default: Py<PyAny>, name: Option<String>) -> Self {
-        let cell = OnceLock::new();
-        if let Some(n) = name {
-            let _ = cell.set(n);
-        }
-        SlotDecl { name: cell, default, index: AtomicU32::new(UNASSIGNED) }
+        SlotDecl { name: name_cell(name), default, index: AtomicU32::new(UNASSIGNED) }
     }
     fn __set_name__(&self, _owner: &Bound<'_, PyAny>, name: String) -> PyResult<()> {
-        if self.name.get().is_none() {
-            let _ = self.name.set(name);
-        }
+        set_name(&self.name, name);
         Ok(())
     }
     /// The slot's name.
@@ -135,7 +140,7 @@ impl SlotDecl {
         self.name.get().cloned()
     }
     fn __repr__(&self) -> String {
-        format!("Slot({})", self.name.get().map_or("?", |s| s))
+        format!("Slot({})", shown(&self.name))
     }
 }
 
@@ -151,16 +156,10 @@ impl MonoDecl {
     #[new]
     #[pyo3(signature = (*, name = None))]
     fn new(name: Option<String>) -> Self {
-        let cell = OnceLock::new();
-        if let Some(n) = name {
-            let _ = cell.set(n);
-        }
-        MonoDecl { name: cell, index: AtomicU32::new(UNASSIGNED) }
+        MonoDecl { name: name_cell(name), index: AtomicU32::new(UNASSIGNED) }
     }
     fn __set_name__(&self, _owner: &Bound<'_, PyAny>, name: String) -> PyResult<()> {
-        if self.name.get().is_none() {
-            let _ = self.name.set(name);
-        }
+        set_name(&self.name, name);
         Ok(())
     }
     /// The monostable's name.
@@ -169,7 +168,7 @@ impl MonoDecl {
         self.name.get().cloned()
     }
     fn __repr__(&self) -> String {
-        format!("Monostable({})", self.name.get().map_or("?", |s| s))
+        format!("Monostable({})", shown(&self.name))
     }
 }
 
@@ -191,7 +190,7 @@ fn assigned(index: &AtomicU32, what: &str, name: &OnceLock<String>) -> PyResult<
     if i == UNASSIGNED {
         return Err(errors::InvalidError::new_err(format!(
             "{what} `{}` belongs to no class defined on a node yet",
-            name.get().map_or("?", |s| s)
+            shown(name)
         )));
     }
     Ok(i as u16)

@@ -26,6 +26,7 @@ use pyo3::types::{PyDict, PyList};
 
 use crate::behavior::Processes;
 use crate::errors::{self, NodeBusyError};
+use crate::sim::StdlibOptions;
 use crate::value::{duration, secs, to_py, to_value};
 use crate::wiring;
 
@@ -258,7 +259,9 @@ impl Node {
         beams: usize,
         max_range: f64,
     ) -> PyResult<()> {
-        self.shared.with(py, |n| wiring::define_stdlib(n.core_mut(), name, hz, seed, targets, beams, max_range))
+        self.shared.with(py, |n| {
+            wiring::define_stdlib(n.core_mut(), name, &StdlibOptions { hz, seed, targets, beams, max_range })
+        })
     }
 
     /// Make this node robot `id`'s controller node for a world served by `ayllu sim serve`:
@@ -305,8 +308,8 @@ impl Node {
         kind: Option<&Bound<'_, PyAny>>,
         priority: i32,
     ) -> PyResult<u64> {
-        let (s, d, k) = (wiring::endpoint_arg(source)?, wiring::endpoint_arg(destination)?, wiring::kind_arg(kind)?);
-        self.shared.with(py, |n| wiring::connect(n.core_mut(), &s, &d, &k, priority))
+        let args = wiring::connect_args(source, destination, kind)?;
+        self.shared.with(py, |n| wiring::connect(n.core_mut(), &args, priority))
     }
 
     /// Remove connection `id` (owned by this node).

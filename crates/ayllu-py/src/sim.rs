@@ -114,7 +114,7 @@ impl RobotBuilder {
         beams: usize,
         max_range: f64,
     ) -> PyResult<()> {
-        self.with(|c| wiring::define_stdlib(c, name, hz, seed, targets, beams, max_range))
+        self.with(|c| wiring::define_stdlib(c, name, &StdlibOptions { hz, seed, targets, beams, max_range }))
     }
     /// Whether a class of this name is defined on the robot's node.
     fn has_class(&self, name: &str) -> PyResult<bool> {
@@ -129,8 +129,8 @@ impl RobotBuilder {
         kind: Option<&Bound<'_, PyAny>>,
         priority: i32,
     ) -> PyResult<u64> {
-        let (s, d, k) = (wiring::endpoint_arg(source)?, wiring::endpoint_arg(destination)?, wiring::kind_arg(kind)?);
-        self.with(|c| wiring::connect(c, &s, &d, &k, priority))
+        let args = wiring::connect_args(source, destination, kind)?;
+        self.with(|c| wiring::connect(c, &args, priority))
     }
     /// Join broadcast group `group`.
     fn join(&self, group: &str) -> PyResult<()> {
@@ -320,15 +320,25 @@ fn run_scenario<'py>(
     Ok((json, trace, errs))
 }
 
+/// The keyword arguments of `ayllu.Node.define_stdlib`: what each standard class takes.
+pub struct StdlibOptions {
+    /// `RandomWander`'s and `Wander`'s rate.
+    pub hz: f64,
+    /// `RandomWander`'s seed.
+    pub seed: u64,
+    /// `Vision`'s number of targets.
+    pub targets: u32,
+    /// `Sonar`'s number of beams.
+    pub beams: usize,
+    /// `Sonar`'s range.
+    pub max_range: f64,
+}
+
 /// The standard library's classes a Python controller may reuse (like the paper's
 /// `ayllustd.h`); see `ayllu.Node.define_stdlib`.
 pub fn define_stdlib_class(
     name: &str,
-    hz: f64,
-    seed: u64,
-    targets: u32,
-    beams: usize,
-    max_range: f64,
+    &StdlibOptions { hz, seed, targets, beams, max_range }: &StdlibOptions,
 ) -> Result<ayllu_core::BehaviorClass, CoreError> {
     match name {
         "SafeVelocity" => stdlib::safe_velocity_class(stdlib::SafeVelocity::default()),

@@ -71,14 +71,20 @@ pub fn kind_arg(obj: Option<&Bound<'_, PyAny>>) -> PyResult<ConnectionKind> {
     kind(&name, period)
 }
 
+/// A `connect` call's `(source, destination, kind)` arguments, checked.
+pub type ConnectArgs = (EndpointArg, EndpointArg, ConnectionKind);
+
+/// Check a `connect` call's `source`, `destination` and `kind` (before the node is touched).
+pub fn connect_args(
+    source: &Bound<'_, PyAny>,
+    destination: &Bound<'_, PyAny>,
+    kind: Option<&Bound<'_, PyAny>>,
+) -> PyResult<ConnectArgs> {
+    Ok((endpoint_arg(source)?, endpoint_arg(destination)?, kind_arg(kind)?))
+}
+
 /// `core.connect` with Python arguments; the connection's id.
-pub fn connect(
-    core: &mut NodeCore,
-    source: &EndpointArg,
-    destination: &EndpointArg,
-    kind: &ConnectionKind,
-    priority: i32,
-) -> PyResult<u64> {
+pub fn connect(core: &mut NodeCore, (source, destination, kind): &ConnectArgs, priority: i32) -> PyResult<u64> {
     core.connect(&endpoint(source)?, &endpoint(destination)?, *kind, ConnectOptions { priority })
         .map(|ConnectionId(id)| id)
         .map_err(errors::core)
@@ -158,15 +164,7 @@ pub fn json<T: serde::Serialize>(v: &T) -> PyResult<String> {
 }
 
 /// Define one of the standard library's classes on `core` (see [`crate::sim::define_stdlib_class`]).
-pub fn define_stdlib(
-    core: &mut NodeCore,
-    name: &str,
-    hz: f64,
-    seed: u64,
-    targets: u32,
-    beams: usize,
-    max_range: f64,
-) -> PyResult<()> {
-    let class = crate::sim::define_stdlib_class(name, hz, seed, targets, beams, max_range).map_err(errors::core)?;
+pub fn define_stdlib(core: &mut NodeCore, name: &str, options: &crate::sim::StdlibOptions) -> PyResult<()> {
+    let class = crate::sim::define_stdlib_class(name, options).map_err(errors::core)?;
     core.define(class).map_err(errors::core)
 }
