@@ -79,3 +79,15 @@ impl Clock for ManualClock {
         false
     }
 }
+
+/// Where a process's sequence numbers start (datagrams, connections' messages, requests): the
+/// wall-clock time in units of 2^-32 s (seconds in the upper 32 bits, the fraction of the
+/// second in the lower), so a process restarted under the same node id numbers above its
+/// previous life (spec/protocol.md, "sequence") without storing anything — even when it
+/// restarts within the same second, as two quick `ayllu` commands with one `--id` do.
+pub(crate) fn boot_sequence_base() -> u64 {
+    let now = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap_or_default();
+    let secs = now.as_secs().min(u64::from(u32::MAX));
+    let fraction = (u64::from(now.subsec_nanos()) << 32) / 1_000_000_000;
+    secs << 32 | fraction
+}

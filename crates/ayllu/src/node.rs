@@ -98,12 +98,8 @@ impl Node {
     fn assemble(mut core: NodeCore, clock: Box<dyn Clock>, transport: Box<dyn Transport>) -> Node {
         if clock.is_real_time() {
             // A restarted process may reuse its node id: number its messages and requests above
-            // anything its previous life sent (boot seconds in the high half, like datagrams).
-            let boot = std::time::SystemTime::now()
-                .duration_since(std::time::UNIX_EPOCH)
-                .map_or(0, |d| d.as_secs())
-                .min(u64::from(u32::MAX));
-            core.set_sequence_base(boot << 32);
+            // anything its previous life sent (like datagrams).
+            core.set_sequence_base(crate::clock::boot_sequence_base());
         }
         Node {
             core,

@@ -303,19 +303,15 @@ impl<S: DatagramSocket> UdpTransport<S> {
                 warnings.push(discovery_warning(&config, &e.to_string()));
             }
         }
-        // Start above any sequence number an earlier run of this node used (spec: boot
-        // seconds in the high half), so restarts are not taken for replays.
-        let boot = std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .map(|d| d.as_secs())
-            .unwrap_or(0)
-            .min(u64::from(u32::MAX));
+        // Start above any sequence number an earlier run of this node used, so restarts are
+        // not taken for replays.
+        let boot = crate::clock::boot_sequence_base();
         Ok(UdpTransport {
             id,
             receiver: ReceiverConfig { team: config.team, key: config.key },
             config,
             socket,
-            seq: boot << 32,
+            seq: boot,
             now: Instant::ZERO,
             next_hello: Instant::ZERO,
             next_expiry: Instant::MAX,
@@ -325,7 +321,7 @@ impl<S: DatagramSocket> UdpTransport<S> {
             replay_dirty: false,
             next_save: Instant::ZERO,
             held: VecDeque::new(),
-            seq_start: boot << 32,
+            seq_start: boot,
             duplicates: Vec::new(),
             warnings,
             discovery_failed: false,
