@@ -19,7 +19,7 @@ use std::sync::{Arc, Mutex, MutexGuard, TryLockError};
 use std::thread::JoinHandle;
 
 use ayllu::{ManualClock, MemNetwork};
-use ayllu_core::{Instant, NodeId, PortRef};
+use ayllu_core::{Access, Allow, ConnectionId, ControlBody, Instant, NodeId, PortRef};
 use pyo3::prelude::*;
 use pyo3::sync::MutexExt;
 use pyo3::types::{PyDict, PyList};
@@ -315,6 +315,103 @@ impl Node {
     /// Remove connection `id` (owned by this node).
     fn disconnect(&self, py: Python<'_>, id: u64) -> PyResult<()> {
         self.shared.with(py, |n| n.disconnect(ayllu_core::ConnectionId(id)).map_err(errors::runtime))
+    }
+
+    /// Ask `source`'s node (`ayllu.remote(node, behavior, port)`) to connect that port to
+    /// `destination` (`ayllu.local` is a port of this node, or `ayllu.remote`,
+    /// `ayllu.broadcast`) with `kind` and `priority` (N2: resent until answered). Returns the
+    /// request's id for `request_status`; the connection belongs to the source's node.
+    #[pyo3(signature = (source, destination, kind = None, *, priority = 0))]
+    fn request_connect(
+        &self,
+        py: Python<'_>,
+        source: &Bound<'_, PyAny>,
+        destination: &Bound<'_, PyAny>,
+        kind: Option<&Bound<'_, PyAny>>,
+        priority: i32,
+    ) -> PyResult<u64> {
+        let args = wiring::connect_args(source, destination, kind)?;
+        self.shared.with(py, |n| wiring::request_connect(n.core_mut(), &args, priority))
+    }
+
+    /// Ask node `node` to remove its connection `connection` (as `request_connect`'s result
+    /// gave it). Returns the request's id.
+    fn request_disconnect(&self, py: Python<'_>, node: u32, connection: u64) -> PyResult<u64> {
+        self.shared.with(py, |n| Ok(n.core_mut().request_disconnect(NodeId(node), ConnectionId(connection)).0))
+    }
+
+    /// Ask node `node` to describe itself (LIST; the result is a report like `report()`'s).
+    fn request_list(&self, py: Python<'_>, node: u32) -> PyResult<u64> {
+        self.shared.with(py, |n| wiring::request(n.core_mut(), node, ControlBody::List))
+    }
+
+    /// Ask node `node` to explain `behavior.port` (WHY; the result is a report like `why()`'s).
+    fn request_why(&self, py: Python<'_>, node: u32, behavior: &str, port: &str) -> PyResult<u64> {
+        let body = ControlBody::Why { behavior: behavior.into(), port: port.into() };
+        self.shared.with(py, |n| wiring::request(n.core_mut(), node, body))
+    }
+
+    /// Ask node `node` for the value of `behavior.port` (READ; the result is the value).
+    fn request_read(&self, py: Python<'_>, node: u32, behavior: &str, port: &str) -> PyResult<u64> {
+        let body = ControlBody::Read { behavior: behavior.into(), port: port.into() };
+        self.shared.with(py, |n| wiring::request(n.core_mut(), node, body))
+    }
+
+    /// Where request `request_id` stands: an `ayllu.RequestStatus` (`pending` with `sends`,
+    /// `done` with `result`, `failed` with `error`).
+    fn request_status(&self, py: Python<'_>, request_id: u64) -> PyResult<Py<PyAny>> {
+        self.shared.with(py, |n| wiring::request_status(py, n.core(), request_id))
+    }
+
+    /// Who may write this node's ports along connections (`ports`) and change its structure by
+    /// request (`structure`): `"all"`, `"none"` or a list of node ids (D9.2). This node's own
+    /// calls are never restricted.
+    #[pyo3(signature = (ports = None, structure = None))]
+    fn set_access(
+        &self,
+        py: Python<'_>,
+        ports: Option<&Bound<'_, PyAny>>,
+        structure: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<()> {
+        let allow = |what, o: Option<&Bound<'_, PyAny>>| o.map_or(Ok(Allow::Everyone), |o| wiring::allow(what, o));
+        let access = Access { ports: allow("ports", ports)?, structure: allow("structure", structure)? };
+        self.shared.with(py, |n| {
+            n.core_mut().set_access(access);
+            Ok(())
+        })
+    }
+
+    /// Bound what the network can make this node hold (D9.3); each limit left out keeps its
+    /// default (256 connections by request, 32 per node, windows up to 600 s, 50 requests a
+    /// second per node with bursts of 100).
+    #[pyo3(signature = (
+        *,
+        remote_connections = None,
+        remote_connections_per_node = None,
+        max_remote_period = None,
+        requests_per_second = None,
+        requests_burst = None
+    ))]
+    fn set_limits(
+        &self,
+        py: Python<'_>,
+        remote_connections: Option<usize>,
+        remote_connections_per_node: Option<usize>,
+        max_remote_period: Option<f64>,
+        requests_per_second: Option<u32>,
+        requests_burst: Option<u32>,
+    ) -> PyResult<()> {
+        let limits = wiring::limits(
+            remote_connections,
+            remote_connections_per_node,
+            max_remote_period,
+            requests_per_second,
+            requests_burst,
+        )?;
+        self.shared.with(py, |n| {
+            n.core_mut().set_limits(limits);
+            Ok(())
+        })
     }
 
     /// Join broadcast group `group`.

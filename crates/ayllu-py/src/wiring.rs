@@ -7,7 +7,10 @@
 
 use std::sync::Arc;
 
-use ayllu_core::{BleConfig, ConnectOptions, ConnectionId, ConnectionKind, Endpoint, NodeCore, NodeId};
+use ayllu_core::{
+    Allow, BleConfig, ConnectOptions, ConnectionId, ConnectionKind, ControlBody, Endpoint, Limits, NodeCore, NodeId,
+    ReplyBody, RequestId, RequestStatus,
+};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -167,4 +170,78 @@ pub fn json<T: serde::Serialize>(v: &T) -> PyResult<String> {
 pub fn define_stdlib(core: &mut NodeCore, name: &str, options: &crate::sim::StdlibOptions) -> PyResult<()> {
     let class = crate::sim::define_stdlib_class(name, options).map_err(errors::core)?;
     core.define(class).map_err(errors::core)
+}
+
+/// `core.request_connect` with Python arguments: ask `source`'s node (a remote endpoint) to
+/// connect its port to `destination`; the request's id.
+pub fn request_connect(core: &mut NodeCore, (source, destination, kind): &ConnectArgs, priority: i32) -> PyResult<u64> {
+    core.request_connect(&endpoint(source)?, &endpoint(destination)?, *kind, ConnectOptions { priority })
+        .map(|RequestId(id)| id)
+        .map_err(errors::core)
+}
+
+/// `core.request(node, body)`: the request's id.
+pub fn request(core: &mut NodeCore, node: u32, body: ControlBody) -> PyResult<u64> {
+    core.request(NodeId(node), body).map(|RequestId(id)| id).map_err(errors::core)
+}
+
+/// Where request `id` stands, as an `ayllu.RequestStatus` (`state` `pending`, `done` or
+/// `failed`; `sends`, `result`, `error`). A request this node never sent raises `NotFoundError`.
+pub fn request_status(py: Python<'_>, core: &NodeCore, id: u64) -> PyResult<Py<PyAny>> {
+    let status = core
+        .request_status(RequestId(id))
+        .ok_or_else(|| errors::NotFoundError::new_err(format!("request {id} was never sent by node {}", core.id())))?;
+    let (state, sends, result, error): (&str, u32, Option<Py<PyAny>>, Option<String>) = match status {
+        RequestStatus::Pending { sends } => ("pending", sends, None, None),
+        RequestStatus::Done(body) => ("done", 0, Some(reply(py, body)?), None),
+        RequestStatus::Failed(msg) => ("failed", 0, None, Some(msg)),
+    };
+    let cls = py.import("ayllu.report")?.getattr("RequestStatus")?;
+    Ok(cls.call1((state, sends, result, error))?.unbind())
+}
+
+/// A reply as Python: a connection id (int), a value, or a report (`ayllu.Report`).
+fn reply(py: Python<'_>, body: ReplyBody) -> PyResult<Py<PyAny>> {
+    Ok(match body {
+        ReplyBody::Connection(ConnectionId(c)) => c.into_pyobject(py)?.into_any().unbind(),
+        ReplyBody::Value(v) => crate::value::to_py(py, &v),
+        ReplyBody::Node(r) => report(py, &json(&*r)?, None)?,
+        ReplyBody::Port(r) => report(py, &json(&*r)?, Some(r.to_string()))?,
+        ReplyBody::OtherReport(j) => report(py, &j, None)?,
+    })
+}
+
+/// An access right as Python gives it: `"all"`, `"none"` or a list of node ids.
+pub fn allow(what: &str, obj: &Bound<'_, PyAny>) -> PyResult<Allow> {
+    if let Ok(s) = obj.extract::<String>() {
+        return match s.as_str() {
+            "all" => Ok(Allow::Everyone),
+            "none" => Ok(Allow::Nobody),
+            _ => Err(errors::InvalidError::new_err(format!(
+                "{what}= is \"all\", \"none\" or a list of node ids, not {s:?}"
+            ))),
+        };
+    }
+    let ids: Vec<u32> = obj
+        .extract()
+        .map_err(|_| errors::type_error(format!("{what}= is \"all\", \"none\" or a list of node ids; got {obj}")))?;
+    Ok(Allow::Only(ids.into_iter().map(NodeId).collect()))
+}
+
+/// Limits from Python's keyword arguments; each one left out keeps `Limits::default()`'s.
+pub fn limits(
+    remote_connections: Option<usize>,
+    remote_connections_per_node: Option<usize>,
+    max_remote_period: Option<f64>,
+    requests_per_second: Option<u32>,
+    requests_burst: Option<u32>,
+) -> PyResult<Limits> {
+    let d = Limits::default();
+    Ok(Limits {
+        remote_connections: remote_connections.unwrap_or(d.remote_connections),
+        remote_connections_per_node: remote_connections_per_node.unwrap_or(d.remote_connections_per_node),
+        max_remote_period: max_remote_period.map(duration).transpose()?.unwrap_or(d.max_remote_period),
+        requests_per_second: requests_per_second.unwrap_or(d.requests_per_second),
+        requests_burst: requests_burst.unwrap_or(d.requests_burst),
+    })
 }

@@ -43,7 +43,7 @@ from ayllu._native import (
 from ayllu._native import MonoDecl as Monostable
 from ayllu._native import PortDecl as Port
 from ayllu._native import SlotDecl as Slot
-from ayllu.report import ProcessError, Report
+from ayllu.report import ProcessError, Report, RequestStatus
 
 # Background threads of started nodes must not run Python code while the interpreter shuts
 # down: stop them first.
@@ -67,6 +67,7 @@ __all__ = [
     "PortHandle",
     "ProcessError",
     "Report",
+    "RequestStatus",
     "Slot",
     "Team",
     "ValueTypeError",

@@ -1,8 +1,8 @@
 """Typed stubs of the native module (Rust, PyO3). See ``ayllu/__init__.py`` for the guide."""
 
-from typing import Any, Optional, Union
+from typing import Any, Literal, Optional, Union
 
-from ayllu.report import ProcessError, Report
+from ayllu.report import ProcessError, Report, RequestStatus
 
 DROP_CAUSES: list[str]
 
@@ -16,6 +16,7 @@ class NetworkError(AylluError): ...
 Value = Union[bool, int, float, str, bytes, list[float]]
 _EndpointLike = Union[tuple[str, str], tuple[str, str, Optional[int], Optional[str]]]
 _KindLike = tuple[str, Optional[float]]
+_AllowLike = Union[Literal["all", "none"], list[int]]
 
 class PortDecl:
     def __init__(
@@ -93,6 +94,24 @@ class Node:
         self, source: _EndpointLike, destination: _EndpointLike, kind: Optional[_KindLike] = None, *, priority: int = 0
     ) -> int: ...
     def disconnect(self, id: int) -> None: ...
+    def request_connect(
+        self, source: _EndpointLike, destination: _EndpointLike, kind: Optional[_KindLike] = None, *, priority: int = 0
+    ) -> int: ...
+    def request_disconnect(self, node: int, connection: int) -> int: ...
+    def request_list(self, node: int) -> int: ...
+    def request_why(self, node: int, behavior: str, port: str) -> int: ...
+    def request_read(self, node: int, behavior: str, port: str) -> int: ...
+    def request_status(self, request_id: int) -> RequestStatus: ...
+    def set_access(self, ports: _AllowLike = "all", structure: _AllowLike = "all") -> None: ...
+    def set_limits(
+        self,
+        *,
+        remote_connections: int = 256,
+        remote_connections_per_node: int = 32,
+        max_remote_period: float = 600.0,
+        requests_per_second: int = 50,
+        requests_burst: int = 100,
+    ) -> None: ...
     def join(self, group: str) -> None: ...
     def leave(self, group: str) -> None: ...
     def ble_join(

@@ -1,5 +1,5 @@
-"""Reports as Python objects: ``why()``, ``report()`` and ``ble_status()`` answers, and the
-exceptions processes raised.
+"""Reports as Python objects: ``why()``, ``report()`` and ``ble_status()`` answers, where a
+control request stands, and the exceptions processes raised.
 
 A :class:`Report` gives attribute access to the Rust report's fields (``r.input_blocked``,
 ``r.windows[0].remaining``); instants and durations are seconds (floats), counters are dicts
@@ -20,6 +20,36 @@ class ProcessError(NamedTuple):
     process: str
     time: float
     traceback: str
+
+
+class RequestStatus(NamedTuple):
+    """Where a control request this node sent stands (``Node.request_status``).
+
+    ``state`` is ``"pending"`` (``sends``: times sent so far; resent every 200 ms, 25 times at
+    most), ``"done"`` (``result``: a connection id for CONNECT and DISCONNECT, the value for
+    READ, a :class:`Report` for LIST and WHY) or ``"failed"`` (``error``: the receiver's reason,
+    e.g. the access rule or limit that refused it, or that no answer came).
+    """
+
+    state: str
+    sends: int = 0
+    result: Any = None
+    error: Optional[str] = None
+
+    @property
+    def pending(self) -> bool:
+        """Not answered yet."""
+        return self.state == "pending"
+
+    @property
+    def done(self) -> bool:
+        """Answered: ``result`` holds what the request returned."""
+        return self.state == "done"
+
+    @property
+    def failed(self) -> bool:
+        """Refused, or never answered: ``error`` says why."""
+        return self.state == "failed"
 
 
 class Report:
