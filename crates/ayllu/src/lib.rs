@@ -20,6 +20,7 @@ pub mod routability;
 #[cfg(target_os = "linux")]
 pub mod shaper;
 pub mod stdlib;
+pub mod team_channels;
 pub mod transport;
 pub mod udp;
 pub mod udp_config;
