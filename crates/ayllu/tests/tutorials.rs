@@ -1,0 +1,34 @@
+//! The book's tutorials (docs/tutorials/) run as tests: each tutorial program checks what its
+//! page says happens (it panics otherwise), and the test checks the lines the page quotes.
+
+#[path = "../../../examples/tutorial/01_first_behavior/main.rs"]
+#[allow(dead_code)] // its `main` is for `cargo run --example`
+mod first_behavior;
+
+#[path = "../../../examples/tutorial/02_subsumption/main.rs"]
+#[allow(dead_code)]
+mod subsumption;
+
+#[path = "../../../examples/tutorial/03_two_nodes_udp/main.rs"]
+#[allow(dead_code)]
+mod two_nodes_udp;
+
+#[test]
+fn tutorial_1_a_first_behavior() {
+    let out = first_behavior::run().unwrap();
+    assert!(out.contains("0.0 s: Range 0.3 m -> Turn Some(1.0), Backing true"), "{out}");
+    assert!(out.contains("2.0 s: Turn Some(0.0), Backing false"), "{out}");
+}
+
+#[test]
+fn tutorial_2_two_behaviors_in_subsumption() {
+    let out = subsumption::run().unwrap();
+    assert!(out.contains("1.5 s  MOTOR.Turn = 1"), "{out}");
+    assert!(out.contains("3.0 s  MOTOR.Turn = 0.2"), "{out}");
+}
+
+#[test]
+fn tutorial_3_two_nodes_over_udp() {
+    let out = two_nodes_udp::run().unwrap();
+    assert!(out.contains("MOTOR.Speed on robot 2 came from n1"), "{out}");
+}
