@@ -38,7 +38,8 @@ def main() -> None:
     why = r2.why("MOTOR", "Speed")
     r1.close()
     r2.close()
-    print(f"MOTOR.Speed on robot 2 = {why.value}, supplied by node {why.supplier.node}'s connection {why.supplier.conn}")
+    supplier = why.supplier
+    print(f"MOTOR.Speed on robot 2 = {why.value}, supplied by node {supplier.node}'s connection {supplier.conn}")
     assert why.value == 0.75 and why.supplier.node == 1, "the value crossed the network from robot 1"
     print(why)
 
