@@ -24,6 +24,8 @@ mod client;
 mod commands;
 mod controllers;
 mod fail;
+#[cfg(feature = "foxglove")]
+mod foxglove;
 #[cfg(target_os = "linux")]
 mod shape;
 mod signals;
@@ -206,6 +208,10 @@ enum Command {
     /// seeded delay, jitter, reordering, duplication and loss (a userspace netem; needs root).
     #[cfg(target_os = "linux")]
     Shape(shape::ShapeArgs),
+    /// Serve the team to Foxglove over its WebSocket protocol: port values, windows and BLE
+    /// claims as topics (ws://HOST:PORT; docs/cli.md).
+    #[cfg(feature = "foxglove")]
+    Foxglove(foxglove::FoxgloveArgs),
 }
 
 #[derive(Args, Debug)]
@@ -424,6 +430,8 @@ fn run(cli: Cli) -> Result<(), Fail> {
         Command::Sim(SimCommand::Sweep(args)) => sim_files::sweep_file(&args),
         #[cfg(target_os = "linux")]
         Command::Shape(args) => shape::run(&args),
+        #[cfg(feature = "foxglove")]
+        Command::Foxglove(args) => foxglove::serve(&args),
     }
 }
 

@@ -22,6 +22,11 @@ pub struct RunArgs {
     /// Print the metrics as JSON.
     #[arg(long)]
     pub json: bool,
+    /// Also write the run to this new MCAP file: the 3-D scene, every robot's ports and the BLE
+    /// claims, for Foxglove (docs/cli.md, "sim run --mcap").
+    #[cfg(feature = "foxglove")]
+    #[arg(long, value_name = "FILE")]
+    pub mcap: Option<PathBuf>,
 }
 
 /// `ayllu sim sweep`.
@@ -45,6 +50,12 @@ fn read(path: &PathBuf) -> Result<String, Fail> {
 pub fn run_file(args: &RunArgs) -> Result<(), Fail> {
     let scenario = scenario_file::scenario(&read(&args.file)?)
         .map_err(|e| Fail::error(format!("{}: {e}", args.file.display())))?;
+    #[cfg(feature = "foxglove")]
+    let outcome = match &args.mcap {
+        Some(path) => crate::foxglove::run_to_mcap(&scenario, path)?,
+        None => run(&scenario).map_err(|e| Fail::error(format!("the run failed: {e}")))?,
+    };
+    #[cfg(not(feature = "foxglove"))]
     let outcome = run(&scenario).map_err(|e| Fail::error(format!("the run failed: {e}")))?;
     let m = &outcome.metrics;
     let mut out = std::io::stdout().lock();
