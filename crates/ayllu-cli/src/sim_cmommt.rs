@@ -42,9 +42,9 @@ const REPLAY_STEP: f64 = 0.4;
 
 #[derive(Args, Debug)]
 #[command(after_help = "\
-The full study is 1400 runs (paper 5 cells, sweep 120, robustness 15; x 10 seeds of 300 s):
+The full study is 1680 runs (paper 6 cells, sweep 144, robustness 18; x 10 seeds of 300 s):
 about 30 CPU-seconds in a release build, so 15-40 s on 2 cores depending on what else runs;
---quick (120 runs) takes about a second. Stdout gets a short summary (BLE against each baseline,
+--quick (144 runs) takes about a second. Stdout gets a short summary (BLE against each baseline,
 whether the paper's claim held); the tables are in DIR/tables.txt and DIR/index.html, which
 also replays any run. The columns are defined in docs/cmommt.md; the command in docs/cli.md.")]
 pub struct CmommtArgs {

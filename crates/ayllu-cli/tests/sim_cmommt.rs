@@ -20,7 +20,7 @@ use std::time::{Duration, Instant};
 use common::{ayllu, BIN};
 use serde_json::Value as Json;
 
-const CONTROLLERS: [&str; 5] = ["BLE", "Random", "Local", "ForceField", "Centralized"];
+const CONTROLLERS: [&str; 6] = ["BLE", "Random", "Local", "ForceField", "Centralized", "Planner"];
 const LIMIT: Duration = Duration::from_secs(120);
 
 /// A fresh, empty folder for one test's output.
@@ -76,7 +76,7 @@ fn a_quick_study_prints_the_summary_then_the_tables_with_full_and_writes_the_rep
         }
     }
     // One row per controller; robustness at 3 loss levels; --quick's sweep is 2 x 1 x 2 settings.
-    assert_eq!((paper.len(), robustness.len(), sweep.len()), (1 + 5, 1 + 15, 1 + 20));
+    assert_eq!((paper.len(), robustness.len(), sweep.len()), (1 + 6, 1 + 18, 1 + 24));
     let (ble, random) = (a_w(&paper, "BLE"), a_w(&paper, "Random"));
     assert!(ble > random, "BLE's A_w {ble} should beat Random's {random}");
     for name in &CONTROLLERS[1..] {
@@ -104,7 +104,7 @@ fn by_default_it_prints_a_short_summary_and_the_page_replays_every_recorded_run(
     let run = ayllu(&quick_args(&out, &[]), LIMIT).ok();
     println!("{}\n{}", run.stdout, run.stderr);
     let lines: Vec<&str> = run.stdout.lines().collect();
-    assert!(lines.len() <= 16, "{} lines is not short:\n{}", lines.len(), run.stdout);
+    assert!(lines.len() <= 18, "{} lines is not short:\n{}", lines.len(), run.stdout);
     assert!(lines[0].starts_with("W-CMOMMT in the paper's setting (3 robots, 4 targets, 0 % loss; 2 seeds x 60 s)"));
     // BLE against every baseline on A_w, then the verdict on the paper's claim.
     for name in &CONTROLLERS[1..] {
@@ -129,11 +129,11 @@ fn by_default_it_prints_a_short_summary_and_the_page_replays_every_recorded_run(
     assert_eq!(tables.lines().filter(|l| l.starts_with("controller ")).count(), 3, "{tables}");
     assert!(tables.starts_with(&run.stdout[..run.stdout.find("\n\n").expect("a blank line after the summary")]));
 
-    // The page: every controller and seed of the paper's setting (5 x 2) and of the robustness
-    // scenario (15 x 2), seed 1 of each sweep cell (20), each a run of its own, and BLE first.
+    // The page: every controller and seed of the paper's setting (6 x 2) and of the robustness
+    // scenario (18 x 2), seed 1 of each sweep cell (24), each a run of its own, and BLE first.
     let html = std::fs::read_to_string(out.join("index.html")).expect("index.html");
     let runs = html.matches("<script type=\"application/json\" id=\"run-").count();
-    assert_eq!(runs, 10 + 30 + 20, "replayable runs");
+    assert_eq!(runs, 12 + 36 + 24, "replayable runs");
     let open = "<script type=\"application/json\" id=\"data\">";
     let data = &html[html.find(open).expect("the data block") + open.len()..];
     let data: Json = serde_json::from_str(&data[..data.find("</script>").expect("its end")]).expect("JSON");
@@ -147,7 +147,7 @@ fn by_default_it_prints_a_short_summary_and_the_page_replays_every_recorded_run(
             assert!(menu.iter().any(|r| r["setting"] == setting && r["controller"] == name), "{setting} {name}");
         }
     }
-    assert!(html.contains("60 runs can be replayed"), "the page says what it holds");
+    assert!(html.contains("72 runs can be replayed"), "the page says what it holds");
     let _ = std::fs::remove_dir_all(&out);
 }
 
@@ -279,8 +279,8 @@ fn the_progress_bar_appears_when_stderr_is_a_terminal() {
     let seen = reader.join().expect("terminal reader");
     println!("{seen:?}");
     assert_eq!(status.code(), Some(0), "{seen}");
-    // The bar: "00:00:01 [=====>    ] 57/80 runs, 1s left", redrawn in place.
-    assert!(seen.contains("/80 runs, ") && seen.contains(" left") && seen.contains("=>"), "no bar: {seen:?}");
+    // The bar: "00:00:01 [=====>    ] 57/96 runs, 1s left", redrawn in place.
+    assert!(seen.contains("/96 runs, ") && seen.contains(" left") && seen.contains("=>"), "no bar: {seen:?}");
     // And not the plain lines meant for logs.
     assert!(!seen.contains("runs (100%)"), "plain progress lines on a terminal: {seen:?}");
     let _ = std::fs::remove_dir_all(&out);
@@ -299,8 +299,8 @@ fn the_numbers_do_not_depend_on_the_number_of_threads() {
     let three = study("3");
     assert_eq!(one.stdout, three.stdout, "the same study on 1 and 3 threads");
     let doc: Json = one.json();
-    assert_eq!(doc["paper"].as_array().map(Vec::len), Some(5), "{doc}");
-    assert_eq!(doc["robustness"].as_array().map(Vec::len), Some(15), "{doc}");
+    assert_eq!(doc["paper"].as_array().map(Vec::len), Some(6), "{doc}");
+    assert_eq!(doc["robustness"].as_array().map(Vec::len), Some(18), "{doc}");
     assert_eq!(doc["sweep"].as_array().map(Vec::len), Some(0), "--no-sweep: {doc}");
     assert_eq!(doc["paper"][0]["controller"], "BLE");
     assert_eq!(doc["robustness"][0]["kill"], true);

@@ -12,6 +12,12 @@
 //!   from close sonar echoes.
 //! * `Centralized` — the omniscient upper bound: the harness assigns robots to targets from the
 //!   true world state and writes each robot the exact bearing of its target, seen or not.
+//! * `Planner` — the honest centralized baseline: a planner node on a base station
+//!   ([`build_planner`]) assigns robots to targets from what the robots report, and the reports
+//!   and assignments travel through the same radio as every other message (loss, delay, range,
+//!   partitions). Each robot (a `FOLLOW` behavior) reports its pose and sightings, follows its
+//!   last assignment while it is fresh, and falls back to the observer chain (as `Local`) when
+//!   it is not.
 //!
 //! Each build returns a [`Brain`]: how the harness reads which target drives the robot (for
 //! switch counting and the replay) and, for `Centralized`, where the oracle writes.
@@ -23,10 +29,12 @@ use ayllu::stdlib::{
     SafeVelocity, BASE, OVERRIDE_PERIOD, SONAR, VEL, VISION, VISION_LIFESPAN, WANDER,
 };
 use ayllu_core::{
-    BehaviorClass, BleConfig, ConnectOptions, ConnectionKind, Duration, Endpoint, Error, NodeCore, PortRef, PortSpec,
-    Value,
+    BehaviorClass, BleConfig, ConnectOptions, ConnectionKind, Duration, Endpoint, Error, NodeCore, NodeId, PortRef,
+    PortSpec, Value,
 };
 use serde::{Deserialize, Serialize};
+
+use crate::world::{wrap, WorldConfig};
 
 /// The BLE (and force-field) broadcast group.
 pub const GROUP: &str = "Peers";
@@ -48,12 +56,21 @@ pub enum Controller {
     /// An omniscient planner assigning targets from the world's ground truth every second and
     /// steering each robot to the exact bearing of its target: the upper bound.
     Centralized,
+    /// A central planner on a base station that knows only what the robots report over the
+    /// radio, and whose assignments reach them over the radio: the honest centralized baseline.
+    Planner,
 }
 
 impl Controller {
     /// Every controller, in the tables' order.
-    pub const ALL: [Controller; 5] =
-        [Controller::Ble, Controller::Random, Controller::Local, Controller::ForceField, Controller::Centralized];
+    pub const ALL: [Controller; 6] = [
+        Controller::Ble,
+        Controller::Random,
+        Controller::Local,
+        Controller::ForceField,
+        Controller::Centralized,
+        Controller::Planner,
+    ];
 
     /// The name used in tables, reports and files ("BLE", "ForceField", ...).
     pub fn name(self) -> &'static str {
@@ -63,6 +80,7 @@ impl Controller {
             Controller::Local => "Local",
             Controller::ForceField => "ForceField",
             Controller::Centralized => "Centralized",
+            Controller::Planner => "Planner",
         }
     }
 
@@ -82,15 +100,32 @@ pub struct ControllerConfig {
     /// How BLE observers offer their eligibility (the paper: every 20 Hz activation).
     #[serde(default = "paper_eligibility")]
     pub eligibility: Eligibility,
+    /// `Planner`: reports and plans per second (each robot reports, then the planner assigns,
+    /// this often; an assignment older than [`GOAL_PERIODS`] periods is stale).
+    #[serde(default = "plan_hz")]
+    pub plan_hz: f64,
+    /// `Planner`: where its base station stands (m, arena frame); `None`: the arena's centre.
+    #[serde(default)]
+    pub base_station: Option<[f64; 2]>,
 }
 
 fn paper_eligibility() -> Eligibility {
     Eligibility::EveryActivation
 }
 
+fn plan_hz() -> f64 {
+    2.0
+}
+
 impl Default for ControllerConfig {
     fn default() -> Self {
-        ControllerConfig { claim_hz: 1.0, wander_seed: 1, eligibility: Eligibility::EveryActivation }
+        ControllerConfig {
+            claim_hz: 1.0,
+            wander_seed: 1,
+            eligibility: Eligibility::EveryActivation,
+            plan_hz: plan_hz(),
+            base_station: None,
+        }
     }
 }
 
@@ -109,6 +144,18 @@ pub enum Brain {
         /// `ORACLE.Assigned`: the assigned target's id (1-based; 0: none).
         assigned: PortRef,
     },
+    /// `Planner`: `FOLLOW.Rotate` overrides the observer chain while the robot follows a fresh
+    /// assignment, and `FOLLOW.Drive` then says which target; otherwise the chain drives.
+    Follow {
+        /// `FOLLOW.Pose`: the robot's pose [x, y, theta], written by the harness (localization).
+        pose: PortRef,
+        /// `FOLLOW.Rotate`.
+        rotate: PortRef,
+        /// `FOLLOW.Drive`: the assigned target's id (0: none).
+        drive: PortRef,
+        /// The fallback observer chain, as [`Brain::Chain`].
+        chain: Vec<PortRef>,
+    },
     /// Wander only.
     Wander,
 }
@@ -117,16 +164,14 @@ impl Brain {
     /// The target id driving the robot now (0: none).
     pub fn drive(&self, core: &NodeCore) -> u32 {
         match self {
-            Brain::Chain(layers) => {
+            Brain::Chain(layers) => chain_drive(core, layers),
+            Brain::Follow { rotate, drive, chain, .. } => {
                 let now = core.now();
-                for (n, p) in layers.iter().enumerate() {
-                    if let Ok(Some(t)) = core.last_accepted(*p) {
-                        if now < t + OVERRIDE_PERIOD {
-                            return n as u32 + 1;
-                        }
-                    }
+                if core.last_accepted(*rotate).ok().flatten().is_some_and(|t| now < t + OVERRIDE_PERIOD) {
+                    core.read(*drive).ok().and_then(|v| v.as_int()).unwrap_or(0) as u32
+                } else {
+                    chain_drive(core, chain)
                 }
-                0
             }
             Brain::Drive(p) => core.read(*p).ok().and_then(|v| v.as_int()).unwrap_or(0) as u32,
             Brain::Oracle { assigned, angle } => {
@@ -139,6 +184,19 @@ impl Brain {
             Brain::Wander => 0,
         }
     }
+}
+
+/// The highest observer layer that wrote within the override period (0: none).
+fn chain_drive(core: &NodeCore, layers: &[PortRef]) -> u32 {
+    let now = core.now();
+    for (n, p) in layers.iter().enumerate() {
+        if let Ok(Some(t)) = core.last_accepted(*p) {
+            if now < t + OVERRIDE_PERIOD {
+                return n as u32 + 1;
+            }
+        }
+    }
+    0
 }
 
 fn local(node: &mut NodeCore, from: (&str, &str), to: (&str, &str), kind: ConnectionKind) -> Result<(), Error> {
@@ -164,7 +222,7 @@ pub fn build(
     local(node, (WANDER, "Rotate"), (BASE, "Rotate"), ConnectionKind::Normal)?;
     match controller {
         Controller::Random => Ok(Brain::Wander),
-        Controller::Ble | Controller::Local => {
+        Controller::Ble | Controller::Local | Controller::Planner => {
             node.define(observer_class_with(cfg.eligibility)?)?;
             let ble = BleConfig::new(GROUP, "Rotate", cfg.claim_hz)?;
             // Lowest layer first, so that each layer's `next` exists when it is made.
@@ -177,7 +235,16 @@ pub fn build(
                 }
             }
             let layers = (1..=m).map(|n| node.port(&format!("OBS{n}"), "Rotate")).collect::<Result<_, _>>()?;
-            Ok(Brain::Chain(layers))
+            if controller != Controller::Planner {
+                return Ok(Brain::Chain(layers));
+            }
+            build_follower(node, m, cfg)?;
+            Ok(Brain::Follow {
+                pose: node.port("FOLLOW", "Pose")?,
+                rotate: node.port("FOLLOW", "Rotate")?,
+                drive: node.port("FOLLOW", "Drive")?,
+                chain: layers,
+            })
         }
         Controller::ForceField => {
             node.define(force_class(priorities)?)?;
@@ -296,4 +363,199 @@ fn oracle_class() -> Result<BehaviorClass, Error> {
         }
     })?;
     Ok(c)
+}
+
+/// The `Planner`'s node id: its base station is a node of its own on the radio, after the
+/// robots (1..=N). Partitions name it by this id.
+pub const PLANNER_NODE: NodeId = NodeId(65_535);
+/// An assignment (robot side) or a report (planner side) older than this many plan periods is
+/// stale: the robot falls back to its observer chain, the planner stops counting on the robot.
+pub const GOAL_PERIODS: f64 = 3.0;
+/// How long the planner keeps a target's last reported position when nobody reports it.
+const TARGET_MEMORY: f64 = 5.0;
+
+fn plan_lifespan(cfg: &ControllerConfig) -> Result<Duration, Error> {
+    Duration::try_from_secs_f64(GOAL_PERIODS / cfg.plan_hz)
+}
+
+/// `Follower` (behavior `FOLLOW`) on a `Planner` robot: reports `[x, y, theta, angle1,
+/// height1, ..., angleM, heightM]` (height 0: not seen) to the planner `plan_hz` times a second,
+/// and steers towards its assignment `Goal = [target id, x, y]` while it is fresh — along the
+/// camera's bearing when it sees the target, else from its pose to the planner's estimate —
+/// overriding the observer chain; with no fresh assignment (or target 0) it is silent and the
+/// chain drives.
+fn build_follower(node: &mut NodeCore, m: u32, cfg: &ControllerConfig) -> Result<(), Error> {
+    let robot = node.id().0;
+    let mut c = BehaviorClass::new("Follower");
+    let pose = c.port(PortSpec::new("Pose", Value::vector(&[])).lifespan(VISION_LIFESPAN))?;
+    let goal = c.port(PortSpec::new("Goal", Value::vector(&[])).lifespan(plan_lifespan(cfg)?))?;
+    let obs = c.port(PortSpec::new("Obs", Value::vector(&[])))?;
+    let rotate = c.port(PortSpec::new("Rotate", 0.0))?;
+    let drive = c.port(PortSpec::new("Drive", 0i64))?;
+    let mut sights = Vec::new();
+    for n in 1..=m {
+        let a = c.port(PortSpec::new(&format!("T{n}Angle"), 0.0).lifespan(VISION_LIFESPAN))?;
+        let h = c.port(PortSpec::new(&format!("T{n}Bottom"), 0.0).lifespan(VISION_LIFESPAN))?;
+        sights.push((a, h));
+    }
+    let report_sights = sights.clone();
+    c.every_hz("Report", cfg.plan_hz, move |ctx| {
+        let Some(Value::Vector(p)) = ctx.get(pose) else { return };
+        let mut v = p.to_vec();
+        for &(a, h) in &report_sights {
+            match (ctx.float(a), ctx.float(h)) {
+                (Some(a), Some(h)) => v.extend([a, h]),
+                _ => v.extend([0.0, 0.0]),
+            }
+        }
+        let _ = ctx.write(obs, Value::vector(&v));
+    })?;
+    c.every_hz("Steer", 20.0, move |ctx| {
+        let target = match ctx.get(goal) {
+            Some(Value::Vector(g)) if g.len() == 3 && g[0] >= 1.0 => Some((g[0] as usize, g[1], g[2])),
+            _ => None,
+        };
+        let Some((id, tx, ty)) = target else {
+            let _ = ctx.write(drive, 0i64);
+            return; // no fresh assignment: the observer chain drives
+        };
+        let seen = sights.get(id - 1).and_then(|&(a, _)| ctx.float(a));
+        let turn = match (seen, ctx.get(pose)) {
+            // Angles are right-positive; Rotate is counter-clockwise-positive.
+            (Some(a), _) => -a,
+            (None, Some(Value::Vector(p))) if p.len() == 3 => wrap((ty - p[1]).atan2(tx - p[0]) - p[2]),
+            _ => return,
+        };
+        let _ = ctx.write(rotate, turn);
+        let _ = ctx.write(drive, id as i64);
+    })?;
+    node.define(c)?;
+    node.create("Follower", "FOLLOW")?;
+    for n in 1..=m {
+        for (from, to) in [("Angle", "Angle"), ("Bottom", "Bottom")] {
+            local(
+                node,
+                (VISION, &format!("Target{n}{from}")),
+                ("FOLLOW", &format!("T{n}{to}")),
+                ConnectionKind::Normal,
+            )?;
+        }
+    }
+    // Above the whole observer chain: a fresh assignment outranks what the robot sees.
+    local(node, ("FOLLOW", "Rotate"), ("OBS1", "Rotate"), ConnectionKind::OverrideOut(OVERRIDE_PERIOD))?;
+    node.connect(
+        &Endpoint::local("FOLLOW", "Obs"),
+        &Endpoint::node(PLANNER_NODE, "PLAN", &format!("Obs{robot}")),
+        ConnectionKind::Normal,
+        ConnectOptions::default(),
+    )?;
+    Ok(())
+}
+
+/// The `Planner`'s node: behavior `PLAN` (class `Planner`) on node [`PLANNER_NODE`], for
+/// `robots` robots (nodes 1..=robots) and the targets of `world` (in decreasing priority).
+///
+/// `plan_hz` times a second it turns each fresh report into robot poses and target positions
+/// (a sighting's distance from its apparent height: `focal * target_height / height`; the
+/// closest sighting of a target wins; a target nobody reports is remembered for 5 s), then
+/// gives each known target, in priority order, the nearest free robot that reported (keeping
+/// the current holder unless another is less than half as far, as the omniscient planner does),
+/// and sends every robot that reported its assignment (`[id, x, y]`, or `[0, 0, 0]`: none).
+pub fn build_planner(
+    node: &mut NodeCore,
+    robots: usize,
+    world: &WorldConfig,
+    cfg: &ControllerConfig,
+) -> Result<(), Error> {
+    let m = world.targets.len();
+    let size = world.focal * world.target_height;
+    let mut c = BehaviorClass::new("Planner");
+    let life = plan_lifespan(cfg)?;
+    let mut links = Vec::with_capacity(robots);
+    for k in 1..=robots {
+        let obs = c.port(PortSpec::new(&format!("Obs{k}"), Value::vector(&[])).lifespan(life))?;
+        let assign = c.port(PortSpec::new(&format!("Assign{k}"), Value::vector(&[])))?;
+        links.push((obs, assign));
+    }
+    // Per target: x, y, when last reported (s; negative: never).
+    let known = c.slot("Known", Value::vector(&vec![-1.0; 3 * m]))?;
+    // Per robot: the target it holds (id; 0 none).
+    let held = c.slot("Held", Value::vector(&vec![0.0; robots]))?;
+    c.every_hz("Plan", cfg.plan_hz, move |ctx| {
+        let now = ctx.now().as_secs_f64();
+        let mut mem = ctx.slot(known).as_vector().map(<[f64]>::to_vec).unwrap_or_default();
+        let mut hold = ctx.slot(held).as_vector().map(<[f64]>::to_vec).unwrap_or_default();
+        if mem.len() != 3 * m || hold.len() != robots {
+            return;
+        }
+        // Fresh reports: robot index -> pose; the closest sighting of each target this round.
+        let mut poses: Vec<Option<(f64, f64)>> = vec![None; robots];
+        let mut best: Vec<Option<(f64, f64, f64)>> = vec![None; m];
+        for (i, &(obs, _)) in links.iter().enumerate() {
+            let Some(Value::Vector(r)) = ctx.get(obs) else { continue };
+            if r.len() != 3 + 2 * m {
+                continue;
+            }
+            let (x, y, theta) = (r[0], r[1], r[2]);
+            poses[i] = Some((x, y));
+            for j in 0..m {
+                let (angle, height) = (r[3 + 2 * j], r[4 + 2 * j]);
+                if height <= 0.0 || best[j].is_some_and(|(_, _, h)| h >= height) {
+                    continue;
+                }
+                let d = size / height;
+                let heading = theta - angle; // right-positive bearing
+                best[j] = Some((x + d * heading.cos(), y + d * heading.sin(), height));
+            }
+        }
+        for (j, b) in best.iter().enumerate() {
+            if let Some((x, y, _)) = *b {
+                mem[3 * j..3 * j + 3].copy_from_slice(&[x, y, now]);
+            }
+        }
+        let mut free: Vec<bool> = poses.iter().map(Option::is_some).collect();
+        let mut next = vec![0.0; robots];
+        let mut goal = vec![None; robots];
+        for j in 0..m {
+            let (tx, ty, seen) = (mem[3 * j], mem[3 * j + 1], mem[3 * j + 2]);
+            if seen < 0.0 || now - seen > TARGET_MEMORY {
+                continue;
+            }
+            let dist = |i: usize| poses[i].map_or(f64::INFINITY, |(x, y)| (x - tx).hypot(y - ty));
+            let nearest = (0..robots).filter(|&i| free[i]).min_by(|&a, &b| dist(a).total_cmp(&dist(b)));
+            let Some(nearest) = nearest else { break };
+            let holder = (0..robots).find(|&i| free[i] && hold[i] == (j + 1) as f64);
+            let pick = match holder {
+                Some(h) if dist(nearest) * 2.0 >= dist(h) => h,
+                _ => nearest,
+            };
+            free[pick] = false;
+            next[pick] = (j + 1) as f64;
+            goal[pick] = Some((tx, ty));
+        }
+        for (i, &(_, assign)) in links.iter().enumerate() {
+            if poses[i].is_none() {
+                continue; // no fresh report: nothing to tell it from
+            }
+            let v = match goal[i] {
+                Some((x, y)) => [next[i], x, y],
+                None => [0.0; 3],
+            };
+            let _ = ctx.write(assign, Value::vector(&v));
+        }
+        hold.copy_from_slice(&next);
+        let _ = ctx.set_slot(known, Value::vector(&mem));
+        let _ = ctx.set_slot(held, Value::vector(&hold));
+    })?;
+    node.define(c)?;
+    node.create("Planner", "PLAN")?;
+    for k in 1..=robots {
+        node.connect(
+            &Endpoint::local("PLAN", &format!("Assign{k}")),
+            &Endpoint::node(NodeId(k as u32), "FOLLOW", "Goal"),
+            ConnectionKind::Normal,
+            ConnectOptions::default(),
+        )?;
+    }
+    Ok(())
 }

@@ -19,6 +19,7 @@ pub mod recording;
 pub mod report;
 pub mod scenario;
 pub mod scenario_file;
+pub mod served_radio;
 pub mod served_robot;
 pub mod study;
 pub mod world;

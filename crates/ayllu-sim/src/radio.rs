@@ -44,6 +44,21 @@ pub struct RadioConfig {
     pub partitions: Vec<Partition>,
 }
 
+impl RadioConfig {
+    /// Whether stations `a` and `b` hear each other at `now` (s): within range and on the same
+    /// side of every partition in force (aliveness and loss are not this function's).
+    pub fn connects(&self, now: f64, a: &Station, b: &Station) -> bool {
+        if let Some(r) = self.range {
+            if (a.x - b.x).hypot(a.y - b.y) > r {
+                return false;
+            }
+        }
+        self.partitions
+            .iter()
+            .all(|p| !(p.start <= now && now < p.end) || p.island.contains(&a.node.0) == p.island.contains(&b.node.0))
+    }
+}
+
 impl Default for RadioConfig {
     /// A lab Wi-Fi: no loss, 2-5 ms, no range limit.
     fn default() -> Self {
@@ -168,15 +183,7 @@ impl Radio {
     }
 
     fn connected(&self, now: f64, a: &Station, b: &Station) -> bool {
-        if let Some(r) = self.config.range {
-            if (a.x - b.x).hypot(a.y - b.y) > r {
-                return false;
-            }
-        }
-        self.config
-            .partitions
-            .iter()
-            .all(|p| !(p.start <= now && now < p.end) || p.island.contains(&a.node.0) == p.island.contains(&b.node.0))
+        self.config.connects(now, a, b)
     }
 
     /// Station `from` emits `out` at `now`.

@@ -12,7 +12,7 @@ use serde::{Deserialize, Serialize};
 /// The settings a replay needs to draw a run.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct RecordingMeta {
-    /// Controller name: "BLE", "Random", "Local", "ForceField", "Centralized".
+    /// Controller name: "BLE", "Random", "Local", "ForceField", "Centralized", "Planner".
     pub controller: String,
     /// The run's seed.
     pub seed: u64,

@@ -9,17 +9,18 @@
 //! One tick (`dt`, 50 ms = the observers' 20 Hz): kills due; the radio's deliveries due are set
 //! aside; then robot by robot (one visit each, so its node stays in cache): its deliveries,
 //! every `sense_every` ticks a camera frame and sonar sweep into its body, the oracle's word
-//! (Centralized only), its node polls at the tick's time and its outgoing messages enter the
-//! radio, its motors are read; the world moves; metrics account the tick; every `frame_dt` a
+//! (Centralized only), its pose (Planner only), its node polls at the tick's time and its
+//! outgoing messages enter the radio, its motors are read; then the Planner's base station (a
+//! node of its own, the radio's last station) takes its deliveries, polls and sends; the world moves; metrics account the tick; every `frame_dt` a
 //! frame is hashed (and recorded if asked). Robots meet only through the world and the radio,
 //! so this equals doing each stage for every robot in turn.
 
-use ayllu_core::{Duration, Error, Instant, NodeCore, NodeId, PortRef};
+use ayllu_core::{Duration, Error, Instant, NodeCore, NodeId, PortRef, Value};
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
 use crate::body::Body;
-use crate::controller::{build, Brain, Controller, ControllerConfig};
+use crate::controller::{build, build_planner, Brain, Controller, ControllerConfig, PLANNER_NODE};
 use crate::metrics::{Meter, Metrics};
 use crate::radio::{Radio, RadioConfig, Station};
 use crate::recording::{CoverageSeries, Event, Frame, Recording, RecordingMeta, RobotFrame, RobotInfo, TargetInfo};
@@ -127,6 +128,50 @@ impl Scenario {
     }
 }
 
+/// Carry out the kills of `kills` due at `t` (s) and not yet `done`: each, in order, marks
+/// its robot dead in `world` ([`Kill::robot`]'s rule sees the robots this instant already
+/// killed as dead). Returns the robot indexes killed now, for
+/// [`crate::metrics::Meter::killed_together`] — all dead before their lost targets are judged.
+/// Shared by the in-process [`Sim`] and the distributed server, so both kill the same robots.
+pub fn apply_due_kills(kills: &[Kill], done: &mut [bool], t: f64, world: &mut World) -> Vec<usize> {
+    let mut killed = Vec::new();
+    for (k, kill) in kills.iter().enumerate() {
+        if done[k] || kill.at > t {
+            continue;
+        }
+        done[k] = true;
+        let i = match kill.robot {
+            Some(id) => (id as usize).checked_sub(1).filter(|&i| i < world.robots.len()),
+            None => most_useful_robot(world),
+        };
+        let Some(i) = i else { continue };
+        if !world.robots[i].alive {
+            continue;
+        }
+        world.robots[i].alive = false;
+        killed.push(i);
+    }
+    killed
+}
+
+/// The live robot observing the highest-priority observed target (lowest index on ties; the
+/// first live robot if none observes anything).
+pub fn most_useful_robot(world: &World) -> Option<usize> {
+    let range = world.config.observe_range;
+    let mut best: Option<(usize, usize)> = None; // (target index, robot)
+    for (i, r) in world.robots.iter().enumerate() {
+        if !r.alive {
+            continue;
+        }
+        world.in_view(i, range, |j, _, _| {
+            if best.is_none_or(|(bj, _)| j < bj) {
+                best = Some((j, i));
+            }
+        });
+    }
+    best.map(|(_, i)| i).or_else(|| world.robots.iter().position(|r| r.alive))
+}
+
 /// Radio totals of a run.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct RadioStats {
@@ -182,6 +227,8 @@ pub struct Sim {
     /// Centralized: current assignment target index per robot, and the messages it costs.
     assignment: Vec<Option<usize>>,
     oracle_messages: u64,
+    /// Planner: the base station's node and where it stands (the radio's station `robots`).
+    planner: Option<(NodeCore, Station)>,
 }
 
 /// Builds one robot's controller on its node for [`Sim::with_controller`]: the node (body
@@ -212,7 +259,9 @@ impl Sim {
         let prios: Vec<f64> = scenario.world.targets.iter().map(|t| t.priority).collect();
         let dt = Duration::try_from_secs_f64(scenario.dt)?;
         let world = World::new(scenario.world.clone(), scenario.robots, scenario.seed);
-        let mut radio = Radio::new(scenario.radio.clone(), scenario.robots, scenario.seed);
+        let planner = scenario.controller == Controller::Planner;
+        let stations = scenario.robots + usize::from(planner);
+        let mut radio = Radio::new(scenario.radio.clone(), stations, scenario.seed);
         let mut robots = Vec::with_capacity(scenario.robots);
         for i in 0..scenario.robots {
             let mut core = NodeCore::new(node_id(i));
@@ -221,6 +270,16 @@ impl Sim {
             radio.set_groups(i, core.groups());
             robots.push(RobotNode { core, body, brain });
         }
+        let planner = if planner {
+            let mut core = NodeCore::new(PLANNER_NODE);
+            build_planner(&mut core, scenario.robots, &scenario.world, &scenario.controllers)?;
+            radio.set_groups(scenario.robots, core.groups());
+            let [w, h] = scenario.world.arena;
+            let [x, y] = scenario.controllers.base_station.unwrap_or([w / 2.0, h / 2.0]);
+            Some((core, Station { node: PLANNER_NODE, x, y, alive: true }))
+        } else {
+            None
+        };
         let frame_every = ((scenario.frame_dt / scenario.dt).round() as u64).max(1);
         let n = scenario.robots;
         let mut sim = Sim {
@@ -242,9 +301,13 @@ impl Sim {
             events: Vec::new(),
             assignment: vec![None; n],
             oracle_messages: 0,
+            planner,
         };
         for r in &mut sim.robots {
             r.core.poll(Instant::ZERO);
+        }
+        if let Some((core, _)) = &mut sim.planner {
+            core.poll(Instant::ZERO);
         }
         sim.frame(0, 0.0);
         Ok(sim)
@@ -299,6 +362,9 @@ impl Sim {
             y: r.pose.y,
             alive: r.alive,
         }));
+        if let Some((_, station)) = &self.planner {
+            self.stations.push(*station);
+        }
         // One visit per robot: its messages, its senses, its node's poll. Robots interact only
         // through the world (which moves after the loop) and the radio (whose deliveries were
         // set aside above), so this is the same as doing each step for all robots in turn —
@@ -317,6 +383,11 @@ impl Sim {
             }
             if sense {
                 r.body.sense(&mut r.core, now, &mut self.world, i)?;
+                if let Brain::Follow { pose, .. } = r.brain {
+                    // Localization: the robot knows where it is (as odometry on a map would).
+                    let p = self.world.robots[i].pose;
+                    r.core.write(now, pose, Value::vector(&[p.x, p.y, p.theta]))?;
+                }
             }
             if self.scenario.controller == Controller::Centralized {
                 self.steer(now, i)?;
@@ -329,6 +400,14 @@ impl Sim {
             self.commands[i] = r.body.command(&r.core);
             self.drives[i] = r.brain.drive(&r.core);
         }
+        if let Some((core, _)) = &mut self.planner {
+            let station = self.robots.len();
+            self.radio.deliver_due(station, |from, msg| core.receive_shared(now, from, msg));
+            core.poll(now);
+            while let Some(out) = core.pop_outgoing() {
+                self.radio.send(now, station, out, &self.stations);
+            }
+        }
         self.radio.release_due();
         self.world.step(self.scenario.dt, &self.commands);
         let (observed, weighted) = self.meter.observe(t, self.scenario.dt, &self.world, &self.drives);
@@ -339,45 +418,13 @@ impl Sim {
     }
 
     fn apply_kills(&mut self, t: f64) {
-        // All robots due to die now die first; then their lost targets are judged together.
-        let mut killed = Vec::new();
-        for k in 0..self.scenario.kills.len() {
-            if self.kills_done[k] || self.scenario.kills[k].at > t {
-                continue;
-            }
-            self.kills_done[k] = true;
-            let i = match self.scenario.kills[k].robot {
-                Some(id) => (id as usize).checked_sub(1).filter(|&i| i < self.robots.len()),
-                None => self.most_useful_robot(),
-            };
-            let Some(i) = i else { continue };
-            if !self.world.robots[i].alive {
-                continue;
-            }
-            self.world.robots[i].alive = false;
-            killed.push(i);
+        let killed = apply_due_kills(&self.scenario.kills, &mut self.kills_done, t, &mut self.world);
+        for &i in &killed {
             self.events.push(Event { t, kind: "kill".into(), robot: node_id(i).0 });
         }
         if !killed.is_empty() {
             self.meter.killed_together(t, &self.world, &killed);
         }
-    }
-
-    /// The live robot observing the highest-priority observed target (lowest index on ties).
-    fn most_useful_robot(&self) -> Option<usize> {
-        let range = self.world.config.observe_range;
-        let mut best: Option<(usize, usize)> = None; // (target index, robot)
-        for (i, r) in self.world.robots.iter().enumerate() {
-            if !r.alive {
-                continue;
-            }
-            self.world.in_view(i, range, |j, _, _| {
-                if best.is_none_or(|(bj, _)| j < bj) {
-                    best = Some((j, i));
-                }
-            });
-        }
-        best.map(|(_, i)| i).or_else(|| self.world.robots.iter().position(|r| r.alive))
     }
 
     /// The omniscient planner: every second, give each target in priority order the nearest

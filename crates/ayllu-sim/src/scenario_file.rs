@@ -7,7 +7,7 @@
 //! duration, frame and tick rates):
 //!
 //! ```toml
-//! controller = "BLE"       # BLE, Random, Local, ForceField, Centralized
+//! controller = "BLE"       # BLE, Random, Local, ForceField, Centralized, Planner
 //! robots = 3
 //! targets = 4              # priorities 4, 3, 2, 1 (or list world.targets yourself)
 //! seed = 1
@@ -258,7 +258,7 @@ mod tests {
         for (text, needle) in [
             ("[radio]\nlos = 0.1", "unknown field `radio.los`"),
             ("controler = \"BLE\"", "unknown field `controler`"),
-            ("controller = \"Planner\"", "unknown controller"),
+            ("controller = \"Oracle\"", "unknown controller"),
             ("[radio]\nloss = \"much\"", "does not fit"),
             ("robots = 0", "robots"),
             ("this is not toml", "TOML"),

@@ -39,6 +39,7 @@ pub(super) fn controller_colour(name: &str, index: usize) -> RGBColor {
     match name {
         "BLE" => RGBColor(31, 95, 191),
         "Centralized" => RGBColor(123, 63, 160),
+        "Planner" => RGBColor(176, 48, 96),
         "ForceField" => RGBColor(46, 139, 87),
         "Local" => RGBColor(224, 123, 0),
         "Random" => RGBColor(128, 128, 128),

@@ -131,6 +131,14 @@ pub(super) fn text(report: &Report) -> String {
             out,
             "Centralized is an omniscient planner, the upper bound: BLE reaches {share:.0} % of its A_w."
         );
+        if let Some(p) = comparisons.iter().find(|p| p.controller == Controller::Planner.name()) {
+            let _ = writeln!(
+                out,
+                "Planner is a central planner whose reports and assignments cross the same radio: it reaches \
+                 {:.0} % of Centralized's A_w.",
+                100.0 * p.a_w / c.a_w
+            );
+        }
     }
     out.push_str(&claim(report));
     out.push('\n');
