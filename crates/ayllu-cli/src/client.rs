@@ -54,6 +54,16 @@ pub fn default_id() -> NodeId {
 impl Client {
     /// Join the network `net.udp` names. Waits give up after `--timeout`, else `default_timeout`.
     pub fn open(net: &Net, default_timeout: f64) -> Result<Client, Fail> {
+        Client::open_with(net, default_timeout, |t| t)
+    }
+
+    /// [`Client::open`] with the transport wrapped by `wrap` (`record` and `hz` put a
+    /// `team_recording::Tap` around it to see the port messages that arrive).
+    pub fn open_with<T: ayllu::Transport + 'static>(
+        net: &Net,
+        default_timeout: f64,
+        wrap: impl FnOnce(UdpTransport) -> T,
+    ) -> Result<Client, Fail> {
         if !net.udp.starts_with("udp://") {
             return Err(Fail::usage(format!("--udp must be a udp:// URL, got `{}`", net.udp)));
         }
@@ -66,7 +76,7 @@ impl Client {
         let transport = UdpTransport::bind(id, config)?;
         let timeout = net.timeout.unwrap_or(default_timeout);
         Ok(Client {
-            node: Node::new(MonotonicClock::new(), transport),
+            node: Node::new(MonotonicClock::new(), wrap(transport)),
             deadline: Some(StdInstant::now() + StdDuration::from_secs_f64(timeout)),
             timeout,
             honour_stop: true,

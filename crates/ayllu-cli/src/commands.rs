@@ -35,7 +35,7 @@ const WRITE_ATTEMPTS: u32 = 3;
 const DISCONNECT_WAIT: StdDuration = StdDuration::from_secs(1);
 
 /// Print to stdout now (a reader may be waiting line by line). A closed stdout is an error.
-fn emit(text: &str) -> Result<(), Fail> {
+pub(crate) fn emit(text: &str) -> Result<(), Fail> {
     let mut out = std::io::stdout().lock();
     out.write_all(text.as_bytes())?;
     if !text.ends_with('\n') {
@@ -49,7 +49,7 @@ fn pretty(j: &serde_json::Value) -> String {
     serde_json::to_string_pretty(j).unwrap_or_else(|_| "null".to_owned())
 }
 
-fn unexpected(what: &str, body: &ReplyBody) -> Fail {
+pub(crate) fn unexpected(what: &str, body: &ReplyBody) -> Fail {
     Fail::error(format!("{what}: unexpected answer {body:?}"))
 }
 
@@ -170,7 +170,7 @@ fn ask_why(client: &mut Client, node: NodeId, path: &PortPath) -> Result<PortRep
 }
 
 /// The port's current value (READ), which tells its type.
-fn read(client: &mut Client, node: NodeId, path: &PortPath) -> Result<Value, Fail> {
+pub(crate) fn read(client: &mut Client, node: NodeId, path: &PortPath) -> Result<Value, Fail> {
     let what = format!("READ {node}:{path}");
     let body = ControlBody::Read { behavior: path.behavior.as_str().into(), port: path.port.as_str().into() };
     match client.ask(node, body, &what) {
@@ -271,7 +271,7 @@ pub fn echo(node: NodeId, path: &PortPath, count: Option<u64>, net: &Net) -> Res
     }
 }
 
-fn disconnect(client: &mut Client, node: NodeId, conn: ConnectionId) {
+pub(crate) fn disconnect(client: &mut Client, node: NodeId, conn: ConnectionId) {
     client.honour_stop = false;
     client.set_deadline(Some(StdInstant::now() + DISCONNECT_WAIT));
     let request = client.node.core_mut().request_disconnect(node, conn);

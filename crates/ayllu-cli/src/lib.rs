@@ -26,6 +26,9 @@ mod controllers;
 mod fail;
 #[cfg(feature = "foxglove")]
 mod foxglove;
+mod graph;
+mod hz;
+mod record;
 #[cfg(target_os = "linux")]
 mod shape;
 mod signals;
@@ -208,6 +211,16 @@ enum Command {
     /// seeded delay, jitter, reordering, duplication and loss (a userspace netem; needs root).
     #[cfg(target_os = "linux")]
     Shape(shape::ShapeArgs),
+    /// Record the team's port messages into an MCAP file (channels per node, behavior, port;
+    /// opens in Foxglove): every group the nodes announce, and copies of chosen ports.
+    Record(record::RecordArgs),
+    /// Send a recording back into ports of a live team at its recorded pace (or faster).
+    Play(record::PlayArgs),
+    /// Print the team's wiring (behaviors, ports, connections, windows open now) as DOT,
+    /// Mermaid, SVG, HTML or JSON.
+    Graph(graph::GraphArgs),
+    /// Print the rate, jitter, gaps and losses of a port's messages.
+    Hz(hz::HzArgs),
     /// Serve the team to Foxglove over its WebSocket protocol: port values, windows and BLE
     /// claims as topics (ws://HOST:PORT; docs/cli.md).
     #[cfg(feature = "foxglove")]
@@ -430,6 +443,10 @@ fn run(cli: Cli) -> Result<(), Fail> {
         Command::Sim(SimCommand::Sweep(args)) => sim_files::sweep_file(&args),
         #[cfg(target_os = "linux")]
         Command::Shape(args) => shape::run(&args),
+        Command::Record(args) => record::record(&args),
+        Command::Play(args) => record::play(&args),
+        Command::Graph(args) => graph::graph(&args),
+        Command::Hz(args) => hz::hz(&args),
         #[cfg(feature = "foxglove")]
         Command::Foxglove(args) => foxglove::serve(&args),
     }
