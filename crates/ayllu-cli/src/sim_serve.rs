@@ -11,10 +11,18 @@
 //! is told the other's address: a body greets the addresses its URL names (`peer=`,
 //! `broadcast=`) and its controller greets back, and from then on each routes by node id.
 //!
+//! With `--scenario FILE` (the same file for `sim serve` and every `sim robot`) the run is that
+//! scenario's: its world, team, seed and duration; its kills, carried out by the server at their
+//! instants (the world marks the robot dead, its body stops, and its process is told to stop
+//! through `LINK.Alive` and exits); and its radio, applied to the controllers' real traffic by
+//! each robot's [`ayllu_sim::served_radio::RadioLink`] (loss, delay and jitter drawn at the
+//! receiver; range and partitions from the reachability the server computes on the world's true
+//! positions and sends each robot every sensing tick). docs/cmommt.md, "The distributed mode".
+//!
 //! Promises:
-//! * the world is the in-process one: `Scenario::sized(.., robots, targets, seed).world`, the same
-//!   seed, a 50 ms tick (camera and sonar at 10 Hz) paced on the real clock; coverage is measured
-//!   on the world's ground truth with the same [`Meter`];
+//! * the world is the in-process one: the scenario's (`Scenario::sized(.., robots, targets,
+//!   seed)` without a file), the same seed, a 50 ms tick (camera and sonar at 10 Hz) paced on the
+//!   real clock; coverage is measured on the world's ground truth with the same [`Meter`];
 //! * the controllers are built by [`ayllu_sim::controller::build`] unchanged, on a node whose
 //!   VISION/SONAR/BASE are local behaviors of the same classes, fed and read over the network;
 //! * a body whose motor commands stop arriving stops the robot ([`WATCHDOG`]), as a Pioneer's
@@ -23,11 +31,16 @@
 //!   `--status-ms`); both commands stop cleanly on
 //!   Ctrl-C / SIGTERM (the server still prints its final metrics line).
 //!
-//! Not measured by the server: switches/min and messages per robot (the brains and the radio are
-//! in the robot processes; each robot's status line carries its drive and message counts).
-//! `centralized` is refused: it needs the world's truth, which only the server has.
+//! * the metrics are the in-process ones: switches from the drive each robot reports
+//!   (`LINK.Drive`), messages and bytes per robot per second from the radio emissions each robot
+//!   counts (`LINK.Sent`, `LINK.Bytes`: what it last reported, at most 250 ms old), kills judged
+//!   together as in-process ([`ayllu_sim::scenario::apply_due_kills`]).
+//!
+//! `centralized` and `planner` are refused: the first needs the world's truth, the second a base
+//! station, which only exist in-process.
 
 use std::io::Write as _;
+use std::path::PathBuf;
 use std::time::{Duration as StdDuration, Instant as StdInstant};
 
 use ayllu::stdlib::{BASE, SONAR, VISION};
@@ -35,7 +48,11 @@ use ayllu::{ConnectionKind, Endpoint, MonotonicClock, Node, NodeId, PortRef, Udp
 use ayllu_sim::body::Body;
 use ayllu_sim::controller::{build, Brain, Controller, ControllerConfig};
 use ayllu_sim::metrics::Meter;
-use ayllu_sim::scenario::{priorities, Scenario};
+use ayllu_sim::radio::{RadioConfig, Station};
+use ayllu_sim::scenario::{apply_due_kills, node_id, priorities, Scenario};
+use ayllu_sim::scenario_file;
+use ayllu_sim::served_radio::{LinkHandle, RadioLink};
+use ayllu_sim::served_robot::LINK;
 use ayllu_sim::world::{Command, World, WorldConfig};
 use clap::Args;
 use serde_json::{json, Value as Json};
@@ -51,11 +68,20 @@ const MAX_ROBOTS: u64 = BODY_BASE as u64 - 1;
 /// The world's tick and its camera/sonar divider (the in-process defaults).
 /// A body whose `BASE` has not been written for this long stops (the controller is gone).
 const WATCHDOG: ayllu::Duration = ayllu::Duration::from_secs(1);
+/// How often a robot reports its radio counts to the server (`LINK.Sent`, `LINK.Bytes`).
+const REPORT_PERIOD: StdDuration = StdDuration::from_millis(250);
+/// The world's tick: a robot looks at its drive and the server's word this often.
+const TICK: StdDuration = StdDuration::from_millis(50);
 /// If the server falls this far behind the real clock, it stops trying to catch up.
 const MAX_LAG: StdDuration = StdDuration::from_millis(500);
 
 #[derive(Args, Debug)]
 pub struct ServeArgs {
+    /// A scenario file (docs/cmommt.md, "Studies as files"): its world, team, seed and duration,
+    /// its kills (carried out here) and its radio (applied by robots given the same file).
+    /// Replaces --robots, --targets, --seed and --duration.
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["robots", "targets", "seed", "duration"])]
+    pub scenario: Option<PathBuf>,
     /// How many robots (their controllers are nodes 1..=N, their bodies nodes 1001..=1000+N).
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..=MAX_ROBOTS))]
     pub robots: u64,
@@ -87,10 +113,15 @@ pub struct RobotArgs {
     /// This robot's number K: its controller is node K, its body node 1000+K.
     #[arg(long, value_parser = parse_node)]
     pub id: NodeId,
-    /// The controller: ble, local, random or forcefield (centralized needs the world's truth
-    /// and exists only in-process).
-    #[arg(long, value_name = "NAME", default_value = "ble", value_parser = parse_distributed_controller)]
-    pub controller: Controller,
+    /// The scenario file the server runs (the same file): its targets, controller tunables,
+    /// seed, and the radio this robot applies to what it hears from its peers. Replaces
+    /// --targets, --seed and --claim-hz.
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["targets", "seed", "claim_hz"])]
+    pub scenario: Option<PathBuf>,
+    /// The controller: ble, local, random or forcefield (centralized and planner exist only
+    /// in-process) [default: the scenario's, else ble].
+    #[arg(long, value_name = "NAME", value_parser = parse_distributed_controller)]
+    pub controller: Option<Controller>,
     /// How many targets (must match the server's).
     #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u64).range(1..=64))]
     pub targets: u64,
@@ -115,12 +146,27 @@ pub struct RobotArgs {
 
 fn parse_distributed_controller(s: &str) -> Result<Controller, String> {
     match Controller::parse(s) {
-        Some(Controller::Centralized) => Err("centralized is not available in distributed mode: its planner \
-             reads the world's true state, which only `sim serve` has (use `sim cmommt` for it)"
-            .into()),
-        Some(c) => Ok(c),
+        Some(c) => distributed(c),
         None => Err(format!("`{s}` is not a controller (ble, local, random, forcefield)")),
     }
+}
+
+fn distributed(c: Controller) -> Result<Controller, String> {
+    match c {
+        Controller::Centralized => Err("centralized is not available in distributed mode: its planner \
+             reads the world's true state, which only `sim serve` has (use `sim cmommt` for it)"
+            .into()),
+        Controller::Planner => Err("planner is not available in distributed mode: its base station exists \
+             only in-process (use `sim run` or `sim cmommt` for it)"
+            .into()),
+        c => Ok(c),
+    }
+}
+
+/// The scenario in `path` (docs/cmommt.md, "Studies as files").
+fn read_scenario(path: &PathBuf) -> Result<Scenario, Fail> {
+    let text = std::fs::read_to_string(path).map_err(|e| Fail::error(format!("reading {}: {e}", path.display())))?;
+    scenario_file::scenario(&text).map_err(|e| Fail::error(format!("{}: {e}", path.display())))
 }
 
 fn body_id(robot: u32) -> NodeId {
@@ -166,6 +212,8 @@ struct BodyNode {
     rotate: PortRef,
     translate: PortRef,
     controller: NodeId,
+    /// `LINK.Reach`, `Alive`, `Drive`, `Sent`, `Bytes` (ayllu_sim::served_robot).
+    link: [PortRef; 5],
 }
 
 impl BodyNode {
@@ -188,7 +236,30 @@ impl BodyNode {
         }
         let rotate = node.core().port(BASE, "Rotate")?;
         let translate = node.core().port(BASE, "Translate")?;
-        Ok(BodyNode { node, body, rotate, translate, controller })
+        ayllu_sim::served_robot::install_body_link(node.core_mut(), k)?;
+        let core = node.core();
+        let link = [
+            core.port(LINK, "Reach")?,
+            core.port(LINK, "Alive")?,
+            core.port(LINK, "Drive")?,
+            core.port(LINK, "Sent")?,
+            core.port(LINK, "Bytes")?,
+        ];
+        Ok(BodyNode { node, body, rotate, translate, controller, link })
+    }
+
+    /// An int the robot reports on `LINK` (0 until it has).
+    fn reported(&self, port: usize) -> u64 {
+        self.node.core().read(self.link[port]).ok().and_then(|v| v.as_int()).unwrap_or(0).max(0) as u64
+    }
+
+    /// Tell the robot who it hears now and whether it is alive.
+    fn tell(&mut self, reach: &[f64], alive: bool) -> Result<(), Fail> {
+        let now = self.node.now();
+        let core = self.node.core_mut();
+        core.write(now, self.link[0], ayllu::Value::vector(reach))?;
+        core.write(now, self.link[1], i64::from(alive))?;
+        Ok(())
     }
 
     /// Whether the body has heard its controller (it can send it the sensors).
@@ -211,11 +282,18 @@ impl BodyNode {
 
 /// `ayllu sim serve`.
 pub fn serve(args: &ServeArgs) -> Result<(), Fail> {
-    let robots = args.robots as usize;
-    let targets = args.targets as usize;
-    // The in-process world for these sizes, targets numbered by decreasing priority (OBSn
-    // follows TargetN), with the in-process tick and sensing rate, as `scenario::Sim` runs it.
-    let scenario = Scenario::sized(Controller::Random, robots, targets, args.seed);
+    // The in-process world, targets numbered by decreasing priority (OBSn follows TargetN),
+    // with the in-process tick and sensing rate, as `scenario::Sim` runs it.
+    let scenario = match &args.scenario {
+        Some(path) => read_scenario(path)?,
+        None => Scenario::sized(Controller::Random, args.robots as usize, args.targets as usize, args.seed)
+            .duration(args.duration),
+    };
+    let robots = scenario.robots;
+    let targets = scenario.world.targets.len();
+    if robots as u64 > MAX_ROBOTS {
+        return Err(Fail::usage(format!("{robots} robots: distributed mode takes at most {MAX_ROBOTS}")));
+    }
     let (dt, sense_every) = (scenario.dt, u64::from(scenario.sense_every.max(1)));
     let config = scenario.world.by_priority();
     let prios: Vec<f64> = config.targets.iter().map(|t| t.priority).collect();
@@ -223,7 +301,7 @@ pub fn serve(args: &ServeArgs) -> Result<(), Fail> {
     for k in 1..=robots {
         bodies.push(BodyNode::open(k as u32, &body_url(&args.udp, robots, k)?, targets, &config)?);
     }
-    let mut world = World::new(config.clone(), robots, args.seed);
+    let mut world = World::new(config.clone(), robots, scenario.seed);
     signals::install();
     let mut out = std::io::stdout().lock();
 
@@ -251,16 +329,21 @@ pub fn serve(args: &ServeArgs) -> Result<(), Fail> {
         "arena": config.arena,
         "robots": robots,
         "targets": targets,
-        "seed": args.seed,
+        "seed": scenario.seed,
+        "duration": scenario.duration,
+        "kills": scenario.kills.len(),
+        "loss": scenario.radio.loss,
     });
     writeln!(out, "{start_line}")?;
     out.flush()?;
 
     let mut meter = Meter::new(&prios, robots);
-    // The brains are in the robot processes: the server does not count switches.
-    let drives = vec![0u32; robots];
+    // The brains are in the robot processes: each reports the target driving it.
+    let mut drives = vec![0u32; robots];
     let mut commands = vec![Command::default(); robots];
-    let ticks = (args.duration / dt).round().max(1.0) as u64;
+    let mut kills_done = vec![false; scenario.kills.len()];
+    let mut reach = vec![0.0; robots];
+    let ticks = (scenario.duration / dt).round().max(1.0) as u64;
     let status_every = ((args.status_ms as f64 / 1000.0 / dt).round() as u64).max(1);
     let (mut weighted_time, mut resyncs) = (0.0, 0u64);
     let mut anchor = StdInstant::now();
@@ -279,18 +362,42 @@ pub fn serve(args: &ServeArgs) -> Result<(), Fail> {
         }
         tick += 1;
         let t = tick as f64 * dt;
-        let sense = tick.is_multiple_of(sense_every);
+        let killed = apply_due_kills(&scenario.kills, &mut kills_done, t, &mut world);
+        if !killed.is_empty() {
+            meter.killed_together(t, &world, &killed);
+            for &i in &killed {
+                writeln!(out, "{}", json!({"t": round3(t), "kill": node_id(i).0}))?;
+            }
+            out.flush()?;
+        }
+        let sense = tick.is_multiple_of(sense_every) || !killed.is_empty();
         if sense {
             world.index();
         }
+        let stations: Vec<Station> = world
+            .robots
+            .iter()
+            .enumerate()
+            .map(|(i, r)| Station { node: node_id(i), x: r.pose.x, y: r.pose.y, alive: r.alive })
+            .collect();
         for (i, b) in bodies.iter_mut().enumerate() {
+            let alive = world.robots[i].alive;
             if sense {
-                let now = b.node.now();
-                b.body.sense(b.node.core_mut(), now, &mut world, i)?;
+                // Who robot i hears now: alive, in range, on its side of every partition.
+                for (j, r) in reach.iter_mut().enumerate() {
+                    let heard = j != i && alive && stations[j].alive;
+                    *r = f64::from(u8::from(heard && scenario.radio.connects(t, &stations[j], &stations[i])));
+                }
+                b.tell(&reach, alive)?;
+                if alive {
+                    let now = b.node.now();
+                    b.body.sense(b.node.core_mut(), now, &mut world, i)?;
+                }
             }
             // Sends this frame, then takes in what the controller wrote since the last tick.
             b.node.step();
             commands[i] = b.command();
+            drives[i] = b.reported(2) as u32;
         }
         world.step(dt, &commands);
         let (observed, weighted) = meter.observe(t, dt, &world, &drives);
@@ -310,6 +417,8 @@ pub fn serve(args: &ServeArgs) -> Result<(), Fail> {
                         "translate": round3(c.translate),
                         "rotate": round3(c.rotate),
                         "linked": b.linked(),
+                        "alive": r.alive,
+                        "drive": b.reported(2),
                     })
                 })
                 .collect();
@@ -325,13 +434,17 @@ pub fn serve(args: &ServeArgs) -> Result<(), Fail> {
         }
     }
     let t = tick as f64 * dt;
-    let metrics = meter.finish(t, robots, 0);
+    let sent: u64 = bodies.iter().map(|b| b.reported(3)).sum();
+    let bytes: u64 = bodies.iter().map(|b| b.reported(4)).sum();
+    let metrics = meter.finish(t, robots, sent);
     let done = json!({
         "done": true,
         "t": round3(t),
         "stopped": tick < ticks,
         "resyncs": resyncs,
         "metrics": serde_json::to_value(&metrics).map_err(|e| Fail::error(format!("metrics as JSON: {e}")))?,
+        "radio": {"sent": sent, "bytes": bytes},
+        "bytes_per_robot_s": bytes as f64 / robots.max(1) as f64 / t.max(f64::MIN_POSITIVE),
     });
     writeln!(out, "{done}")?;
     out.flush()?;
@@ -344,15 +457,29 @@ pub fn robot(args: &RobotArgs) -> Result<(), Fail> {
     if k == 0 || u64::from(k) > MAX_ROBOTS {
         return Err(Fail::usage(format!("--id must be a robot number from 1 to {MAX_ROBOTS}, got {k}")));
     }
-    let targets = args.targets as usize;
+    // Without a scenario: no radio model (real UDP as it is), the tunables from the arguments.
+    let (targets, cfg, radio, seed, controller) = match &args.scenario {
+        Some(path) => {
+            let s = read_scenario(path)?;
+            let controller = args.controller.unwrap_or(s.controller);
+            (s.world.targets.len(), s.controllers, s.radio, s.seed, controller)
+        }
+        None => {
+            let cfg =
+                ControllerConfig { claim_hz: args.claim_hz, wander_seed: args.seed, ..ControllerConfig::default() };
+            let radio = RadioConfig { loss: 0.0, delay: 0.0, jitter: 0.0, range: None, partitions: Vec::new() };
+            (args.targets as usize, cfg, radio, args.seed, args.controller.unwrap_or(Controller::Ble))
+        }
+    };
+    let controller = distributed(controller).map_err(Fail::usage)?;
     let prios = priorities(targets);
     let config = udp_config(&args.udp, format!("robot-{k}"))?;
-    let mut node = Node::new(MonotonicClock::new(), UdpTransport::bind(args.id, config)?);
+    let (transport, link) = RadioLink::new(UdpTransport::bind(args.id, config)?, &radio, seed);
+    let mut node = Node::new(MonotonicClock::new(), transport);
     // The body's ports, as local behaviors the server writes (sensors) and reads (motors), the
     // motors sent to the body on the server (as the C library's ayInitSimBody does).
     ayllu_sim::served_robot::install(node.core_mut(), targets)?;
-    let cfg = ControllerConfig { claim_hz: args.claim_hz, wander_seed: args.seed, ..ControllerConfig::default() };
-    let brain = build(node.core_mut(), args.controller, &prios, &cfg)?;
+    let brain = build(node.core_mut(), controller, &prios, &cfg)?;
     let body = body_id(k);
     let vision: Vec<PortRef> =
         (1..=targets).map(|n| node.core().port(VISION, &format!("Target{n}Angle"))).collect::<Result<_, _>>()?;
@@ -362,14 +489,41 @@ pub fn robot(args: &RobotArgs) -> Result<(), Fail> {
     let end = args.duration.map(|s| start + StdDuration::from_secs_f64(s));
     let period = StdDuration::from_millis(args.status_ms);
     let mut next_status = start + period;
+    let mut next_report = start;
     let mut out = std::io::stdout().lock();
     writeln!(out, "{}", listening_json(&node))?;
     out.flush()?;
     let mut was_linked = false;
+    let mut last_drive = None;
     loop {
         let now = StdInstant::now();
         if signals::stopped() || end.is_some_and(|e| now >= e) {
             return Ok(());
+        }
+        // The server's word: whom this robot hears, and whether it is still alive.
+        if let Ok(ayllu::Value::Vector(reach)) = node.read(LINK, "Reach") {
+            link.set_reach(&reach);
+        }
+        if node.read(LINK, "Alive").ok().and_then(|v| v.as_int()) == Some(0) {
+            let mut status = robot_status(&node, &brain, &vision, body, &link);
+            status["killed"] = json!(true);
+            writeln!(out, "{status}")?;
+            out.flush()?;
+            eprintln!("ayllu: sim robot {k}: killed by the scenario; stopping");
+            return Ok(());
+        }
+        // Our word to the server, for the metrics: the drive when it changes, the radio counts
+        // four times a second.
+        let drive = brain.drive(node.core());
+        if last_drive != Some(drive) {
+            node.write(LINK, "Drive", i64::from(drive))?;
+            last_drive = Some(drive);
+        }
+        if now >= next_report {
+            let c = link.counts();
+            node.write(LINK, "Sent", c.sent as i64)?;
+            node.write(LINK, "Bytes", c.bytes as i64)?;
+            next_report = (next_report + REPORT_PERIOD).max(now);
         }
         if now >= next_status {
             // A robot whose server went away stops too (its body is forgotten after three
@@ -381,16 +535,20 @@ pub fn robot(args: &RobotArgs) -> Result<(), Fail> {
                 eprintln!("ayllu: sim robot {k}: its body ({body}) has gone silent: the server stopped; stopping");
                 return Ok(());
             }
-            writeln!(out, "{}", robot_status(&node, &brain, &vision, body))?;
+            writeln!(out, "{}", robot_status(&node, &brain, &vision, body, &link))?;
             out.flush()?;
             next_status = (next_status + period).max(now);
         }
-        let until = end.map_or(next_status, |e| e.min(next_status));
+        // Wake at least every tick of the world, to follow the drive and the server's word.
+        let mut until = next_status.min(now + TICK);
+        if let Some(e) = end {
+            until = until.min(e);
+        }
         node.run_for(until.saturating_duration_since(StdInstant::now()));
     }
 }
 
-fn robot_status(node: &Node, brain: &Brain, vision: &[PortRef], body: NodeId) -> Json {
+fn robot_status(node: &Node, brain: &Brain, vision: &[PortRef], body: NodeId, link: &LinkHandle) -> Json {
     let core = node.core();
     let claims: Vec<u32> = core
         .ble_statuses()
@@ -402,6 +560,7 @@ fn robot_status(node: &Node, brain: &Brain, vision: &[PortRef], body: NodeId) ->
         vision.iter().enumerate().filter(|(_, p)| core.fresh(**p).unwrap_or(false)).map(|(n, _)| n + 1).collect();
     let peers = node.peers();
     let stats = node.stats();
+    let c = link.counts();
     json!({
         "t": round3(node.now().as_secs_f64()),
         "id": node.id().0,
@@ -412,6 +571,13 @@ fn robot_status(node: &Node, brain: &Brain, vision: &[PortRef], body: NodeId) ->
         "peers": peers.iter().map(|p| p.node.0).filter(|&n| n < BODY_BASE).collect::<Vec<_>>(),
         "sent": stats.sent,
         "received": stats.received,
+        "radio": {
+            "sent": c.sent,
+            "bytes": c.bytes,
+            "delivered": c.delivered,
+            "lost": c.lost,
+            "cut": c.cut,
+        },
     })
 }
 
@@ -434,10 +600,11 @@ mod tests {
     }
 
     #[test]
-    fn centralized_is_refused_in_distributed_mode() {
+    fn centralized_and_planner_are_refused_in_distributed_mode() {
         assert_eq!(parse_distributed_controller("BLE"), Ok(Controller::Ble));
         assert_eq!(parse_distributed_controller("forcefield"), Ok(Controller::ForceField));
         assert!(parse_distributed_controller("centralized").unwrap_err().contains("not available"));
+        assert!(parse_distributed_controller("planner").unwrap_err().contains("not available"));
         assert!(parse_distributed_controller("oracle").is_err());
     }
 }
