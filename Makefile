@@ -2,7 +2,7 @@
 # CI (.ci/run) runs `make lint` and `make test`.
 CARGO ?= cargo
 
-.PHONY: demo test lint test-python lint-python bench-python bench bench-c bench-net bench-sim fuzz fuzz-long soak fmt
+.PHONY: demo test lint test-python lint-python bench-python bench bench-c bench-net bench-sim fuzz fuzz-long soak fmt docs
 
 ## Run the main demo: W-CMOMMT in the simulator (the paper's setting, a sweep, a robot killed
 ## halfway) for BLE and every baseline; prints a short summary (BLE against each baseline, whether
@@ -32,6 +32,12 @@ test:
 	$(PYTHON) spec/conformance --ayllu $(TARGET_DIR)/debug/ayllu
 	$(MAKE) test-python
 
+## The book (docs/, mkdocs.yml): concepts, tutorials, troubleshooting and the references, built
+## into target/book (open target/book/index.html) with the API references under api/ (rustdoc,
+## the C headers, pdoc); redraws docs/img from runs. `make lint` checks its links (--strict).
+docs:
+	PYTHON=$(PYTHON) CARGO=$(CARGO) scripts/book/build
+
 ## Formatting, lints and API docs, warnings as errors.
 lint:
 	$(CARGO) fmt --all -- --check
@@ -42,6 +48,7 @@ lint:
 	cd lite/python && $(PYTHON) -m ruff check . && $(PYTHON) -m ruff format --check .
 	$(PYTHON) -m ruff check spec/conformance && $(PYTHON) -m ruff format --check spec/conformance
 	$(MAKE) lint-python
+	PYTHON=$(PYTHON) scripts/book/build --check
 
 ## Benchmarks (not part of the tests): figures printed beside a baseline measured in the same run.
 bench:
@@ -100,8 +107,8 @@ test-python:
 ## ruff and mypy (strict) on the Python package, its tests and the Python examples.
 lint-python:
 	@PY=$$(PYTHON=$(PYTHON) scripts/python-venv) && cd crates/ayllu-py \
-		&& $$PY -m ruff check --config pyproject.toml . ../../examples/cmommt/python \
-		&& $$PY -m ruff format --config pyproject.toml --check . ../../examples/cmommt/python \
+		&& $$PY -m ruff check --config pyproject.toml . ../../examples/cmommt/python ../../examples/tutorial ../../scripts/book \
+		&& $$PY -m ruff format --config pyproject.toml --check . ../../examples/cmommt/python ../../examples/tutorial ../../scripts/book \
 		&& MYPYPATH=../../examples/cmommt/python $$PY -m mypy python/ayllu tests bench ../../examples/cmommt/python
 
 ## Python benchmarks (not part of the tests): a port write, a process activation and a

@@ -28,6 +28,23 @@ def run(args: list[str], cwd: Path, env: dict[str, str] | None = None) -> str:
     return done.stdout
 
 
+def test_the_concepts_page_code_runs(tmp_path: Path) -> None:
+    out = run([sys.executable, str(TUTORIALS / "00_concepts" / "main.py")], tmp_path)
+    assert out == "every concept ran as the page says\n"
+
+
+def test_the_pictures_are_what_the_runtime_does(tmp_path: Path) -> None:
+    # docs/img is committed (the pages render without a build); it must be what the
+    # generator draws from the runtime today.
+    run([sys.executable, str(ROOT / "scripts" / "book" / "pictures.py"), str(tmp_path)], ROOT)
+    drawn = sorted(p.name for p in tmp_path.glob("*.svg"))
+    assert len(drawn) == 6
+    for name in drawn:
+        assert (tmp_path / name).read_text() == (ROOT / "docs" / "img" / name).read_text(), (
+            f"docs/img/{name} is not what scripts/book/pictures.py draws now: run `make docs` and commit docs/img"
+        )
+
+
 def test_1_a_first_behavior(tmp_path: Path) -> None:
     out = run([sys.executable, str(TUTORIALS / "01_first_behavior" / "main.py")], tmp_path)
     assert "0.0 s: Range 0.3 m -> Turn 1.0, Backing True" in out

@@ -32,3 +32,12 @@ fn tutorial_3_two_nodes_over_udp() {
     let out = two_nodes_udp::run().unwrap();
     assert!(out.contains("MOTOR.Speed on robot 2 came from n1"), "{out}");
 }
+
+#[path = "../../../examples/tutorial/00_concepts/main.rs"]
+#[allow(dead_code)]
+mod concepts;
+
+#[test]
+fn the_concepts_page_code_runs() {
+    assert_eq!(concepts::run().unwrap(), "every concept ran as the page says\n");
+}
