@@ -21,8 +21,8 @@ use std::time::{Duration as StdDuration, Instant as StdInstant};
 
 use ayllu::stdlib::{cross_subsumption, BASE, VISION, WANDER_TURN};
 use ayllu::{
-    Access, Allow, BehaviorClass, ConnectionKind, Endpoint, Limits, MonotonicClock, Node, PortSpec, UdpConfig,
-    UdpTransport, Value,
+    Access, Allow, BehaviorClass, ConnectionKind, Endpoint, Limits, MonotonicClock, Node, PortSpec, RecordOptions,
+    UdpConfig, UdpTransport, Value,
 };
 use serde_json::{json, Map, Value as Json};
 
@@ -139,6 +139,12 @@ pub fn run(args: &NodeArgs) -> Result<(), Fail> {
     }
     let open = config.key.is_none();
     let mut node = Node::new(MonotonicClock::new(), UdpTransport::bind(args.id, config)?);
+    if let Some(path) = &args.record {
+        // Before anything is declared: the replay rebuilds the node from its first definition.
+        let options =
+            args.record_max_bytes.map_or_else(RecordOptions::default, |n| RecordOptions::default().max_bytes(n));
+        node.record(path, options)?;
+    }
     node.core_mut().set_access(Access { ports: args.allow_write.clone(), structure: args.allow_rewire.clone() });
     let max_remote_period = ayllu::Duration::try_from_secs_f64(args.max_window)?;
     node.core_mut().set_limits(Limits { max_remote_period, ..Limits::default() });
@@ -159,7 +165,22 @@ pub fn run(args: &NodeArgs) -> Result<(), Fail> {
         Controller::Relay => setup_relay(&mut node)?,
     }
     signals::install();
-    run_loop(&mut node, args)
+    let ran = run_loop(&mut node, args);
+    if let Some(stats) = node.stop_recording() {
+        let dropped = stats.dropped_queue + stats.dropped_journal + stats.dropped_cap;
+        eprintln!(
+            "ayllu: recorded {} entries ({} bytes, {} segment(s)) into {}{}",
+            stats.written,
+            stats.bytes,
+            stats.segments,
+            args.record.as_deref().map_or(String::new(), |p| p.display().to_string()),
+            if dropped > 0 { format!("; {dropped} entries not recorded (cap or slow disk)") } else { String::new() }
+        );
+        if let Some(e) = stats.error {
+            eprintln!("ayllu: warning: recording failed: {e}");
+        }
+    }
+    ran
 }
 
 fn run_loop(node: &mut Node, args: &NodeArgs) -> Result<(), Fail> {

@@ -29,6 +29,7 @@ mod foxglove;
 mod graph;
 mod hz;
 mod record;
+mod replay;
 #[cfg(target_os = "linux")]
 mod shape;
 mod signals;
@@ -221,6 +222,9 @@ enum Command {
     Graph(graph::GraphArgs),
     /// Print the rate, jitter, gaps and losses of a port's messages.
     Hz(hz::HzArgs),
+    /// Play a node's flight recording (`node --record`) back and answer `why`, `list` or
+    /// `echo` as the node would have at a past instant (--at); `check` verifies it.
+    Replay(replay::ReplayArgs),
     /// Serve the team to Foxglove over its WebSocket protocol: port values, windows and BLE
     /// claims as topics (ws://HOST:PORT; docs/cli.md).
     #[cfg(feature = "foxglove")]
@@ -322,6 +326,14 @@ pub struct NodeArgs {
     /// counted as too_long).
     #[arg(long, value_name = "SECS", default_value_t = 600.0, value_parser = positive_secs)]
     pub max_window: f64,
+    /// Record everything that enters the node's core into this MCAP file (a flight
+    /// recording: Foxglove opens it; `ayllu replay FILE` plays it back).
+    #[arg(long, value_name = "FILE")]
+    pub record: Option<std::path::PathBuf>,
+    /// Cap the recording at this many bytes (all segments together; default 1 GiB); segments
+    /// are at most 64 MiB (FILE, FILE.1.mcap, ...). Recording stops at the cap.
+    #[arg(long, value_name = "N", requires = "record", value_parser = clap::value_parser!(u64).range(65_536..))]
+    pub record_max_bytes: Option<u64>,
 }
 
 /// The controllers `ayllu node` can host.
@@ -447,6 +459,7 @@ fn run(cli: Cli) -> Result<(), Fail> {
         Command::Play(args) => record::play(&args),
         Command::Graph(args) => graph::graph(&args),
         Command::Hz(args) => hz::hz(&args),
+        Command::Replay(args) => replay::run(&args),
         #[cfg(feature = "foxglove")]
         Command::Foxglove(args) => foxglove::serve(&args),
     }

@@ -188,6 +188,11 @@ impl NodeCore {
     /// behavior already in a group ([`Error::Ble`]). A too short inhibit period is accepted
     /// and warned about (D11.2).
     pub fn ble_join(&mut self, behavior: &str, config: &BleConfig) -> Result<BleGroup, Error> {
+        self.journal(|| crate::journal::Event::BleJoin { behavior: behavior.to_owned(), config: config.clone() });
+        self.unjournaled(|core| core.join_ble_group(behavior, config))
+    }
+
+    fn join_ble_group(&mut self, behavior: &str, config: &BleConfig) -> Result<BleGroup, Error> {
         let claim_period = Duration::try_from_hz(config.claim_rate_hz)?;
         if config.inhibit_period.is_zero() {
             return Err(Error::ZeroPeriod { kind: ConnectionKind::WriteInhibit(config.inhibit_period) });

@@ -258,7 +258,13 @@ impl NodeCore {
     /// Everything on this node: behaviors with registers and processes, connections, groups,
     /// counters and warnings.
     pub fn report(&self) -> NodeReport {
-        let now = self.now();
+        self.report_at(self.now())
+    }
+
+    /// [`NodeCore::report`] as of `now` (never before the node's own time), as
+    /// [`NodeCore::why_at`] is to `why`: values and monostables read as they do at `now`.
+    pub fn report_at(&self, now: Instant) -> NodeReport {
+        let now = now.max(self.now());
         let mut behaviors: Vec<BehaviorReport> = self
             .behaviors
             .iter()

@@ -22,6 +22,7 @@ use crate::ble::BleState;
 use crate::connection::{ConnectOptions, ConnectionInfo, ConnectionKind};
 use crate::counters::{Counters, DropCause};
 use crate::error::Error;
+use crate::journal::{Event, Journal};
 use crate::message::{ControlBody, ControlMessage, Destination, Message, Outgoing, PortMessage, ReplyBody};
 use crate::port::PortCell;
 use crate::process::Ctx;
@@ -259,7 +260,7 @@ struct Request {
 /// ```
 pub struct NodeCore {
     id: NodeId,
-    now: Instant,
+    pub(crate) now: Instant,
     classes: HashMap<String, Arc<BehaviorClass>>,
     pub(crate) behaviors: Vec<Option<Behavior>>,
     free_behaviors: Vec<u32>,
@@ -297,6 +298,8 @@ pub struct NodeCore {
     limits: Limits,
     /// Control-request token buckets by sender: tokens left and when last refilled.
     request_buckets: HashMap<NodeId, (f64, Instant)>,
+    /// The flight recorder's tap (crate::journal); `None`, and then free, unless started.
+    pub(crate) journal: Option<Box<Journal>>,
 }
 
 impl NodeCore {
@@ -339,6 +342,7 @@ impl NodeCore {
             access: Access::default(),
             limits: Limits::default(),
             request_buckets: HashMap::new(),
+            journal: None,
         }
     }
 
@@ -352,8 +356,21 @@ impl NodeCore {
     /// wire's datagram numbers do), so that peers do not drop its fresh messages as older than
     /// its previous life's (N1: `stale`) nor answer its new requests from memory (N2).
     pub fn set_sequence_base(&mut self, base: u64) {
+        self.journal(|| Event::SequenceBase(base));
         self.seq_base = self.seq_base.max(base);
         self.next_request = self.next_request.max(base.saturating_add(1));
+    }
+
+    /// Where this node's requests and new connections number from (see
+    /// [`NodeCore::set_sequence_base`]).
+    pub fn sequence_base(&self) -> u64 {
+        self.seq_base
+    }
+
+    /// Whether nothing has been declared here yet: no class, behavior, connection or group
+    /// (a flight recording must start then, to be replayable from its beginning).
+    pub fn is_pristine(&self) -> bool {
+        self.classes.is_empty() && self.names.is_empty() && self.conn_ids.is_empty() && self.groups.is_empty()
     }
 
     /// The latest time this node has been told. Time never goes backwards: an earlier `now`
@@ -378,7 +395,9 @@ impl NodeCore {
         if self.classes.contains_key(&class.name) {
             return Err(Error::DuplicateName { what: "behavior class", name: class.name });
         }
-        self.classes.insert(class.name.clone(), Arc::new(class));
+        let class = Arc::new(class);
+        self.classes.insert(class.name.clone(), class.clone());
+        self.journal(|| Event::Define(class));
         Ok(())
     }
 
@@ -440,12 +459,19 @@ impl NodeCore {
             }
         };
         self.names.insert(Arc::from(name), b);
+        let class = self.behaviors[b as usize].as_ref().map_or(String::new(), |beh| beh.class.name.clone());
+        self.journal(|| Event::Create { class, name: name.to_owned() });
         Ok(BehaviorRef { b, id })
     }
 
     /// Remove a behavior and every connection into or out of it (rule S9). Messages that
     /// later arrive for it are dropped and counted as `unknown_behavior`.
     pub fn remove(&mut self, name: &str) -> Result<(), Error> {
+        self.journal(|| Event::Remove { name: name.to_owned() });
+        self.unjournaled(|core| core.remove_behavior(name))
+    }
+
+    fn remove_behavior(&mut self, name: &str) -> Result<(), Error> {
         let b = *self.names.get(name).ok_or_else(|| Error::UnknownBehavior { behavior: name.to_owned() })?;
         let doomed: Vec<u64> = self
             .conns
@@ -481,7 +507,9 @@ impl NodeCore {
         let ix = u16::try_from(beh.processes.len())
             .map_err(|_| Error::TooManyRegisters { behavior: behavior.to_owned() })?;
         attach_trigger(&mut beh.ports, &mut beh.monos, spec.trigger, ix);
+        let trigger = spec.trigger;
         beh.processes.push(ProcState::new(spec, now));
+        self.journal(|| Event::AddProcess { behavior: behavior.to_owned(), name: name.to_owned(), trigger });
         Ok(())
     }
 
@@ -585,6 +613,7 @@ impl NodeCore {
             Target::Local { b, p } => Some((b, p)),
             Target::Remote { .. } => None,
         };
+        let journaled_source = self.journal.is_some().then(|| source.clone());
         let conn = Conn {
             id,
             src: (sb, sp),
@@ -610,6 +639,12 @@ impl NodeCore {
         self.conn_ids.insert(id, c);
         let edge = Edge { conn: c, id, local, kind, priority: options.priority };
         self.behavior_mut(sb).expect("resolved").ports[usize::from(sp)].out.push(edge);
+        self.journal(|| Event::Connect {
+            source: journaled_source.unwrap_or_else(|| Endpoint::local("", "")),
+            destination: destination.clone(),
+            kind,
+            priority: options.priority,
+        });
         Ok(ConnectionId(id))
     }
 
@@ -650,6 +685,7 @@ impl NodeCore {
                 port.cell.release_from(|s| s == gone);
             }
         }
+        self.journal(|| Event::Disconnect { conn: id });
         Ok(())
     }
 
@@ -659,6 +695,11 @@ impl NodeCore {
     /// themselves at the end of their periods. Returns how many ports were released.
     pub fn node_lost(&mut self, now: Instant, node: NodeId) -> usize {
         self.advance(now);
+        self.journal(|| Event::NodeLost { node });
+        self.unjournaled(|core| core.release_node(node))
+    }
+
+    fn release_node(&mut self, node: NodeId) -> usize {
         if node == self.id {
             return 0;
         }
@@ -704,6 +745,7 @@ impl NodeCore {
 
     /// Set who may write this node's ports and change its structure from the network.
     pub fn set_access(&mut self, access: Access) {
+        self.journal(|| Event::SetAccess(access.clone()));
         self.access = access;
     }
 
@@ -714,6 +756,7 @@ impl NodeCore {
 
     /// Set the bounds on what the network can make this node hold.
     pub fn set_limits(&mut self, limits: Limits) {
+        self.journal(|| Event::SetLimits(limits.clone()));
         self.limits = limits;
     }
 
@@ -725,6 +768,7 @@ impl NodeCore {
     /// Join a broadcast group: messages sent to `(group, behavior, port)` by others reach us.
     /// The transport decides delivery; the core only records membership for listing.
     pub fn join(&mut self, group: &str) {
+        self.journal(|| Event::Join(group.to_owned()));
         if !self.groups.iter().any(|g| &**g == group) {
             self.groups.push(Arc::from(group));
             self.groups_generation += 1;
@@ -734,6 +778,7 @@ impl NodeCore {
     /// Leave a broadcast group (nothing if not a member). Connections *to* the group stay:
     /// remove them with [`NodeCore::disconnect`].
     pub fn leave(&mut self, group: &str) {
+        self.journal(|| Event::Leave(group.to_owned()));
         let before = self.groups.len();
         self.groups.retain(|g| &**g != group);
         if self.groups.len() != before {
@@ -796,6 +841,10 @@ impl NodeCore {
     }
 
     fn send_request(&mut self, to: NodeId, body: ControlBody) -> RequestId {
+        if self.journal.is_some() {
+            let recorded = body.clone();
+            self.journal(|| Event::Request { to, body: recorded });
+        }
         let id = self.next_request;
         self.next_request += 1;
         self.requests.push(Request {
@@ -845,6 +894,12 @@ impl NodeCore {
         self.advance(now);
         self.resolve(port)?;
         let value = value.into();
+        if self.journal.is_some() {
+            let beh = self.behavior(port.b).expect("resolved");
+            let (behavior, name) = (beh.name.clone(), beh.class.ports[usize::from(port.port.0)].name.clone());
+            let recorded = value.clone();
+            self.journal(|| Event::Write { behavior, port: name, value: recorded });
+        }
         self.write_internal(port.b, port.port.0, &value).map_err(|cause| self.drop_error(port, cause, &value))
     }
 
@@ -891,6 +946,10 @@ impl NodeCore {
         }
         port.visited = wave;
         port.accepted += 1;
+        if let Some(j) = self.journal.as_mut() {
+            let value = port.cell.value.clone();
+            j.push(now, Event::Accepted { behavior: beh.name.clone(), class: beh.class.clone(), port: p, value });
+        }
         for &pi in &port.triggers {
             queue(&mut self.pending, &mut beh.processes[usize::from(pi)], b, id, pi);
         }
@@ -1015,6 +1074,10 @@ impl NodeCore {
         }
         port.visited = wave;
         port.accepted += 1;
+        if let Some(j) = self.journal.as_mut() {
+            let value = port.cell.value.clone();
+            j.push(now, Event::Accepted { behavior: beh.name.clone(), class: beh.class.clone(), port: p, value });
+        }
         for &pi in &port.triggers {
             queue(&mut self.pending, &mut beh.processes[usize::from(pi)], b, id, pi);
         }
@@ -1038,6 +1101,10 @@ impl NodeCore {
     /// counted.
     pub fn receive(&mut self, now: Instant, from: NodeId, message: Message) {
         self.advance(now);
+        if self.journal.is_some() {
+            let recorded = message.clone();
+            self.journal(|| Event::Receive { from, message: recorded });
+        }
         match message {
             Message::Port(m) => self.receive_port(from, &m),
             Message::Control(c) => self.receive_control(from, c),
@@ -1048,6 +1115,7 @@ impl NodeCore {
     /// simulator): a port message is applied without being copied; a control message is.
     pub fn receive_shared(&mut self, now: Instant, from: NodeId, message: &Message) {
         self.advance(now);
+        self.journal(|| Event::Receive { from, message: message.clone() });
         match message {
             Message::Port(m) => self.receive_port(from, m),
             Message::Control(c) => self.receive_control(from, c.clone()),
@@ -1143,7 +1211,7 @@ impl NodeCore {
                 if let Some(result) = self.answered.get(&(from, c.id)) {
                     result.clone()
                 } else {
-                    let result = self.apply_control(from, body);
+                    let result = self.unjournaled(|core| core.apply_control(from, body));
                     if let Err(e) = &result {
                         let refused = matches!(e, Error::NotAllowed { .. });
                         self.counters.add(if refused { DropCause::NotAllowed } else { DropCause::BadRequest });
@@ -1251,6 +1319,7 @@ impl NodeCore {
     /// the next call is due (`poll_at`).
     pub fn poll(&mut self, now: Instant) -> Option<Instant> {
         self.advance(now);
+        self.journal(|| Event::Poll);
         let now = self.now;
         self.poll_epoch += 1;
         if now >= self.deferred_due {
@@ -1334,6 +1403,12 @@ impl NodeCore {
         let proc_ = &mut beh.processes[usize::from(pi)];
         proc_.runs += 1;
         let body = proc_.spec.body.clone();
+        if let Some(j) = self.journal.as_mut() {
+            let beh = self.behaviors[b as usize].as_ref().expect("running behavior exists");
+            let spec = &beh.processes[usize::from(pi)].spec;
+            let native = beh.ble.is_some() && spec.name == crate::ble::BLE_SELECT;
+            j.push(self.now, Event::Run { behavior: beh.name.clone(), process: spec.name.clone(), native });
+        }
         let mut ctx = Ctx { core: self, b };
         body(&mut ctx);
     }
@@ -1431,6 +1506,11 @@ impl NodeCore {
     /// Empty an aggregating port (a Normal port returns to its default).
     pub fn reset(&mut self, port: PortRef) -> Result<(), Error> {
         self.resolve(port)?;
+        if self.journal.is_some() {
+            let beh = self.behavior(port.b).expect("resolved");
+            let (behavior, name) = (beh.name.clone(), beh.class.ports[usize::from(port.port.0)].name.clone());
+            self.journal(|| Event::Reset { behavior, port: name });
+        }
         self.behavior_mut(port.b).expect("resolved").ports[usize::from(port.port.0)].cell.reset();
         Ok(())
     }
@@ -1438,6 +1518,7 @@ impl NodeCore {
     /// Trigger monostable `mono` of `behavior` for `period` (rule S2).
     pub fn trigger(&mut self, now: Instant, behavior: &str, mono: &str, period: Duration) -> Result<(), Error> {
         self.advance(now);
+        self.journal(|| Event::Trigger { behavior: behavior.to_owned(), mono: mono.to_owned(), period });
         let b = self.behavior_index(behavior)?;
         let m = self
             .behavior(b)
@@ -1513,6 +1594,10 @@ impl NodeCore {
     /// second node using this node's id). At most [`MAX_WARNINGS`] are kept; later ones are
     /// dropped so a flood cannot grow memory.
     pub fn warn(&mut self, warning: String) {
+        if self.journal.is_some() {
+            let recorded = warning.clone();
+            self.journal(|| Event::Warn(recorded));
+        }
         if self.warnings.len() < MAX_WARNINGS {
             self.warnings.push(warning);
         }
@@ -1540,6 +1625,15 @@ impl NodeCore {
             .collect();
         v.sort_by_key(|c| c.id);
         v
+    }
+
+    /// Run `f` with the journal set aside: what it does is the consequence of a call already
+    /// journaled, which a replay repeats (crate::journal).
+    pub(crate) fn unjournaled<T>(&mut self, f: impl FnOnce(&mut NodeCore) -> T) -> T {
+        let journal = self.journal.take();
+        let out = f(self);
+        self.journal = journal;
+        out
     }
 
     pub(crate) fn conn_index(&self, id: ConnectionId) -> Option<&Conn> {

@@ -8,6 +8,7 @@ use crate::address::{NodeId, Source};
 use crate::behavior::{Mono, Port, Slot};
 use crate::counters::DropCause;
 use crate::error::Error;
+use crate::journal::Event;
 use crate::node::{current, NodeCore};
 use crate::time::{Duration, Instant};
 use crate::value::Value;
@@ -82,11 +83,16 @@ impl Ctx<'_> {
     /// the port refused the value (type mismatch, NaN into an ordered port).
     pub fn write(&mut self, p: Port, value: impl Into<Value>) -> Result<(), DropCause> {
         let value = value.into();
+        if self.core.journal.is_some() {
+            let recorded = value.clone();
+            self.core.journal(|| Event::ProcessWrite { port: p.0, value: recorded });
+        }
         self.core.write_internal(self.b, p.0, &value)
     }
 
     /// Empty an aggregating port now (the paper's end of "the current cycle").
     pub fn reset(&mut self, p: Port) {
+        self.core.journal(|| Event::ProcessReset { port: p.0 });
         if let Some(ps) = self.core.behavior_mut(self.b).and_then(|beh| beh.ports.get_mut(usize::from(p.0))) {
             ps.cell.reset();
         }
@@ -104,11 +110,17 @@ impl Ctx<'_> {
     /// a value of another type ([`Error::TypeMismatch`], rule S1), or a handle from another
     /// class ([`Error::UnknownPort`]).
     pub fn set_slot(&mut self, s: Slot, value: impl Into<Value>) -> Result<(), Error> {
-        self.core.set_slot(self.b, s, value.into())
+        let value = value.into();
+        if self.core.journal.is_some() {
+            let recorded = value.clone();
+            self.core.journal(|| Event::ProcessSetSlot { slot: s.0, value: recorded });
+        }
+        self.core.set_slot(self.b, s, value)
     }
 
     /// Make `m` true until at least `now + period` (rule S2: `end := max(end, now + p)`).
     pub fn trigger(&mut self, m: Mono, period: Duration) {
+        self.core.journal(|| Event::ProcessTrigger { mono: m.0, period });
         self.core.trigger_mono(self.b, m, period);
     }
     /// Whether monostable `m` is true now.

@@ -15,6 +15,11 @@
 //!   (four OverrideOut hops, each refreshing a window); the write is at the top layer L1.
 //! * `process_activation` — a write into a port with an OnWrite process, then the `poll` that
 //!   runs it (the process reads the port and stores it in a slot).
+//! * `normal_hop_recorded` — `normal_hop` on a node with the flight recorder on
+//!   (`ayllu::Recorder`, writing an MCAP file in the system's temp directory), drained every
+//!   256 writes as a busy node's loop would: the cost the recorder adds to the node's own
+//!   thread (the journal entries, and handing them over); the writer thread encodes and writes
+//!   beside it, and drops (counted) what it cannot keep up with.
 //!
 //! The clock advances 1 µs per iteration, so windows are refreshed as in a live system.
 
@@ -29,13 +34,21 @@ use std::time::{Duration as StdDuration, SystemTime};
 
 use ayllu::{
     BehaviorClass, ConnectOptions, ConnectionKind, Duration, Endpoint, Instant, NodeCore, NodeId, PortRef, PortSpec,
+    RecordOptions, Recorder,
 };
 use criterion::Criterion;
 
 const GROUP: &str = "propagation";
 const BASELINE: &str = "function_call";
-const BENCHES: [&str; 6] =
-    [BASELINE, "write_no_connection", "normal_hop", "fan_out_4", "override_chain_5", "process_activation"];
+const BENCHES: [&str; 7] = [
+    BASELINE,
+    "write_no_connection",
+    "normal_hop",
+    "fan_out_4",
+    "override_chain_5",
+    "process_activation",
+    "normal_hop_recorded",
+];
 
 struct Sink {
     value: i64,
@@ -132,6 +145,38 @@ fn bench_write(
     });
 }
 
+/// `normal_hop` with the flight recorder on (see the module docs).
+fn bench_recorded_hop(c: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>) {
+    let path = std::env::temp_dir().join(format!("ayllu-bench-{}.mcap", std::process::id()));
+    let mut node = NodeCore::new(NodeId(1));
+    let mut recorder = Recorder::start(&mut node, &path, RecordOptions::default()).unwrap();
+    classes(&mut node);
+    node.create("Src", "A").unwrap();
+    node.create("Dst", "D0").unwrap();
+    connect(&mut node, ("A", "Out"), ("D0", "In"), ConnectionKind::Normal);
+    let port = node.port("A", "Out").unwrap();
+    let mut t = 0u64;
+    c.bench_function("normal_hop_recorded", |b| {
+        b.iter(|| {
+            t += 1_000;
+            node.write(Instant::from_nanos(t), port, black_box(t as i64)).unwrap();
+            if (t / 1_000).is_multiple_of(256) {
+                recorder.drain(&mut node);
+            }
+        })
+    });
+    let stats = recorder.finish(&mut node);
+    eprintln!(
+        "normal_hop_recorded: {} entries written, {} dropped (writer behind), {} bytes",
+        stats.written,
+        stats.dropped_queue + stats.dropped_journal + stats.dropped_cap,
+        stats.bytes
+    );
+    for n in 0..64 {
+        let _ = fs::remove_file(ayllu::recording::segment_path(&path, n));
+    }
+}
+
 fn benches(c: &mut Criterion) {
     let mut g = c.benchmark_group(GROUP);
     let mut sink = Sink { value: 0 };
@@ -148,6 +193,7 @@ fn benches(c: &mut Criterion) {
     bench_write(&mut g, "fan_out_4", fan_node(4), false);
     bench_write(&mut g, "override_chain_5", override_node(), false);
     bench_write(&mut g, "process_activation", process_node(), true);
+    bench_recorded_hop(&mut g);
     g.finish();
 }
 
@@ -211,6 +257,9 @@ fn main() {
         if let Some(w) = median_ns(&dir, "write_no_connection", start) {
             let extra = hop - w;
             println!("  of which the hop itself (normal_hop - write_no_connection): {extra:.2} ns ({:.1}x)", extra / b);
+        }
+        if let Some(r) = median_ns(&dir, "normal_hop_recorded", start) {
+            println!("  with the flight recorder on: {r:.2} ns ({:.1}x the hop without it)", r / hop);
         }
     }
 }

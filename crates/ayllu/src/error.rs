@@ -34,6 +34,11 @@ pub enum Error {
         /// The operating system's error message.
         error: String,
     },
+    /// A flight recording could not be made or read (see `recording` and `replay`).
+    Recording {
+        /// What went wrong, naming the file.
+        what: String,
+    },
 }
 
 impl fmt::Display for Error {
@@ -44,6 +49,7 @@ impl fmt::Display for Error {
             Error::Unsupported { what } => write!(f, "{what}"),
             Error::DuplicateNode { node } => write!(f, "node {node} is already attached to this network"),
             Error::Io { what, error } => write!(f, "{what}: {error}"),
+            Error::Recording { what } => write!(f, "{what}"),
         }
     }
 }

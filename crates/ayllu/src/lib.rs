@@ -18,6 +18,9 @@ pub mod mem;
 pub mod node;
 pub mod operator;
 pub mod rate;
+pub mod recording;
+pub mod recording_format;
+pub mod replay;
 pub mod routability;
 #[cfg(target_os = "linux")]
 pub mod shaper;
@@ -34,6 +37,8 @@ pub use error::Error as RuntimeError;
 pub use lockstep::Lockstep;
 pub use mem::{MemNetwork, MemTransport};
 pub use node::{Node, NodeStats};
+pub use recording::{RecordOptions, RecordStats, Recorder};
+pub use replay::{Recording, Replay};
 pub use transport::{PeerInfo, Sent, Transport};
 pub use udp::UdpTransport;
 pub use udp_config::{default_url, UdpConfig, DEFAULT_URL, URL_ENV};

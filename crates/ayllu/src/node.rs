@@ -75,6 +75,8 @@ pub struct Node {
     lost: Vec<NodeId>,
     /// Scratch list of the transport's new warnings.
     new_warnings: Vec<String>,
+    /// The flight recorder, drained every turn (see [`Node::record`]).
+    recorder: Option<crate::recording::Recorder>,
 }
 
 impl Node {
@@ -112,6 +114,7 @@ impl Node {
             transport_due: None,
             lost: Vec::new(),
             new_warnings: Vec::new(),
+            recorder: None,
         }
     }
 
@@ -166,6 +169,28 @@ impl Node {
     /// the port the system chose.
     pub fn address(&self) -> Option<String> {
         self.transport.address()
+    }
+
+    /// Record everything that enters this node's core, and the values its ports accept, into
+    /// the MCAP file `path` (and numbered segments after it), for Foxglove and `ayllu replay`
+    /// (spec/flight-recorder.md). Call it before defining anything: a replay rebuilds the node
+    /// from its first definition. Recording does not change what the node does; the file is
+    /// written by a thread of its own, and closed by [`Node::stop_recording`] or on drop.
+    pub fn record(&mut self, path: impl AsRef<std::path::Path>, options: crate::RecordOptions) -> Result<(), Error> {
+        if self.recorder.is_some() {
+            return Err(Error::Recording { what: "this node is already recording".into() });
+        }
+        self.recorder = Some(crate::recording::Recorder::start(&mut self.core, path.as_ref(), options)?);
+        Ok(())
+    }
+    /// Stop recording and close the files; `None` if the node was not recording.
+    pub fn stop_recording(&mut self) -> Option<crate::RecordStats> {
+        let recorder = self.recorder.take()?;
+        Some(recorder.finish(&mut self.core))
+    }
+    /// What the recorder has written and dropped so far; `None` if the node is not recording.
+    pub fn recording_stats(&self) -> Option<crate::RecordStats> {
+        self.recorder.as_ref().map(|r| r.stats())
     }
 
     /// Define a behavior class on this node (rule S2).
@@ -282,6 +307,9 @@ impl Node {
             self.transport.counters_into(self.core.transport_counters_mut());
         }
         self.stats.steps += 1;
+        if let Some(recorder) = self.recorder.as_mut() {
+            recorder.drain(&mut self.core);
+        }
         match (next, self.transport_due) {
             (Some(a), Some(b)) => Some(a.min(b)),
             (a, b) => a.or(b),
@@ -326,5 +354,12 @@ impl Node {
                 self.transport.wait(std::time::Duration::from_nanos((until - now).as_nanos()));
             }
         }
+    }
+}
+
+impl Drop for Node {
+    /// A recording ends with the node: what it journaled last is written and the files closed.
+    fn drop(&mut self) {
+        self.stop_recording();
     }
 }

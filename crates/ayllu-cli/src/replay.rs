@@ -1,0 +1,184 @@
+//! `ayllu replay FILE [--at T] why|list|echo|check`: a node's flight recording (`ayllu node
+//! --record FILE`, `Node::record`) played back, answering as the live node would have at a
+//! past instant. The replay engine is the library's ([`ayllu::replay`]); this only parses,
+//! and prints with the printers of the live `why`, `list` and `echo`, so a replayed answer
+//! reads like a live one.
+//!
+//! Times (`--at`, `--from`, `--to`) are the node's own clock: seconds since it started, as
+//! its status lines and `echo` print them (`12.5`, `12.5s`, `1500ms`).
+
+use std::path::PathBuf;
+
+use ayllu::replay::{Ending, Recording, Replay};
+use ayllu::{Duration, Instant};
+use clap::{Args, Subcommand};
+use serde_json::json;
+
+use crate::commands::emit;
+use crate::fail::Fail;
+use crate::text::{human, node_report_json, node_report_text, port_report_json, value_json};
+use crate::{parse_port_path, PortPath};
+
+#[derive(Args, Debug)]
+pub struct ReplayArgs {
+    /// The recording: its first segment (`run.mcap`; `run.1.mcap`, ... are read after it).
+    pub file: PathBuf,
+    /// The instant to answer at, on the node's clock (`12.5`, `12.5s`, `1500ms`); default:
+    /// the end of the recording.
+    #[arg(long, value_name = "T", value_parser = parse_time, global = true)]
+    pub at: Option<Instant>,
+    /// Print JSON instead of text.
+    #[arg(long, global = true)]
+    pub json: bool,
+    #[command(subcommand)]
+    pub what: ReplayCommand,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum ReplayCommand {
+    /// Explain one port as the live node would have at --at: value, supplier, windows (kind,
+    /// holder, time left), what was blocked, counters.
+    Why {
+        /// BEHAVIOR.PORT
+        #[arg(value_parser = parse_port_path)]
+        target: PortPath,
+    },
+    /// Describe the whole node as it was at --at.
+    List,
+    /// Print the values a port accepted between --from and --to (node time), as `echo` does.
+    Echo {
+        /// BEHAVIOR.PORT
+        #[arg(value_parser = parse_port_path)]
+        target: PortPath,
+        /// From this instant (default: the start).
+        #[arg(long, value_name = "T", value_parser = parse_time)]
+        from: Option<Instant>,
+        /// To this instant, included (default: --at, else the end).
+        #[arg(long, value_name = "T", value_parser = parse_time)]
+        to: Option<Instant>,
+    },
+    /// Replay the whole recording and check it: every accepted value reproduced bit for bit.
+    Check,
+}
+
+/// `12.5`, `12.5s`, `1500ms`, `250us`, `100ns`: a node time.
+pub fn parse_time(s: &str) -> Result<Instant, String> {
+    let t = s.trim();
+    let (number, scale) = if let Some(n) = t.strip_suffix("ms") {
+        (n, 1e-3)
+    } else if let Some(n) = t.strip_suffix("us") {
+        (n, 1e-6)
+    } else if let Some(n) = t.strip_suffix("ns") {
+        (n, 1e-9)
+    } else if let Some(n) = t.strip_suffix('s') {
+        (n, 1.0)
+    } else {
+        (t, 1.0)
+    };
+    let x: f64 = number.trim().parse().map_err(|_| format!("`{s}` is not a time (e.g. 12.5s or 1500ms)"))?;
+    if !x.is_finite() || x < 0.0 {
+        return Err(format!("`{s}` is not a time at or after the node's start"));
+    }
+    let d = Duration::try_from_secs_f64(x * scale).map_err(|e| format!("`{s}`: {e}"))?;
+    Ok(Instant::ZERO + d)
+}
+
+fn secs(t: Instant) -> f64 {
+    (t.as_secs_f64() * 1000.0).round() / 1000.0
+}
+
+/// `ayllu replay`.
+pub fn run(args: &ReplayArgs) -> Result<(), Fail> {
+    let rec = Recording::open(&args.file)?;
+    let end = rec.end();
+    let at = args.at.unwrap_or(end);
+    let ending = match &rec.gap {
+        Some((seq, t)) => format!("{}, with a hole at entry {seq} (t={:.3}s): replayed up to it", rec.ending, secs(*t)),
+        None => rec.ending.to_string(),
+    };
+    eprintln!(
+        "replay: {} — node {}, {} entries in {} segment(s), {:.3}s of node time, {ending}",
+        args.file.display(),
+        rec.node,
+        rec.entries.len(),
+        rec.segments.len(),
+        secs(end)
+    );
+    if at > end && !matches!(args.what, ReplayCommand::Check) {
+        eprintln!("replay: warning: --at {:.3}s is after the recording's end ({:.3}s)", secs(at), secs(end));
+    }
+    let mut replay = Replay::new(&rec);
+    match &args.what {
+        ReplayCommand::Why { target } => {
+            let report = replay.why_at(at, &target.behavior, &target.port)?;
+            if args.json {
+                emit(&serde_json::to_string_pretty(&port_report_json(&report)).unwrap_or_default())
+            } else {
+                emit(&report.to_string())
+            }
+        }
+        ReplayCommand::List => {
+            let report = replay.list_at(at)?;
+            if args.json {
+                emit(&serde_json::to_string_pretty(&node_report_json(&report)).unwrap_or_default())
+            } else {
+                emit(&node_report_text(&report, None))
+            }
+        }
+        ReplayCommand::Echo { target, from, to } => {
+            let from = from.unwrap_or(Instant::ZERO);
+            let to = to.or(args.at).unwrap_or(end);
+            replay.run_until(to).map_err(|d| Fail::error(d.to_string()))?;
+            let core = replay.core();
+            core.port(&target.behavior, &target.port)?;
+            let ty = core.read(core.port(&target.behavior, &target.port)?)?.ty();
+            for a in replay.accepted() {
+                if a.at < from || a.at > to || *a.behavior != *target.behavior || a.port != target.port {
+                    continue;
+                }
+                let line = if args.json {
+                    json!({"t": secs(a.at), "node": rec.node.0, "port": target.to_string(), "type": ty.name(),
+                           "value": value_json(&a.value)})
+                    .to_string()
+                } else {
+                    format!("{:>9.3}  {}", secs(a.at), human(&a.value))
+                };
+                emit(&line)?;
+            }
+            Ok(())
+        }
+        ReplayCommand::Check => {
+            replay.run_to_end().map_err(|d| Fail::error(d.to_string()))?;
+            let complete = rec.ending == Ending::Closed && rec.gap.is_none();
+            let line = if args.json {
+                json!({"node": rec.node.0, "entries": rec.entries.len(), "accepted_checked": replay.checked(),
+                       "end": secs(end), "ending": ending, "complete": complete})
+                .to_string()
+            } else {
+                format!(
+                    "replayed to t={:.3}s: {} accepted values reproduced bit for bit; recording {ending}",
+                    secs(replay.reached().min(end)),
+                    replay.checked()
+                )
+            };
+            emit(&line)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn times_parse_in_seconds_and_with_units() {
+        assert_eq!(parse_time("12.5"), Ok(Instant::from_millis(12_500)));
+        assert_eq!(parse_time("12.5s"), Ok(Instant::from_millis(12_500)));
+        assert_eq!(parse_time("1500ms"), Ok(Instant::from_millis(1500)));
+        assert_eq!(parse_time("250us"), Ok(Instant::from_micros(250)));
+        assert!(parse_time("-1").is_err());
+        assert!(parse_time("soon").is_err());
+        assert!(parse_time("1e300").is_err());
+        assert!(parse_time("NaN").is_err());
+    }
+}

@@ -1,0 +1,509 @@
+//! The flight recorder: a node's journal ([`ayllu_core::journal`]) written to an MCAP file
+//! that Foxglove opens as it is and `ayllu replay` plays back (spec/flight-recorder.md).
+//!
+//! A [`Recorder`] turns the core's journal on and, each time it is drained (every
+//! [`crate::Node::step`]), hands what was journaled to a writer thread; the thread encodes
+//! it as JSON ([`crate::recording_format`]) and writes MCAP segments.
+//!
+//! What it promises:
+//! * The node never waits on the disk: batches go to the writer through a bounded queue; when
+//!   the queue is full the batch is dropped and counted, and the recording says so with a
+//!   `gap` entry (a replay stops there). Memory is bounded by the journal's capacity, the
+//!   queue's length and one MCAP chunk.
+//! * Files are bounded: a segment is closed before it would pass
+//!   [`RecordOptions::segment_bytes`], and the next one opened (`run.mcap`, `run.1.mcap`,
+//!   `run.2.mcap`, ...) while the segments together stay under [`RecordOptions::max_bytes`];
+//!   then recording stops (the beginning is kept: a replay needs it) and what could not be
+//!   written is counted.
+//! * Recording changes nothing the node does: the journal only reads what the core does.
+//! * Each segment is a complete MCAP file once closed (on [`Recorder::finish`] or drop), and
+//!   a chunk is flushed at least every [`FLUSH_INTERVAL`], so a node killed outright loses
+//!   at most that much.
+
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::{BufWriter, Seek, SeekFrom, Write};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::mpsc::{sync_channel, Receiver, RecvTimeoutError, SyncSender, TrySendError};
+use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
+use std::time::{Duration as StdDuration, Instant as StdInstant, SystemTime, UNIX_EPOCH};
+
+use ayllu_core::{Entry, Event, NodeCore};
+
+use crate::error::Error;
+use crate::recording_format::{encode, Topic, METADATA, PROFILE, VERSION};
+
+/// A chunk is closed and written at least this often, so a crash loses little.
+pub const FLUSH_INTERVAL: StdDuration = StdDuration::from_millis(500);
+
+/// The smallest segment accepted (a segment holds its header, schemas and summary).
+pub const MIN_SEGMENT_BYTES: u64 = 64 * 1024;
+
+/// How a node records.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct RecordOptions {
+    /// All segments together stay under this many bytes; recording stops there (default 1 GiB).
+    pub max_bytes: u64,
+    /// One segment stays under this many bytes (default 64 MiB, at least
+    /// [`MIN_SEGMENT_BYTES`]); then the next is opened.
+    pub segment_bytes: u64,
+    /// Journal entries the core holds between two drains, at most (default 65 536).
+    pub journal_capacity: usize,
+    /// Batches waiting for the writer thread, at most (default 64); one batch per loop turn.
+    pub queue: usize,
+}
+
+impl Default for RecordOptions {
+    fn default() -> Self {
+        RecordOptions { max_bytes: 1 << 30, segment_bytes: 64 << 20, journal_capacity: 65_536, queue: 64 }
+    }
+}
+
+impl RecordOptions {
+    /// Cap the whole recording at `max_bytes`; segments are at most as large.
+    pub fn max_bytes(mut self, max_bytes: u64) -> Self {
+        self.max_bytes = max_bytes;
+        self.segment_bytes = self.segment_bytes.min(max_bytes);
+        self
+    }
+}
+
+/// What a recorder has done so far.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct RecordStats {
+    /// Journal entries written.
+    pub written: u64,
+    /// Entries dropped because the writer's queue was full (the disk was slow).
+    pub dropped_queue: u64,
+    /// Entries dropped by the core's journal (more in one loop turn than its capacity).
+    pub dropped_journal: u64,
+    /// Entries not written because [`RecordOptions::max_bytes`] was reached.
+    pub dropped_cap: u64,
+    /// Bytes written, all segments together.
+    pub bytes: u64,
+    /// Segments written (files).
+    pub segments: u64,
+    /// The first write error, if any (recording stopped there).
+    pub error: Option<String>,
+}
+
+#[derive(Default)]
+struct Shared {
+    written: AtomicU64,
+    dropped_queue: AtomicU64,
+    dropped_cap: AtomicU64,
+    bytes: AtomicU64,
+    segments: AtomicU64,
+    error: Mutex<Option<String>>,
+}
+
+/// Records one node's core. See the module docs.
+pub struct Recorder {
+    path: PathBuf,
+    queue: Option<SyncSender<Vec<Entry>>>,
+    thread: Option<JoinHandle<()>>,
+    shared: Arc<Shared>,
+    batch: Vec<Entry>,
+    /// Entries of batches dropped since the last one sent, to be reported as a gap.
+    dropped_since: u64,
+    dropped_journal: u64,
+    /// Entries that may wait here for the writer, at most (the journal's capacity).
+    capacity: usize,
+}
+
+/// The file of segment `n`: `run.mcap`, then `run.1.mcap`, `run.2.mcap`, ...
+pub fn segment_path(first: &Path, n: u64) -> PathBuf {
+    if n == 0 {
+        return first.to_path_buf();
+    }
+    let stem = first.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let name = match first.extension() {
+        Some(ext) => format!("{stem}.{n}.{}", ext.to_string_lossy()),
+        None => format!("{stem}.{n}"),
+    };
+    first.with_file_name(name)
+}
+
+impl Recorder {
+    /// Start recording `core` into `path` (and its following segments). The core must be new
+    /// (no class defined, nothing created or joined): a replay rebuilds the node from its
+    /// first definition. Segment files left by an earlier recording of the same name are
+    /// removed, so they cannot be mistaken for this one's.
+    pub fn start(core: &mut NodeCore, path: &Path, options: RecordOptions) -> Result<Recorder, Error> {
+        if !core.is_pristine() {
+            return Err(Error::Recording {
+                what: "start recording before defining classes or creating behaviors: a replay rebuilds the node from \
+                 its first definition"
+                    .into(),
+            });
+        }
+        if options.segment_bytes < MIN_SEGMENT_BYTES || options.max_bytes < MIN_SEGMENT_BYTES {
+            return Err(Error::Recording {
+                what: format!("a recording needs at least {MIN_SEGMENT_BYTES} bytes per segment"),
+            });
+        }
+        let shared = Arc::new(Shared::default());
+        let mut writer = SegmentWriter {
+            first: path.to_path_buf(),
+            node: core.id().0,
+            epoch_ns: epoch_ns(core),
+            options: options.clone(),
+            current: None,
+            index: 0,
+            closed_bytes: 0,
+            seq: 0,
+            capped: false,
+            shared: shared.clone(),
+        };
+        writer.current = Some(writer.open(0, options.max_bytes.min(options.segment_bytes))?);
+        shared.segments.store(1, Ordering::Relaxed);
+        let mut n = 1;
+        while n < 100_000 && segment_path(path, n).exists() {
+            let _ = std::fs::remove_file(segment_path(path, n));
+            n += 1;
+        }
+        let (tx, rx) = sync_channel(options.queue.max(1));
+        let base = core.sequence_base();
+        let thread = std::thread::Builder::new()
+            .name("ayllu-recorder".into())
+            .spawn(move || writer.run(rx))
+            .map_err(|e| Error::Recording { what: format!("recorder thread: {e}") })?;
+        core.start_journal(options.journal_capacity);
+        // The sequence base was set before the journal ran (the runtime sets it at birth).
+        if base > 0 {
+            core.set_sequence_base(base);
+        }
+        Ok(Recorder {
+            path: path.to_path_buf(),
+            queue: Some(tx),
+            thread: Some(thread),
+            shared,
+            batch: Vec::new(),
+            dropped_since: 0,
+            dropped_journal: 0,
+            capacity: options.journal_capacity.max(1),
+        })
+    }
+
+    /// The first segment's path.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Hand what the core journaled since the last drain to the writer; never waits. While the
+    /// writer's queue is full the entries wait here, up to the journal's capacity; past it they
+    /// are dropped, counted, and the recording gets a gap.
+    pub fn drain(&mut self, core: &mut NodeCore) {
+        let before = self.batch.len();
+        core.take_journal(&mut self.batch);
+        for e in &self.batch[before..] {
+            if let Event::Gap { lost } = e.event {
+                self.dropped_journal += lost;
+            }
+        }
+        if self.batch.is_empty() {
+            return;
+        }
+        let Some(queue) = &self.queue else {
+            self.batch.clear();
+            return;
+        };
+        if self.dropped_since > 0 {
+            let at = self.batch[0].at;
+            self.batch.insert(0, Entry { at, event: Event::Gap { lost: self.dropped_since } });
+            self.dropped_since = 0;
+        }
+        let batch = std::mem::take(&mut self.batch);
+        match queue.try_send(batch) {
+            Ok(()) => {}
+            Err(TrySendError::Full(batch)) if batch.len() <= self.capacity => self.batch = batch,
+            Err(TrySendError::Full(mut batch)) => {
+                let gap = u64::from(matches!(batch.first().map(|e| &e.event), Some(Event::Gap { .. })));
+                let lost = batch.len() as u64 - gap + if gap > 0 { self.gap_lost(&batch) } else { 0 };
+                self.dropped_since += lost;
+                self.shared.dropped_queue.fetch_add(batch.len() as u64 - gap, Ordering::Relaxed);
+                batch.clear();
+                self.batch = batch;
+            }
+            Err(TrySendError::Disconnected(_)) => self.queue = None,
+        }
+    }
+
+    /// The entries a batch's leading gap already stood for.
+    fn gap_lost(&self, batch: &[Entry]) -> u64 {
+        match batch.first().map(|e| &e.event) {
+            Some(Event::Gap { lost }) => *lost,
+            _ => 0,
+        }
+    }
+
+    /// What was recorded so far.
+    pub fn stats(&self) -> RecordStats {
+        let s = &self.shared;
+        RecordStats {
+            written: s.written.load(Ordering::Relaxed),
+            dropped_queue: s.dropped_queue.load(Ordering::Relaxed),
+            dropped_journal: self.dropped_journal,
+            dropped_cap: s.dropped_cap.load(Ordering::Relaxed),
+            bytes: s.bytes.load(Ordering::Relaxed),
+            segments: s.segments.load(Ordering::Relaxed),
+            error: s.error.lock().map(|e| e.clone()).unwrap_or(None),
+        }
+    }
+
+    /// Drain `core` a last time, stop its journal, close the files and say what was recorded.
+    /// This waits for the writer to write what is queued.
+    pub fn finish(mut self, core: &mut NodeCore) -> RecordStats {
+        core.take_journal(&mut self.batch);
+        core.stop_journal();
+        if let Some(queue) = &self.queue {
+            let mut batch = std::mem::take(&mut self.batch);
+            if self.dropped_since > 0 {
+                let at = batch.first().map_or(core.now(), |e| e.at);
+                batch.insert(0, Entry { at, event: Event::Gap { lost: self.dropped_since } });
+            }
+            if !batch.is_empty() {
+                let _ = queue.send(batch);
+            }
+        }
+        self.close();
+        self.stats()
+    }
+
+    fn close(&mut self) {
+        self.queue = None;
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+impl Drop for Recorder {
+    fn drop(&mut self) {
+        self.close();
+    }
+}
+
+/// A file that counts what reaches it (the segment's size, without asking the OS).
+struct Counted {
+    file: BufWriter<File>,
+    pos: u64,
+    end: Arc<AtomicU64>,
+}
+
+impl Write for Counted {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        let n = self.file.write(buf)?;
+        self.pos += n as u64;
+        self.end.fetch_max(self.pos, Ordering::Relaxed);
+        Ok(n)
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.file.flush()
+    }
+}
+
+impl Seek for Counted {
+    fn seek(&mut self, to: SeekFrom) -> std::io::Result<u64> {
+        self.pos = self.file.seek(to)?;
+        Ok(self.pos)
+    }
+}
+
+/// One open segment file.
+struct Segment {
+    mcap: mcap::Writer<Counted>,
+    channels: [u16; 4],
+    /// Bytes that reached the file.
+    size: Arc<AtomicU64>,
+    /// This segment's share of the byte budget.
+    budget: u64,
+    last_flush: StdInstant,
+}
+
+/// The writer thread's state.
+struct SegmentWriter {
+    first: PathBuf,
+    node: u32,
+    /// The node's clock zero as Unix time (ns), for the messages' log times.
+    epoch_ns: u64,
+    options: RecordOptions,
+    current: Option<Segment>,
+    index: u64,
+    /// Bytes of the segments already closed.
+    closed_bytes: u64,
+    seq: u64,
+    capped: bool,
+    shared: Arc<Shared>,
+}
+
+/// The size of an MCAP chunk: small enough that a segment holds several and a crash loses
+/// little, large enough that chunk overhead stays a few percent.
+fn chunk_bytes(options: &RecordOptions) -> u64 {
+    (options.segment_bytes / 8).clamp(4096, 256 * 1024)
+}
+
+impl SegmentWriter {
+    fn open(&self, index: u64, budget: u64) -> Result<Segment, Error> {
+        let path = segment_path(&self.first, index);
+        let io = |e: &dyn std::fmt::Display| Error::Recording { what: format!("recording {}: {e}", path.display()) };
+        let file = File::create(&path).map_err(|e| io(&e))?;
+        let size = Arc::new(AtomicU64::new(0));
+        let counted = Counted { file: BufWriter::new(file), pos: 0, end: size.clone() };
+        let mut mcap = mcap::WriteOptions::new()
+            .profile(PROFILE)
+            .library(concat!("ayllu ", env!("CARGO_PKG_VERSION")))
+            .compression(None)
+            .chunk_size(Some(chunk_bytes(&self.options)))
+            .create(counted)
+            .map_err(|e| io(&e))?;
+        let mut channels = [0u16; 4];
+        for (i, topic) in Topic::ALL.into_iter().enumerate() {
+            let schema = serde_json::to_vec(&topic.schema()).unwrap_or_default();
+            let id = mcap.add_schema(topic.schema_name(), "jsonschema", &schema).map_err(|e| io(&e))?;
+            channels[i] = mcap.add_channel(id, topic.name(), "json", &BTreeMap::new()).map_err(|e| io(&e))?;
+        }
+        let metadata = BTreeMap::from([
+            ("version".to_owned(), VERSION.to_owned()),
+            ("node".to_owned(), self.node.to_string()),
+            ("segment".to_owned(), index.to_string()),
+            ("epoch_unix_ns".to_owned(), self.epoch_ns.to_string()),
+        ]);
+        mcap.write_metadata(&mcap::records::Metadata { name: METADATA.into(), metadata }).map_err(|e| io(&e))?;
+        Ok(Segment { mcap, channels, size, budget, last_flush: StdInstant::now() })
+    }
+
+    fn fail(&mut self, e: impl std::fmt::Display) {
+        if let Ok(mut slot) = self.shared.error.lock() {
+            slot.get_or_insert_with(|| e.to_string());
+        }
+        self.capped = true;
+        self.current = None;
+    }
+
+    fn run(mut self, rx: Receiver<Vec<Entry>>) {
+        loop {
+            match rx.recv_timeout(FLUSH_INTERVAL) {
+                Ok(batch) => {
+                    for e in batch {
+                        self.write(&e);
+                    }
+                }
+                Err(RecvTimeoutError::Timeout) => {}
+                Err(RecvTimeoutError::Disconnected) => break,
+            }
+            if let Some(seg) = self.current.as_mut() {
+                if seg.last_flush.elapsed() >= FLUSH_INTERVAL {
+                    seg.last_flush = StdInstant::now();
+                    if let Err(e) = seg.mcap.flush() {
+                        self.fail(e);
+                    }
+                }
+            }
+        }
+        self.close_segment();
+    }
+
+    /// Room kept free in a segment for what closing it writes: the chunk being built and
+    /// its message index, the summary (schemas, channels, statistics, an index entry per
+    /// chunk), the end metadata and the footer.
+    fn reserve(&self, seg: &Segment) -> u64 {
+        let chunk = chunk_bytes(&self.options);
+        let chunks = seg.size.load(Ordering::Relaxed) / chunk + 1;
+        chunk + chunk / 2 + 8 * 1024 + 256 * chunks
+    }
+
+    fn fits(&self, seg: &Segment, len: u64) -> bool {
+        seg.size.load(Ordering::Relaxed) + len + 64 + self.reserve(seg) <= seg.budget
+    }
+
+    fn write(&mut self, entry: &Entry) {
+        let seq = self.seq;
+        self.seq += 1;
+        if self.capped {
+            self.shared.dropped_cap.fetch_add(1, Ordering::Relaxed);
+            return;
+        }
+        let (topic, json) = encode(seq, entry);
+        let data = serde_json::to_vec(&json).unwrap_or_default();
+        let len = data.len() as u64;
+        if !self.current.as_ref().is_some_and(|seg| self.fits(seg, len)) {
+            let open = self.current.as_ref().map_or(0, |seg| seg.size.load(Ordering::Relaxed));
+            let left = self.options.max_bytes.saturating_sub(self.closed_bytes + open);
+            let budget = left.min(self.options.segment_bytes);
+            if budget < MIN_SEGMENT_BYTES {
+                // Decided before closing, so that the last segment says the cap ended it.
+                self.capped = true;
+                self.shared.dropped_cap.fetch_add(1, Ordering::Relaxed);
+                self.close_segment();
+                return;
+            }
+            self.close_segment();
+            self.index += 1;
+            match self.open(self.index, budget) {
+                Ok(seg) => {
+                    self.current = Some(seg);
+                    self.shared.segments.fetch_add(1, Ordering::Relaxed);
+                }
+                Err(e) => return self.fail(e),
+            }
+        }
+        let Some(seg) = self.current.as_ref() else { return };
+        if !self.fits(seg, len) {
+            // One entry larger than a whole segment (a huge value): it is left out, and the
+            // recording says so where it was.
+            self.shared.dropped_cap.fetch_add(1, Ordering::Relaxed);
+            let gap = Entry { at: entry.at, event: Event::Gap { lost: 1 } };
+            self.seq -= 1;
+            return self.write(&gap);
+        }
+        let topic_ix = Topic::ALL.iter().position(|t| *t == topic).unwrap_or(0);
+        let Some(seg) = self.current.as_mut() else { return };
+        let time = self.epoch_ns.saturating_add(entry.at.as_nanos());
+        let header = mcap::records::MessageHeader {
+            channel_id: seg.channels[topic_ix],
+            sequence: seq as u32,
+            log_time: time,
+            publish_time: time,
+        };
+        match seg.mcap.write_to_known_channel(&header, &data) {
+            Ok(()) => {
+                self.shared.written.fetch_add(1, Ordering::Relaxed);
+            }
+            Err(e) => self.fail(e),
+        }
+    }
+
+    /// Close the open segment, if any: its summary and footer make it a complete MCAP file.
+    fn close_segment(&mut self) {
+        let Some(mut seg) = self.current.take() else { return };
+        let end = BTreeMap::from([
+            ("next_seq".to_owned(), self.seq.to_string()),
+            ("capped".to_owned(), self.capped.to_string()),
+            ("dropped_cap".to_owned(), self.shared.dropped_cap.load(Ordering::Relaxed).to_string()),
+        ]);
+        let name = format!("{METADATA}.end");
+        let result = seg
+            .mcap
+            .write_metadata(&mcap::records::Metadata { name, metadata: end })
+            .and_then(|()| seg.mcap.finish().map(|_| ()));
+        let result = result.map_err(|e| e.to_string()).and_then(|()| {
+            let mut counted = seg.mcap.into_inner();
+            counted.flush().map_err(|e| e.to_string())
+        });
+        let size = seg.size.load(Ordering::Relaxed);
+        self.closed_bytes += size;
+        self.shared.bytes.fetch_add(size, Ordering::Relaxed);
+        if let Err(e) = result {
+            self.fail(e);
+        }
+    }
+}
+
+/// The node's clock zero as Unix time: now minus the node's time.
+fn epoch_ns(core: &NodeCore) -> u64 {
+    let unix = SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos() as u64);
+    unix.saturating_sub(core.now().as_nanos())
+}

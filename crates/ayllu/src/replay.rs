@@ -1,0 +1,581 @@
+//! Deterministic replay: a flight recording ([`crate::recording`]) played back into a fresh
+//! core, so that `why`, `list` and `echo` can be asked of any past instant
+//! (spec/flight-recorder.md).
+//!
+//! How: the recording's inputs (definitions, structure changes, writes, messages received,
+//! polls at their times) are fed to a new [`NodeCore`] in their order. The application's
+//! processes are not needed: each class process is replaced by a *player* that, when the core
+//! runs it, applies the effects the recorded activation had (its writes, slot changes,
+//! triggers and resets, in order). Processes the core provides itself (BLE's select) run as
+//! they are.
+//!
+//! What it promises:
+//! * Checked, not assumed: every value a port accepts during the replay is compared, bit for
+//!   bit and in order, with the one the recording says it accepted; and each player checks
+//!   that the core runs the process the recording ran. The first difference stops the replay
+//!   with a [`Divergence`] saying where (journal position, node time) and what.
+//! * A replay stopped at `t` answers as the live node would have at `t`: every input up to
+//!   `t` was applied, none after.
+//! * A bad or cut file gives an error or a shorter recording ([`Ending`]), never a panic.
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex, MutexGuard};
+
+use ayllu_core::{
+    BehaviorClass, ConnectOptions, Ctx, Entry, Event, Instant, Mono, NodeCore, NodeId, NodeReport, Port, PortReport,
+    Slot, Value,
+};
+use mcap::read::{ChunkFlattener, Options};
+use mcap::records::Record;
+
+use crate::error::Error;
+use crate::recording::segment_path;
+use crate::recording_format::{decode, same_bits, Topic, METADATA, VERSION};
+
+/// How a recording ends.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Ending {
+    /// Its files were closed: everything journaled was written.
+    Closed,
+    /// The size cap was reached: the rest of the node's life was not written.
+    Capped {
+        /// Entries not written by the time the last segment was closed (the recorder's
+        /// [`crate::RecordStats::dropped_cap`] counts them to the node's end).
+        dropped: u64,
+    },
+    /// The files were not closed (the node was killed, or a file is cut short): the
+    /// recording ends at the last complete chunk.
+    Cut {
+        /// What the reader found.
+        reason: String,
+    },
+}
+
+impl fmt::Display for Ending {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Ending::Closed => write!(f, "closed"),
+            Ending::Capped { dropped } => write!(f, "size cap reached ({dropped} entries not written)"),
+            Ending::Cut { reason } => write!(f, "cut short ({reason})"),
+        }
+    }
+}
+
+/// A flight recording read back: the node it is of and its journal, in order.
+#[derive(Clone, Debug)]
+pub struct Recording {
+    /// The node recorded.
+    pub node: NodeId,
+    /// The segment files read, in order.
+    pub segments: Vec<PathBuf>,
+    /// The journal, in the order the core made it.
+    pub entries: Vec<Entry>,
+    /// How it ends.
+    pub ending: Ending,
+    /// Where the journal has a hole (entries dropped while recording, or a missing
+    /// segment): a replay stops there. The journal position and node time.
+    pub gap: Option<(u64, Instant)>,
+}
+
+fn bad(path: &Path, what: impl fmt::Display) -> Error {
+    Error::Recording { what: format!("{}: {what}", path.display()) }
+}
+
+impl Recording {
+    /// Read the recording whose first segment is `path`, with the segments that follow it
+    /// (`run.1.mcap`, ...). Errors: a file that cannot be read, is not MCAP, is not an Ayllu
+    /// flight recording, or holds a message that does not decode. A file cut short is not an
+    /// error: the recording ends where the file does ([`Ending::Cut`]).
+    pub fn open(path: impl AsRef<Path>) -> Result<Recording, Error> {
+        let first = path.as_ref();
+        let mut node = None;
+        let mut entries: Vec<(u64, Entry)> = Vec::new();
+        let mut segments = Vec::new();
+        let mut ending = Ending::Cut { reason: "no end record".into() };
+        let mut n = 0;
+        loop {
+            let p = segment_path(first, n);
+            if n > 0 && !p.exists() {
+                break;
+            }
+            let bytes = std::fs::read(&p).map_err(|e| bad(&p, e))?;
+            if !bytes.starts_with(mcap::MAGIC) {
+                return Err(bad(&p, "not an MCAP file (no magic bytes at its start)"));
+            }
+            let (seg_node, seg_ending) = read_segment(&p, &bytes, &mut entries)?;
+            if let Some(other) = node.filter(|&x| x != seg_node) {
+                return Err(bad(&p, format!("a segment of node {seg_node}, after segments of node {other}")));
+            }
+            node = Some(seg_node);
+            segments.push(p);
+            ending = seg_ending;
+            n += 1;
+            if ending != Ending::Closed {
+                break;
+            }
+        }
+        entries.sort_by_key(|(seq, _)| *seq);
+        let mut gap = None;
+        for (i, (seq, e)) in entries.iter().enumerate() {
+            if *seq != i as u64 || matches!(e.event, Event::Gap { .. }) {
+                gap = Some((i as u64, e.at));
+                break;
+            }
+        }
+        Ok(Recording {
+            node: node.unwrap_or(NodeId(0)),
+            segments,
+            entries: entries.into_iter().map(|(_, e)| e).collect(),
+            ending,
+            gap,
+        })
+    }
+
+    /// The node time of the last entry (zero for an empty recording).
+    pub fn end(&self) -> Instant {
+        self.entries.last().map_or(Instant::ZERO, |e| e.at)
+    }
+}
+
+/// Read one segment's messages into `out`; its node and how it ends.
+fn read_segment(path: &Path, bytes: &[u8], out: &mut Vec<(u64, Entry)>) -> Result<(NodeId, Ending), Error> {
+    let mut topics: Vec<(u16, Topic)> = Vec::new();
+    let mut node = None;
+    let mut ending = Ending::Cut { reason: "the file has no end record (was the node killed?)".into() };
+    let reader = ChunkFlattener::new_with_options(bytes, Options::IgnoreEndMagic.into()).map_err(|e| bad(path, e))?;
+    for record in reader {
+        let record = match record {
+            Ok(r) => r,
+            Err(e) => {
+                ending = Ending::Cut { reason: format!("the file ends inside a record: {e}") };
+                break;
+            }
+        };
+        match record {
+            Record::Channel(c) => {
+                if let Some(t) = Topic::from_name(&c.topic) {
+                    topics.push((c.id, t));
+                }
+            }
+            Record::Metadata(m) if m.name == METADATA => {
+                let version = m.metadata.get("version").map_or("", String::as_str);
+                if version != VERSION {
+                    return Err(bad(path, format!("flight recording version `{version}`; this build reads {VERSION}")));
+                }
+                let id = m.metadata.get("node").and_then(|n| n.parse::<u32>().ok());
+                node = Some(NodeId(id.ok_or_else(|| bad(path, "no node id in its metadata"))?));
+            }
+            Record::Metadata(m) if m.name == format!("{METADATA}.end") => {
+                let capped = m.metadata.get("capped").is_some_and(|c| c == "true");
+                let dropped = m.metadata.get("dropped_cap").and_then(|d| d.parse().ok()).unwrap_or(0);
+                ending = if capped { Ending::Capped { dropped } } else { Ending::Closed };
+            }
+            Record::Message { header, data } => {
+                if !topics.iter().any(|(id, _)| *id == header.channel_id) {
+                    continue;
+                }
+                let json: serde_json::Value = serde_json::from_slice(&data)
+                    .map_err(|e| bad(path, format!("message {} is not JSON: {e}", header.sequence)))?;
+                let d = decode(&json).map_err(|e| bad(path, format!("message {}: {e}", header.sequence)))?;
+                out.push((d.seq, d.entry));
+            }
+            Record::Footer(_) | Record::DataEnd(_) => {}
+            _ => {}
+        }
+    }
+    let node = node.ok_or_else(|| bad(path, "not an Ayllu flight recording (no ayllu.flight_recording metadata)"))?;
+    Ok((node, ending))
+}
+
+/// Where a replay departed from its recording.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Divergence {
+    /// The journal position (entry number) where it showed.
+    pub seq: u64,
+    /// The node time there.
+    pub at: Instant,
+    /// What differed.
+    pub what: String,
+}
+
+impl fmt::Display for Divergence {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "replay diverged at entry {} (t={}): {}", self.seq, self.at, self.what)
+    }
+}
+
+impl std::error::Error for Divergence {}
+
+/// A value a port accepted during the replay.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Accepted {
+    /// When (node time).
+    pub at: Instant,
+    /// The behavior.
+    pub behavior: Arc<str>,
+    /// The port's name.
+    pub port: String,
+    /// The value, as the merge stored it.
+    pub value: Value,
+}
+
+/// The recording as the core and its players share it.
+struct Tape {
+    entries: Arc<[Entry]>,
+    next: usize,
+    /// Inside the effects of a native activation (they are the core's to reproduce).
+    in_native: bool,
+    divergence: Option<Divergence>,
+}
+
+fn is_effect(e: &Event) -> bool {
+    matches!(
+        e,
+        Event::ProcessWrite { .. }
+            | Event::ProcessSetSlot { .. }
+            | Event::ProcessTrigger { .. }
+            | Event::ProcessReset { .. }
+    )
+}
+
+/// Whether the replay loop applies `e` itself (what is not a consequence of another entry).
+fn is_input(e: &Event) -> bool {
+    !matches!(e, Event::Accepted { .. } | Event::Run { .. } | Event::Gap { .. }) && !is_effect(e)
+}
+
+impl Tape {
+    /// Move past what neither the replay loop nor a player consumes: accepted values (checked
+    /// separately) and native activations with their effects.
+    fn skip(&mut self) {
+        while let Some(e) = self.entries.get(self.next) {
+            match &e.event {
+                Event::Accepted { .. } => {}
+                Event::Run { native: true, .. } => self.in_native = true,
+                ev if self.in_native && is_effect(ev) => {}
+                _ => {
+                    self.in_native = false;
+                    return;
+                }
+            }
+            self.next += 1;
+        }
+    }
+
+    fn diverge(&mut self, what: String) {
+        if self.divergence.is_none() {
+            let at = self.entries.get(self.next).or(self.entries.last()).map_or(Instant::ZERO, |e| e.at);
+            self.divergence = Some(Divergence { seq: self.next as u64, at, what });
+        }
+    }
+}
+
+fn lock(tape: &Mutex<Tape>) -> MutexGuard<'_, Tape> {
+    // A player that panicked cannot leave the tape half-moved in a way that matters here.
+    tape.lock().unwrap_or_else(|p| p.into_inner())
+}
+
+/// The stand-in for process `name`: it applies what the recorded activation did.
+fn player(tape: Arc<Mutex<Tape>>, name: String) -> impl Fn(&mut Ctx<'_>) + Send + Sync + 'static {
+    move |ctx| {
+        let effects = {
+            let mut t = lock(&tape);
+            if t.divergence.is_some() {
+                return;
+            }
+            t.skip();
+            let ok = matches!(t.entries.get(t.next).map(|e| &e.event),
+                Some(Event::Run { behavior, process, native: false }) if **behavior == *ctx.behavior() && *process == name);
+            if !ok {
+                let found = t.entries.get(t.next).map_or("the end of the recording".to_owned(), |e| describe(&e.event));
+                t.diverge(format!("the core ran {}.{name} where the recording has {found}", ctx.behavior()));
+                return;
+            }
+            t.next += 1;
+            let mut effects = Vec::new();
+            while let Some(e) = t.entries.get(t.next) {
+                if is_effect(&e.event) {
+                    effects.push(e.event.clone());
+                } else if !matches!(e.event, Event::Accepted { .. }) {
+                    break;
+                }
+                t.next += 1;
+            }
+            effects
+        };
+        for e in effects {
+            match e {
+                Event::ProcessWrite { port, value } => {
+                    let _ = ctx.write(Port(port), value);
+                }
+                Event::ProcessSetSlot { slot, value } => {
+                    let _ = ctx.set_slot(Slot(slot), value);
+                }
+                Event::ProcessTrigger { mono, period } => ctx.trigger(Mono(mono), period),
+                Event::ProcessReset { port } => ctx.reset(Port(port)),
+                _ => {}
+            }
+        }
+    }
+}
+
+/// A short description of an entry, for divergence reports.
+fn describe(e: &Event) -> String {
+    match e {
+        Event::Run { behavior, process, .. } => format!("an activation of {behavior}.{process}"),
+        Event::Accepted { behavior, port, .. } => format!("a value accepted by {behavior} port #{port}"),
+        Event::Poll => "a poll".into(),
+        other => {
+            let text = format!("{other:?}");
+            text.chars().take(80).collect()
+        }
+    }
+}
+
+/// A recording being replayed into a fresh core. See the module docs.
+pub struct Replay {
+    core: NodeCore,
+    tape: Arc<Mutex<Tape>>,
+    /// Positions of the recorded accepted values, in order, and the next to compare.
+    recorded_accepted: Vec<usize>,
+    next_accepted: usize,
+    accepted: Vec<Accepted>,
+    scratch: Vec<Entry>,
+    /// Where the recording has a hole: the replay does not go past it.
+    stop: usize,
+    /// The node time up to which inputs were applied.
+    reached: Instant,
+}
+
+impl Replay {
+    /// A replay of `recording`, at its beginning.
+    pub fn new(recording: &Recording) -> Replay {
+        let entries: Arc<[Entry]> = recording.entries.clone().into();
+        let mut stop = recording.gap.map_or(entries.len(), |(seq, _)| seq as usize);
+        if stop < entries.len() || recording.ending != Ending::Closed {
+            // The consequences of the last input before a hole or the end of a recording that
+            // was not closed may be missing: the replay ends before that input.
+            stop = entries[..stop].iter().rposition(|e| is_input(&e.event)).unwrap_or(0);
+        }
+        let recorded_accepted = entries
+            .iter()
+            .enumerate()
+            .filter(|(_, e)| matches!(e.event, Event::Accepted { .. }))
+            .map(|(i, _)| i)
+            .collect();
+        let mut core = NodeCore::new(recording.node);
+        core.start_journal(usize::MAX);
+        Replay {
+            core,
+            tape: Arc::new(Mutex::new(Tape { entries, next: 0, in_native: false, divergence: None })),
+            recorded_accepted,
+            next_accepted: 0,
+            accepted: Vec::new(),
+            scratch: Vec::new(),
+            stop,
+            reached: Instant::ZERO,
+        }
+    }
+
+    /// The replayed core, as it stands (ask it `why_at`, `report_at`, `read_at`).
+    pub fn core(&self) -> &NodeCore {
+        &self.core
+    }
+
+    /// Every value a port accepted so far in the replay, in order.
+    pub fn accepted(&self) -> &[Accepted] {
+        &self.accepted
+    }
+
+    /// How many accepted values were compared with the recording and found equal.
+    pub fn checked(&self) -> usize {
+        self.next_accepted
+    }
+
+    /// The node time up to which inputs have been applied.
+    pub fn reached(&self) -> Instant {
+        self.reached
+    }
+
+    /// Apply every input recorded at or before `t`. Stops at the first divergence.
+    pub fn run_until(&mut self, t: Instant) -> Result<(), Divergence> {
+        loop {
+            let entry = {
+                let mut tape = lock(&self.tape);
+                tape.skip();
+                if tape.next >= self.stop {
+                    break;
+                }
+                match tape.entries.get(tape.next).filter(|e| e.at <= t).cloned() {
+                    Some(e) => {
+                        tape.next += 1;
+                        e
+                    }
+                    None => break,
+                }
+            };
+            self.reached = self.reached.max(entry.at);
+            self.apply(entry)?;
+        }
+        self.reached = self.reached.max(t);
+        Ok(())
+    }
+
+    /// Apply the whole recording (up to its end or its first hole).
+    pub fn run_to_end(&mut self) -> Result<(), Divergence> {
+        self.run_until(Instant::MAX)?;
+        let tape = lock(&self.tape);
+        let end = self.recorded_accepted.partition_point(|&i| i < tape.next.min(self.stop));
+        if self.next_accepted < end {
+            let i = self.recorded_accepted[self.next_accepted];
+            let e = &tape.entries[i];
+            return Err(Divergence {
+                seq: i as u64,
+                at: e.at,
+                what: format!("the recording has {} that the replay never accepted", describe(&e.event)),
+            });
+        }
+        Ok(())
+    }
+
+    /// Why `behavior.port` held what it held at `t`: the replay runs up to `t` and asks the
+    /// core as the live node would have been asked then.
+    pub fn why_at(&mut self, t: Instant, behavior: &str, port: &str) -> Result<PortReport, Error> {
+        self.run_until(t).map_err(|d| Error::Recording { what: d.to_string() })?;
+        Ok(self.core.why_at(t, behavior, port)?)
+    }
+
+    /// The whole node as it stood at `t` (see [`Replay::why_at`]).
+    pub fn list_at(&mut self, t: Instant) -> Result<NodeReport, Error> {
+        self.run_until(t).map_err(|d| Error::Recording { what: d.to_string() })?;
+        Ok(self.core.report_at(t))
+    }
+
+    fn fail(&self, what: String) -> Divergence {
+        let tape = lock(&self.tape);
+        let at = tape.entries.get(tape.next.saturating_sub(1)).map_or(Instant::ZERO, |e| e.at);
+        Divergence { seq: tape.next.saturating_sub(1) as u64, at, what }
+    }
+
+    fn apply(&mut self, entry: Entry) -> Result<(), Divergence> {
+        let at = entry.at;
+        let core = &mut self.core;
+        // Inputs are applied whatever they returned live: a refused call is refused again, and
+        // what it changed (counters) is what the comparison of accepted values checks.
+        match entry.event {
+            Event::Define(class) => {
+                let rebuilt = self.with_players(&class);
+                let _ = self.core.define(rebuilt);
+            }
+            Event::Create { class, name } => drop(core.create(&class, &name)),
+            Event::Remove { name } => drop(core.remove(&name)),
+            Event::AddProcess { behavior, name, trigger } => {
+                let body = player(self.tape.clone(), name.clone());
+                let _ = core.add_process(&behavior, &name, trigger, body);
+            }
+            Event::Connect { source, destination, kind, priority } => {
+                let _ = core.connect(&source, &destination, kind, ConnectOptions { priority });
+            }
+            Event::Disconnect { conn } => drop(core.disconnect(conn)),
+            Event::NodeLost { node } => drop(core.node_lost(at, node)),
+            Event::SetAccess(a) => core.set_access(a),
+            Event::SetLimits(l) => core.set_limits(l),
+            Event::Join(g) => core.join(&g),
+            Event::Leave(g) => core.leave(&g),
+            Event::BleJoin { behavior, config } => drop(core.ble_join(&behavior, &config)),
+            Event::SequenceBase(b) => core.set_sequence_base(b),
+            Event::Warn(w) => core.warn(w),
+            Event::Request { to, body } => drop(core.request(to, body)),
+            Event::Write { behavior, port, value } => {
+                if let Ok(r) = core.port(&behavior, &port) {
+                    let _ = core.write(at, r, value);
+                }
+            }
+            Event::Trigger { behavior, mono, period } => drop(core.trigger(at, &behavior, &mono, period)),
+            Event::Reset { behavior, port } => {
+                if let Ok(r) = core.port(&behavior, &port) {
+                    let _ = core.reset(r);
+                }
+            }
+            Event::Receive { from, message } => core.receive(at, from, message),
+            Event::Poll => drop(core.poll(at)),
+            Event::Run { behavior, process, .. } => {
+                return Err(
+                    self.fail(format!("the recording ran {behavior}.{process} here; the replayed core did not"))
+                );
+            }
+            e if is_effect(&e) => {
+                return Err(self.fail(format!("a process effect outside any activation ({})", describe(&e))));
+            }
+            _ => {}
+        }
+        while self.core.pop_outgoing().is_some() {}
+        if let Some(d) = lock(&self.tape).divergence.clone() {
+            return Err(d);
+        }
+        self.compare()
+    }
+
+    /// Compare what the replayed ports accepted with what the recording says they accepted.
+    fn compare(&mut self) -> Result<(), Divergence> {
+        self.scratch.clear();
+        self.core.take_journal(&mut self.scratch);
+        let tape = lock(&self.tape);
+        for e in self.scratch.drain(..) {
+            let Event::Accepted { behavior, class, port, value } = e.event else { continue };
+            let name = class.ports().get(usize::from(port)).map_or(String::new(), |p| p.name.clone());
+            let Some(&i) = self.recorded_accepted.get(self.next_accepted) else {
+                return Err(Divergence {
+                    seq: tape.next as u64,
+                    at: e.at,
+                    what: format!("{behavior}.{name} accepted {value:?}, beyond what the recording holds"),
+                });
+            };
+            let rec = &tape.entries[i];
+            let same = match &rec.event {
+                Event::Accepted { behavior: rb, port: rp, value: rv, .. } => {
+                    *rb == behavior && *rp == port && same_bits(rv, &value) && rec.at == e.at
+                }
+                _ => false,
+            };
+            if !same {
+                let recorded = match &rec.event {
+                    Event::Accepted { behavior, port, value, .. } => {
+                        format!("{behavior} port #{port} accepting {value:?}")
+                    }
+                    other => describe(other),
+                };
+                return Err(Divergence {
+                    seq: i as u64,
+                    at: rec.at,
+                    what: format!(
+                        "{behavior}.{name} accepted {value:?} at {}; the recording has {recorded} at {}",
+                        e.at, rec.at
+                    ),
+                });
+            }
+            self.next_accepted += 1;
+            self.accepted.push(Accepted { at: e.at, behavior, port: name, value });
+        }
+        Ok(())
+    }
+
+    /// `class` with a player in place of each process body.
+    fn with_players(&self, class: &BehaviorClass) -> BehaviorClass {
+        let mut c = BehaviorClass::new(class.name());
+        let implicit = c.ports().len();
+        for spec in class.ports().iter().skip(implicit) {
+            let _ = c.port(spec.clone());
+        }
+        for s in class.slots() {
+            let _ = c.slot(&s.name, s.default.clone());
+        }
+        for m in class.monostables() {
+            let _ = c.monostable(m);
+        }
+        for p in class.processes() {
+            let _ = c.process(&p.name, p.trigger, player(self.tape.clone(), p.name.clone()));
+        }
+        c
+    }
+}
