@@ -540,6 +540,16 @@ static inline bool ay_claiming_(const char *b, const char *file, int line) {
 /* One turn of the loop (with a manual clock: after advancing it). */
 #define ayStep() ((void)ay_check_(ay_node_step(ayNODE, NULL), "ayStep()"))
 
+/* ---- flight recording ------------------------------------------------------------- */
+
+/* Record the default node into the MCAP file `Path` (a string; Foxglove opens it, `ayllu
+ * replay Path --at 12.5s why OBS1.Rotate` plays it back): call it right after ayInitIPComms,
+ * before defining classes. At most 1 GiB in numbered segments; ay_node_record sets another
+ * cap. Closed by ayStopRecording() or when the node is freed. */
+#define ayRecord(Path) ((void)ay_check_(ay_node_record(ayNODE, (Path), 0), "ayRecord"))
+/* Stop recording the default node and close the file. */
+#define ayStopRecording() ((void)ay_check_(ay_node_stop_recording(ayNODE, NULL), "ayStopRecording()"))
+
 /* ---- why and list ------------------------------------------------------------------- */
 
 static inline char *ay_why_(const char *b, const char *p, const char *file, int line) {

@@ -1230,6 +1230,44 @@ ay_status ay_ctx_node(ay_ctx *ctx, uint32_t *out);
 // As [`ay_ctx_read_text`].
 ay_status ay_ctx_behavior(ay_ctx *ctx, char *buffer, size_t capacity, size_t *length);
 
+// Start recording `node` into the MCAP file `path` (numbered segments follow it:
+// `run.1.mcap`, ...), all segments together at most `max_bytes` (0: the default, 1 GiB; at
+// least 65536). Call it before defining classes: a replay rebuilds the node from its first
+// definition. The file is written by a thread of the library's and closed by
+// `ay_node_stop_recording` or `ay_node_free`.
+//
+// Ownership: borrows its arguments for the call; keeps nothing of `path`.
+// Thread-safety: the node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`,
+// `AY_ERR_INVALID` (path not UTF-8, max_bytes under 65536), `AY_ERR_TRANSPORT` (the file
+// cannot be created, the node already records, or classes were defined already).
+//
+// # Safety
+// `node` is NULL or a pointer from this library; `path` is NULL or NUL-terminated.
+ay_status ay_node_record(ay_node *node, const char *path, uint64_t max_bytes);
+
+// Stop recording `node` and close its files; `*written` (if not NULL) gets the number of
+// journal entries written. Not recording is not an error (`*written` is 0).
+//
+// Ownership: borrows its arguments for the call. Thread-safety: the node's thread.
+// Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`, `AY_ERR_TRANSPORT` (writing the
+// file failed; what was written up to then is a valid recording).
+//
+// # Safety
+// `node` is NULL or a pointer from this library; `written` is NULL or valid for a write.
+ay_status ay_node_stop_recording(ay_node *node, uint64_t *written);
+
+// Replay the recording `path` to its end, checking every value its ports accepted against
+// the recording bit for bit; `*checked` (if not NULL) gets how many were compared.
+//
+// Ownership: borrows its arguments for the call. Thread-safety: any thread.
+// Errors: `AY_ERR_NULL`, `AY_ERR_INVALID` (path not UTF-8), `AY_ERR_TRANSPORT` (the file
+// cannot be read or is not a flight recording, or the replay diverged: the message says
+// where and what).
+//
+// # Safety
+// `path` is NULL or NUL-terminated; `checked` is NULL or valid for a write.
+ay_status ay_recording_check(const char *path, uint64_t *checked);
+
 // Why `behavior.port` holds what it holds and passes what it passes, now: value, freshness,
 // supplier, active windows and their holders, connections in and out. `*out` receives a
 // JSON object.
