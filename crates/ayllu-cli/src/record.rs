@@ -162,7 +162,11 @@ pub fn record(args: &RecordArgs) -> Result<(), Fail> {
         }
         if StdInstant::now() >= next_survey {
             next_survey = StdInstant::now() + SURVEY;
-            for peer in client.peers() {
+            let peers = client.peers();
+            // A node that went silent is surveyed again when it comes back (a restarted node
+            // has new connections, and lost the copies it was asked for).
+            known.retain(|n| peers.iter().any(|p| p.node == *n));
+            for peer in peers {
                 if !args.no_groups {
                     for g in &peer.groups {
                         if joined.insert(g.clone()) {
