@@ -12,6 +12,7 @@
 pub mod behavior;
 pub mod errors;
 pub mod node;
+pub mod recording;
 pub mod sim;
 pub mod value;
 pub mod wiring;
@@ -30,6 +31,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<node::Team>()?;
     m.add_class::<node::PortHandle>()?;
     m.add_function(wrap_pyfunction!(node::stop_all, m)?)?;
+    m.add_function(wrap_pyfunction!(recording::check_recording, m)?)?;
     sim::register(m)?;
     m.add("DROP_CAUSES", ayllu_core::DropCause::ALL.iter().map(|c| c.name()).collect::<Vec<_>>())?;
     Ok(())

@@ -548,6 +548,22 @@ impl Node {
         Ok(d)
     }
 
+    /// Record everything that enters this node's core, and the values its ports accept, into
+    /// the MCAP file `path` (Foxglove opens it; `ayllu replay` and `ayllu.check_recording`
+    /// play it back). Call it before defining classes. `max_bytes`: cap on all segments
+    /// together (default 1 GiB; at least 65536).
+    #[pyo3(signature = (path, *, max_bytes = None))]
+    fn record(&self, py: Python<'_>, path: std::path::PathBuf, max_bytes: Option<u64>) -> PyResult<()> {
+        self.shared.with(py, |n| crate::recording::record(n, &path, max_bytes))
+    }
+
+    /// Stop recording and close the file; what was written (a dict), or None if the node was
+    /// not recording.
+    fn stop_recording<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
+        let stats = self.shared.with(py, |n| Ok(n.stop_recording()))?;
+        stats.map(|s| crate::recording::stats_dict(py, &s)).transpose()
+    }
+
     /// Where peers reach this node (`udp://` transports), or None.
     fn address(&self, py: Python<'_>) -> PyResult<Option<String>> {
         self.shared.with(py, |n| Ok(n.address()))

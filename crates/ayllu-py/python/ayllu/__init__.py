@@ -39,6 +39,7 @@ from ayllu._native import (
     PortHandle,
     Team,
     ValueTypeError,
+    check_recording,
 )
 from ayllu._native import MonoDecl as Monostable
 from ayllu._native import PortDecl as Port
@@ -72,6 +73,7 @@ __all__ = [
     "Team",
     "ValueTypeError",
     "broadcast",
+    "check_recording",
     "every",
     "inhibit",
     "local",

@@ -1,0 +1,55 @@
+//! Flight recording from Python: `Node.record(path)` writes everything that enters the node's
+//! core, and the values its ports accepted, into an MCAP file that Foxglove opens and `ayllu
+//! replay` plays back (spec/flight-recorder.md); `ayllu.check_recording(path)` replays one.
+//! A Python process's code is not needed to replay: what each activation did is recorded.
+
+use std::path::Path;
+
+use ayllu::replay::{Recording, Replay};
+use ayllu::{RecordOptions, RecordStats};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use crate::errors;
+
+/// Start recording `node` into `path` (segments `path.1.mcap`, ... follow it), all segments
+/// together at most `max_bytes` (None: 1 GiB).
+pub fn record(node: &mut ayllu::Node, path: &Path, max_bytes: Option<u64>) -> PyResult<()> {
+    let options = match max_bytes {
+        None => RecordOptions::default(),
+        Some(n) if n < 65_536 => {
+            return Err(errors::InvalidError::new_err("max_bytes must be at least 65536"));
+        }
+        Some(n) => RecordOptions::default().max_bytes(n),
+    };
+    node.record(path, options).map_err(errors::runtime)
+}
+
+/// What a recorder did, as a dict (`written`, `bytes`, `segments`, the three `dropped_*`
+/// counts and `error`).
+pub fn stats_dict<'py>(py: Python<'py>, s: &RecordStats) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("written", s.written)?;
+    d.set_item("bytes", s.bytes)?;
+    d.set_item("segments", s.segments)?;
+    d.set_item("dropped_queue", s.dropped_queue)?;
+    d.set_item("dropped_journal", s.dropped_journal)?;
+    d.set_item("dropped_cap", s.dropped_cap)?;
+    d.set_item("error", s.error.clone())?;
+    Ok(d)
+}
+
+/// Replay the flight recording `path` to its end, checking every value its ports accepted
+/// against the recording bit for bit; returns how many were compared. Raises
+/// `ayllu.InvalidError` for a file that is not a recording and for a replay that diverged
+/// (the message says where and what).
+#[pyfunction]
+pub fn check_recording(py: Python<'_>, path: std::path::PathBuf) -> PyResult<usize> {
+    py.detach(|| {
+        let recording = Recording::open(&path).map_err(|e| e.to_string())?;
+        let mut replay = Replay::new(&recording);
+        replay.run_to_end().map_err(|d| d.to_string())?;
+        Ok::<usize, String>(replay.checked())
+    })
+    .map_err(errors::InvalidError::new_err)
+}

@@ -1,0 +1,88 @@
+"""Flight recording from Python (spec/flight-recorder.md): a node whose process is Python
+code (here reading a random source the replay cannot know) records into an MCAP file; an
+independent reader (the ``mcap`` package from PyPI) finds the four JSON channels with their
+JSON Schemas, and the recording replays with no Python code, reproducing every accepted
+value bit for bit."""
+
+from __future__ import annotations
+
+import json
+import random
+from pathlib import Path
+
+import pytest
+
+import ayllu
+
+mcap_reader = pytest.importorskip("mcap.reader", reason="the mcap package (scripts/python-venv installs it)")
+
+
+RNG = random.Random(42)
+
+
+class Noisy(ayllu.Behavior):
+    inp = ayllu.Port(0.0, name="In")
+    out = ayllu.Port(0.0, name="Out")
+
+    @ayllu.on_write(inp)
+    def jitter(self, ctx: ayllu.Context) -> None:
+        # A "sensor" only the live process can read: the replay has only its effects.
+        ctx.write(self.out, ctx.read(self.inp) + RNG.random())
+
+
+def record_run(path: Path, steps: int = 100) -> list[float]:
+    node = ayllu.Node(1, manual=True)
+    node.record(path)
+    node.create(Noisy, "N")
+    outs = []
+    for k in range(steps):
+        node.write("N", "In", k / 7.0)
+        node.advance(0.01, tick=0.01)
+        outs.append(node.read("N", "Out"))
+    stats = node.stop_recording()
+    assert stats is not None and stats["written"] > 3 * steps and stats["error"] is None
+    assert node.stop_recording() is None
+    return outs
+
+
+def test_an_independent_reader_sees_json_channels_with_schemas(tmp_path: Path) -> None:
+    path = tmp_path / "py.mcap"
+    outs = record_run(path)
+    with path.open("rb") as f:
+        reader = mcap_reader.make_reader(f)
+        summary = reader.get_summary()
+        assert summary is not None
+        topics = {c.topic: c for c in summary.channels.values()}
+        assert sorted(topics) == ["/ayllu/accepted", "/ayllu/input", "/ayllu/process", "/ayllu/structure"]
+        for channel in topics.values():
+            assert channel.message_encoding == "json"
+            schema = summary.schemas[channel.schema_id]
+            assert schema.encoding == "jsonschema"
+            assert json.loads(schema.data)["type"] == "object"
+        accepted = [
+            json.loads(m.data)
+            for _, channel, m in reader.iter_messages(topics=["/ayllu/accepted"])
+            if channel.topic == "/ayllu/accepted"
+        ]
+    out_values = [a["value"] for a in accepted if a["behavior"] == "N" and a["port"] == "Out"]
+    # Floats come back exactly: what the process wrote is what the file says.
+    assert out_values == outs
+    assert all(a["type"] == "float" for a in accepted)
+
+
+def test_the_recording_replays_without_the_python_code(tmp_path: Path) -> None:
+    path = tmp_path / "replay.mcap"
+    record_run(path, steps=50)
+    assert ayllu.check_recording(path) == 100, "every In and Out value compared"
+
+
+def test_misuse_is_refused_with_a_reason(tmp_path: Path) -> None:
+    node = ayllu.Node(2, manual=True)
+    with pytest.raises(ayllu.InvalidError, match="65536"):
+        node.record(tmp_path / "small.mcap", max_bytes=1000)
+    node.create(Noisy, "N")
+    with pytest.raises(ayllu.AylluError, match="before defining"):
+        node.record(tmp_path / "late.mcap")
+    (tmp_path / "bad.mcap").write_bytes(b"not a recording")
+    with pytest.raises(ayllu.InvalidError, match="not an MCAP file"):
+        ayllu.check_recording(tmp_path / "bad.mcap")
