@@ -87,6 +87,19 @@ def test_5_the_sweep_from_the_shell(tmp_path: Path) -> None:
     assert (tmp_path / "loss-study" / "runs.csv").read_text().count("\n") == 25
 
 
+def test_6_recording_a_team_and_asking_why_in_the_past(tmp_path: Path) -> None:
+    path = f"{ayllu_bin().parent}:{Path(sys.executable).parent}:{os.environ['PATH']}"
+    env = dict(os.environ, PATH=path, OUT=str(tmp_path))
+    script = TUTORIALS / "06_recording_why_in_the_past" / "replay.sh"
+    out = run(["bash", "-euo", "pipefail", str(script)], ROOT, env)
+    assert "n2.mcap: 198 accepted values replay bit for bit" in out
+    at_2s, at_7s = out.split("n2:W.Out (normal float) at ")[1:3]
+    assert at_2s.startswith("2.000s") and "own writes BLOCKED (write_inhibited)" in at_2s
+    assert "write-inhibit held by n1/" in at_2s, "robot 1's claim is named"
+    assert at_7s.startswith("7.000s") and "own writes open" in at_7s
+    assert "accepted values reproduced bit for bit" in out
+
+
 def test_7_joining_from_a_microcontroller(tmp_path: Path) -> None:
     # The C client built for the host stands in for the microcontroller's firmware.
     subprocess.run(["make", "-s", "-C", str(ROOT / "lite" / "c"), "build/udp_client"], check=True, timeout=300)

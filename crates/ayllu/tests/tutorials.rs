@@ -41,3 +41,16 @@ mod concepts;
 fn the_concepts_page_code_runs() {
     assert_eq!(concepts::run().unwrap(), "every concept ran as the page says\n");
 }
+
+#[path = "../../../examples/tutorial/06_recording_why_in_the_past/main.rs"]
+#[allow(dead_code)]
+mod recording_why_in_the_past;
+
+#[test]
+fn tutorial_6_recording_a_team_and_asking_why_in_the_past() {
+    let dir = std::env::temp_dir().join(format!("ayllu-tutorial-06-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = recording_why_in_the_past::run(&dir).unwrap();
+    assert!(out.contains("write-inhibit held by n1/"), "robot 1's claim is named as the holder: {out}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
