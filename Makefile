@@ -104,12 +104,15 @@ test-python:
 	@PY=$$(PYTHON=$(PYTHON) scripts/python-venv) && cd crates/ayllu-py \
 		&& AYLLU_BIN=$(abspath $(TARGET_DIR))/debug/ayllu $$PY -m pytest -q tests
 
-## ruff and mypy (strict) on the Python package, its tests and the Python examples.
+## ruff and mypy (strict) on the Python package, its tests, the Python examples, the book's
+## tutorials and its picture scripts (one file at a time: every tutorial is a main.py).
 lint-python:
 	@PY=$$(PYTHON=$(PYTHON) scripts/python-venv) && cd crates/ayllu-py \
 		&& $$PY -m ruff check --config pyproject.toml . ../../examples/cmommt/python ../../examples/tutorial ../../scripts/book \
 		&& $$PY -m ruff format --config pyproject.toml --check . ../../examples/cmommt/python ../../examples/tutorial ../../scripts/book \
-		&& MYPYPATH=../../examples/cmommt/python $$PY -m mypy python/ayllu tests bench ../../examples/cmommt/python
+		&& MYPYPATH=../../examples/cmommt/python $$PY -m mypy python/ayllu tests bench ../../examples/cmommt/python \
+		&& for f in ../../examples/tutorial/*/main.py ../../scripts/book/*.py; do \
+			MYPYPATH=../../lite/python $$PY -m mypy --strict --no-error-summary $$f || exit 1; done
 
 ## Python benchmarks (not part of the tests): a port write, a process activation and a
 ## simulation step from Python, each beside a plain Python function call timed in the same run.

@@ -15,9 +15,9 @@ import sys
 from html import escape
 from pathlib import Path
 
-from pygments import highlight
-from pygments.formatters import HtmlFormatter
-from pygments.lexers import CLexer
+from pygments import highlight  # type: ignore[import-untyped]
+from pygments.formatters import HtmlFormatter  # type: ignore[import-untyped]
+from pygments.lexers import CLexer  # type: ignore[import-untyped]
 
 HEADERS = {
     "ayllu.h": "the paper's macros (ayDefBehaviorClass, ayINTERFACE, ayConnect, ayBLE, ...)",

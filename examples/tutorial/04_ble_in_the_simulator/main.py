@@ -16,6 +16,7 @@ def main() -> None:
     print(f"A_w with BLE {out.metrics['a_w']:.3f}, with Random {base.metrics['a_w']:.3f} (same world, same kill)")
     assert out.metrics["a_w"] > base.metrics["a_w"] + 0.2, "BLE observes far more than wandering"
 
+    assert out.trace is not None  # kept because trace=True
     frame = out.trace.frame()  # one row per tick and robot
     alive = frame.groupby("robot")["alive"].min()
     print("alive at the end:", {int(r): bool(a) for r, a in alive.items()})

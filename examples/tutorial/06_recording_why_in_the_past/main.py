@@ -24,6 +24,11 @@ class Worker(ayllu.Behavior):
         ctx.write(self.out, 1.0)  # doing the task
 
 
+def claiming(robot: ayllu.Node) -> bool:
+    status = robot.ble_status("W")  # None for a behavior in no BLE group
+    return status is not None and bool(status.claiming)
+
+
 def main(out: Path) -> None:
     team = ayllu.Team()
     robots = [team.add(1), team.add(2)]
@@ -32,11 +37,11 @@ def main(out: Path) -> None:
         robot.create(Worker, "W")
         robot.ble_join("W", "Peers", "Out", 1.0)
     team.advance(3.0, tick=0.01)
-    assert [r.ble_status("W").claiming for r in robots] == [True, False], "robot 1 claims the task"
+    assert [claiming(r) for r in robots] == [True, False], "robot 1 claims the task"
     robots[0].stop_recording()
     team.kill(1)  # robot 1 dies
     team.advance(5.0, tick=0.01)
-    assert robots[1].ble_status("W").claiming, "robot 2 took the task over"
+    assert claiming(robots[1]), "robot 2 took the task over"
     robots[1].stop_recording()
     for robot in robots:
         values = ayllu.check_recording(out / f"n{robot.id}.mcap")  # replayed bit for bit

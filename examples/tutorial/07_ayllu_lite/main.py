@@ -12,6 +12,7 @@ Exits non-zero if what the tutorial says does not happen.
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import ayllu
@@ -34,7 +35,7 @@ class Status(ayllu.Behavior):
         ctx.write(self.led, 1)
 
 
-def wait(condition, seconds: float = 10.0) -> bool:  # type: ignore[no-untyped-def]
+def wait(condition: Callable[[], object], seconds: float = 10.0) -> bool:
     deadline = time.monotonic() + seconds  # bounded
     while not condition() and time.monotonic() < deadline:
         time.sleep(0.01)
@@ -45,7 +46,9 @@ def main(udp_client: str | None) -> None:
     robot = ayllu.Node(1, "udp://127.0.0.1:0")
     robot.create(Motor, "MOTOR")
     robot.create(Status, "STATUS")
-    host, port = robot.address().rsplit(":", 1)
+    address = robot.address()  # None only for nodes without a socket (mem://)
+    assert address is not None
+    host, port = address.rsplit(":", 1)
 
     # The board: node id 50, told where the robot is; it greets the robot with HELLO.
     board = ayllu_lite.LiteNode(50, bind=LOOP, peers=[(1, (host, int(port)))], hello_interval_ms=100)
