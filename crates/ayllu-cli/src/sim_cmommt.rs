@@ -144,6 +144,7 @@ pub fn run(args: &CmommtArgs) -> Result<(), Fail> {
         sweep: results.sweep.clone(),
         robustness: results.robustness.clone(),
         runs: results.runs.clone(),
+        cells: Vec::new(),
     };
     let index = args.out.join("index.html");
     report::write(&args.out, &report)

@@ -1,14 +1,16 @@
 //! `ayllu sim run SCENARIO.toml` and `ayllu sim sweep SWEEP.toml`: studies written as files
-//! (`ayllu_sim::scenario_file`). This module reads the file, runs it with the library, and
-//! prints; `sweep` also writes every run as `runs.csv` / `runs.jsonl` into `--out`.
+//! (`ayllu_sim::scenario_file`). This module reads the file, runs it with the library
+//! (`ayllu_sim::sweep`, `ayllu_sim::trace`), and prints; `sweep` also writes the report folder
+//! of `sim cmommt` (a table per cell, every run as `runs.csv` / `runs.jsonl`) into `--out`, and
+//! both write per-tick traces on request.
 
 use std::io::Write as _;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
-use ayllu_sim::report::runs_csv;
-use ayllu_sim::scenario::run;
+use ayllu_sim::report;
+use ayllu_sim::scenario::{run, Outcome, Scenario};
 use ayllu_sim::scenario_file;
-use ayllu_sim::study::{mean_sd, run_all, RunRow};
+use ayllu_sim::trace::{run_traced, TraceFormat};
 use clap::Args;
 use serde_json::json;
 
@@ -27,6 +29,10 @@ pub struct RunArgs {
     #[cfg(feature = "foxglove")]
     #[arg(long, value_name = "FILE")]
     pub mcap: Option<PathBuf>,
+    /// Also write the run's per-tick trace to this file: CSV, or JSON lines if it ends in
+    /// `.jsonl` (columns: docs/cmommt.md, "Per-tick traces").
+    #[arg(long, value_name = "FILE")]
+    pub trace: Option<PathBuf>,
 }
 
 /// `ayllu sim sweep`.
@@ -34,9 +40,14 @@ pub struct RunArgs {
 pub struct SweepArgs {
     /// The sweep file (TOML: a scenario plus `seeds`, `controllers` and a `[grid]`).
     pub file: PathBuf,
-    /// Where `runs.csv` and `runs.jsonl` go (created if missing).
+    /// The report folder (created if missing): `index.html` (a table per cell, replays of seed
+    /// 1), `runs.csv`, `runs.jsonl`, `tables.txt`, `results.json`, the plots.
     #[arg(long, value_name = "DIR", default_value = "ayllu-sweep")]
     pub out: PathBuf,
+    /// Also write every run's per-tick trace into this folder, as
+    /// `cell{C}-{controller}-seed{S}.csv` (created if missing).
+    #[arg(long, value_name = "DIR")]
+    pub traces: Option<PathBuf>,
     /// Worker threads (default: the number of CPUs).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=256))]
     pub jobs: Option<u32>,
@@ -50,13 +61,41 @@ fn read(path: &PathBuf) -> Result<String, Fail> {
 pub fn run_file(args: &RunArgs) -> Result<(), Fail> {
     let scenario = scenario_file::scenario(&read(&args.file)?)
         .map_err(|e| Fail::error(format!("{}: {e}", args.file.display())))?;
+    let outcome = match &args.trace {
+        Some(path) => traced(args, &scenario, path)?,
+        None => plain(args, &scenario)?,
+    };
+    print_run(args, &scenario, &outcome)
+}
+
+/// The run with its per-tick trace written to `path`.
+fn traced(args: &RunArgs, scenario: &Scenario, path: &Path) -> Result<Outcome, Fail> {
+    #[cfg(feature = "foxglove")]
+    if args.mcap.is_some() {
+        return Err(Fail::usage("--trace and --mcap: give one of them"));
+    }
+    #[cfg(not(feature = "foxglove"))]
+    let _ = args;
+    let file = std::fs::File::create(path).map_err(|e| Fail::error(format!("creating {}: {e}", path.display())))?;
+    let mut out = std::io::BufWriter::new(file);
+    run_traced(scenario, TraceFormat::for_path(path), &mut out).map_err(|e| Fail::error(e.to_string()))
+}
+
+/// The run, as an MCAP file if asked.
+fn plain(args: &RunArgs, scenario: &Scenario) -> Result<Outcome, Fail> {
     #[cfg(feature = "foxglove")]
     let outcome = match &args.mcap {
-        Some(path) => crate::foxglove::run_to_mcap(&scenario, path)?,
-        None => run(&scenario).map_err(|e| Fail::error(format!("the run failed: {e}")))?,
+        Some(path) => crate::foxglove::run_to_mcap(scenario, path)?,
+        None => run(scenario).map_err(|e| Fail::error(format!("the run failed: {e}")))?,
     };
     #[cfg(not(feature = "foxglove"))]
-    let outcome = run(&scenario).map_err(|e| Fail::error(format!("the run failed: {e}")))?;
+    let outcome = run(scenario).map_err(|e| Fail::error(format!("the run failed: {e}")))?;
+    #[cfg(not(feature = "foxglove"))]
+    let _ = args;
+    Ok(outcome)
+}
+
+fn print_run(args: &RunArgs, scenario: &Scenario, outcome: &Outcome) -> Result<(), Fail> {
     let m = &outcome.metrics;
     let mut out = std::io::stdout().lock();
     if args.json {
@@ -83,57 +122,37 @@ pub fn run_file(args: &RunArgs) -> Result<(), Fail> {
     Ok(())
 }
 
-/// `ayllu sim sweep FILE`: every cell x controller x seed; a table of means on stdout, every
-/// run in `--out`.
+/// `ayllu sim sweep FILE`: every cell x controller x seed; a table of means per cell on stdout,
+/// the report folder in `--out`, traces in `--traces` if asked.
 pub fn sweep_file(args: &SweepArgs) -> Result<(), Fail> {
     let sweep =
         scenario_file::sweep(&read(&args.file)?).map_err(|e| Fail::error(format!("{}: {e}", args.file.display())))?;
     let jobs = args.jobs.map_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()), |j| j as usize);
-    let runs = sweep.runs();
-    let scenarios: Vec<_> = runs.iter().map(|(_, _, _, s)| s.clone()).collect();
-    let metrics =
-        run_all(&scenarios, jobs, &|| {}, &|o| o.metrics).map_err(|e| Fail::error(format!("a run failed: {e}")))?;
-    let rows: Vec<RunRow> = runs
-        .iter()
-        .zip(metrics)
-        .map(|((cell, c, seed, s), m)| RunRow {
-            table: format!("cell{}", cell + 1),
-            controller: c.name().to_owned(),
-            robots: s.robots as u32,
-            targets: s.world.targets.len() as u32,
-            loss: s.radio.loss,
-            kill: !s.kills.is_empty(),
-            seed: *seed,
-            duration: s.duration,
-            metrics: m,
-        })
-        .collect();
-    std::fs::create_dir_all(&args.out).map_err(|e| Fail::error(format!("creating {}: {e}", args.out.display())))?;
-    let write = |name: &str, text: &str| {
-        std::fs::write(args.out.join(name), text)
-            .map_err(|e| Fail::error(format!("writing {}: {e}", args.out.join(name).display())))
-    };
-    write("runs.csv", &runs_csv(&rows))?;
-    let jsonl: String = rows.iter().map(|r| serde_json::to_string(r).unwrap_or_default() + "\n").collect();
-    write("runs.jsonl", &jsonl)?;
+    if let Some(dir) = &args.traces {
+        std::fs::create_dir_all(dir).map_err(|e| Fail::error(format!("creating {}: {e}", dir.display())))?;
+    }
+    let title = format!("Sweep: {}", args.file.display());
+    let command: Vec<String> = std::env::args().collect();
+    let results = ayllu_sim::sweep::run(&sweep, jobs, &|| {}, args.traces.as_deref(), &title, &command.join(" "))
+        .map_err(|e| Fail::error(e.to_string()))?;
+    report::write(&args.out, &results.report)
+        .map_err(|e| Fail::error(format!("writing the report into {}: {e}", args.out.display())))?;
 
     let mut out = std::io::stdout().lock();
-    for (i, cell) in sweep.cells.iter().enumerate() {
-        let values: Vec<String> = cell.values.iter().map(|(k, v)| format!("{k} = {v}")).collect();
-        writeln!(
-            out,
-            "cell{}: {}",
-            i + 1,
-            if values.is_empty() { "(the scenario as written)".into() } else { values.join(", ") }
-        )?;
-        for c in &sweep.controllers {
-            let mine: Vec<&RunRow> =
-                rows.iter().filter(|r| r.table == format!("cell{}", i + 1) && r.controller == c.name()).collect();
-            let (a_w, sd) = mean_sd(mine.iter().map(|r| r.metrics.a_w));
-            let (msgs, _) = mean_sd(mine.iter().map(|r| r.metrics.msgs_per_robot_s));
-            writeln!(out, "  {:<12} A_w {a_w:.3} ± {sd:.3}   msgs/robot/s {msgs:.1}", c.name())?;
+    for cell in &results.cells {
+        writeln!(out, "{}", cell.title)?;
+        for r in &cell.rows {
+            writeln!(
+                out,
+                "  {:<12} A_w {:.3} ± {:.3}   msgs/robot/s {:.1}",
+                r.controller, r.metrics.a_w, r.a_w_sd, r.metrics.msgs_per_robot_s
+            )?;
         }
     }
-    writeln!(out, "{} runs; every run in {}", rows.len(), args.out.join("runs.csv").display())?;
+    writeln!(out, "{} runs; every run in {}", results.runs.len(), args.out.join("runs.csv").display())?;
+    writeln!(out, "Report: {}", args.out.join("index.html").display())?;
+    if let Some(dir) = &args.traces {
+        writeln!(out, "Traces: {}", dir.display())?;
+    }
     Ok(())
 }

@@ -58,6 +58,82 @@ fn a_sweep_writes_every_run_and_its_means_are_recomputable() {
     let jsonl = std::fs::read_to_string(out.join("runs.jsonl")).unwrap();
     let first: Json = serde_json::from_str(jsonl.lines().next().unwrap()).unwrap();
     assert_eq!(first["table"], "cell1");
+    // The report page of `sim cmommt`, a table per cell, seed 1 of each cell and controller
+    // replayable.
+    let html = std::fs::read_to_string(out.join("index.html")).expect("the sweep's report page");
+    assert!(run.stdout.contains(&format!("Report: {}", out.join("index.html").display())), "{}", run.stdout);
+    for title in ["cell1: radio.loss = 0.0", "cell2: radio.loss = 0.2"] {
+        assert!(html.contains(&format!("<h2>{title}</h2>")), "no table for {title}");
+    }
+    assert_eq!(html.matches("<script type=\"application/json\" id=\"run-").count(), 2 * 2);
+    let tables = std::fs::read_to_string(out.join("tables.txt")).unwrap();
+    assert!(tables.contains("cell2: radio.loss = 0.2"), "{tables}");
+}
+
+#[test]
+fn traces_on_request_for_a_run_and_for_every_run_of_a_sweep() {
+    let dir = scratch("trace");
+    let file = dir.join("s.toml");
+    std::fs::write(&file, "controller = \"ForceField\"\nduration = 10.0\n[[kills]]\nat = 5.0\nrobot = 3\n").unwrap();
+    let (csv, jsonl) = (dir.join("t.csv"), dir.join("t.jsonl"));
+    let f = file.to_str().unwrap();
+    let printed = ayllu(&["sim", "run", f, "--json", "--trace", csv.to_str().unwrap()], LIMIT).ok().json();
+    ayllu(&["sim", "run", f, "--trace", jsonl.to_str().unwrap()], LIMIT).ok();
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    assert_eq!(&header[..4], ["t", "observed", "weighted", "messages"]);
+    assert!(header.contains(&"r3_alive") && header.contains(&"t4_observers"), "{header:?}");
+    let rows: Vec<Vec<f64>> = lines.map(|l| l.split(',').map(|c| c.parse().unwrap()).collect()).collect();
+    assert_eq!(rows.len(), 200, "10 s of 50 ms ticks");
+    // The trace recomputes the printed A_w; robot 3 dies at 5 s.
+    let a_w = rows.iter().map(|r| r[2] * 0.05).sum::<f64>() / 10.0;
+    assert!((a_w - printed["metrics"]["a_w"].as_f64().unwrap()).abs() < 1e-9, "{a_w} vs {printed}");
+    let alive = header.iter().position(|h| *h == "r3_alive").unwrap();
+    assert_eq!((rows[90][alive], rows[110][alive]), (1.0, 0.0));
+    let json_lines = std::fs::read_to_string(&jsonl).unwrap();
+    assert_eq!(json_lines.lines().count(), 200);
+    let last: Json = serde_json::from_str(json_lines.lines().last().unwrap()).unwrap();
+    assert_eq!(last["robots"][2]["alive"], 0);
+
+    let sweep = dir.join("sweep.toml");
+    std::fs::write(&sweep, "seeds = 2\ncontrollers = [\"Local\"]\nduration = 5.0\n[grid]\nrobots = [2, 3]\n").unwrap();
+    let traces = dir.join("traces");
+    let out = dir.join("out");
+    let s = sweep.to_str().unwrap();
+    ayllu(&["sim", "sweep", s, "--out", out.to_str().unwrap(), "--traces", traces.to_str().unwrap()], LIMIT).ok();
+    let mut names: Vec<String> =
+        std::fs::read_dir(&traces).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    names.sort();
+    assert_eq!(
+        names,
+        ["cell1-Local-seed1.csv", "cell1-Local-seed2.csv", "cell2-Local-seed1.csv", "cell2-Local-seed2.csv"]
+    );
+    let three = std::fs::read_to_string(traces.join("cell2-Local-seed1.csv")).unwrap();
+    assert!(three.lines().next().unwrap().contains("r3_drive"));
+}
+
+#[test]
+fn every_example_study_file_reads() {
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../../examples/sim");
+    let mut seen = 0;
+    for entry in std::fs::read_dir(dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().and_then(|e| e.to_str()) != Some("toml") {
+            continue;
+        }
+        let text = std::fs::read_to_string(&path).unwrap();
+        // A sweep has seeds, a list of controllers or a grid; the rest are scenarios.
+        let is_sweep = ["seeds", "compare", "controllers = [", "[grid]"].iter().any(|k| text.contains(k));
+        let read = if is_sweep {
+            ayllu_sim::scenario_file::sweep(&text).map(|_| ())
+        } else {
+            ayllu_sim::scenario_file::scenario(&text).map(|_| ())
+        };
+        read.unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        seen += 1;
+    }
+    assert!(seen >= 7, "{seen} example files");
 }
 
 #[test]

@@ -22,4 +22,6 @@ pub mod scenario_file;
 pub mod served_radio;
 pub mod served_robot;
 pub mod study;
+pub mod sweep;
+pub mod trace;
 pub mod world;

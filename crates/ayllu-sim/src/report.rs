@@ -21,6 +21,9 @@
 //! * `runs.csv` and `runs.jsonl`: every run of the study, one row each ([`runs_csv`],
 //!   [`RunRow`]), so that every printed mean can be recomputed and analysed elsewhere.
 //!
+//! A sweep's report (`ayllu sim sweep`, [`crate::sweep`]) is the same page with a table per cell
+//! ([`Report::cells`]) and a summary of each cell's ranking in place of the paper's comparisons.
+//!
 //! Everything is a pure function of the `Report`: the same report writes the same bytes.
 
 mod page;
@@ -65,6 +68,20 @@ pub struct Report {
     /// Every run's metrics (written as `runs.csv` and `runs.jsonl`).
     #[serde(default)]
     pub runs: Vec<RunRow>,
+    /// A sweep's cells, one table each (`ayllu sim sweep`); when present, the page, the
+    /// Markdown and `tables.txt` show these tables instead of the three of the paper's study.
+    #[serde(default)]
+    pub cells: Vec<CellTable>,
+}
+
+/// One cell of a sweep as a table: its grid values as a title, one row per controller.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CellTable {
+    /// "cell2: radio.loss = 0.3, robots = 5" (or the scenario as written, for a sweep without a
+    /// grid).
+    pub title: String,
+    /// One row per controller, in the sweep's order.
+    pub rows: Vec<Row>,
 }
 
 /// Write the report into `dir` (created if missing); returns the files written.

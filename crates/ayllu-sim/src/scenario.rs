@@ -229,6 +229,8 @@ pub struct Sim {
     oracle_messages: u64,
     /// Planner: the base station's node and where it stands (the radio's station `robots`).
     planner: Option<(NodeCore, Station)>,
+    /// The last tick's (targets observed, priority-weighted fraction observed), for traces.
+    last_coverage: (u32, f64),
 }
 
 /// Builds one robot's controller on its node for [`Sim::with_controller`]: the node (body
@@ -302,6 +304,7 @@ impl Sim {
             assignment: vec![None; n],
             oracle_messages: 0,
             planner,
+            last_coverage: (0, 0.0),
         };
         for r in &mut sim.robots {
             r.core.poll(Instant::ZERO);
@@ -332,6 +335,22 @@ impl Sim {
     /// The target driving robot `i` now (0: none).
     pub fn drive(&self, i: usize) -> u32 {
         self.drives[i]
+    }
+
+    /// The last tick's coverage: (targets observed, priority-weighted fraction observed, 0..1).
+    pub fn coverage_now(&self) -> (u32, f64) {
+        self.last_coverage
+    }
+
+    /// Radio emissions so far, by all robots and the Planner's base station (and the omniscient
+    /// planner's words), as `msgs_per_robot_s` counts them.
+    pub fn messages_sent(&self) -> u64 {
+        self.radio.sent.iter().sum::<u64>() + self.oracle_messages
+    }
+
+    /// The scenario being run (targets in decreasing priority).
+    pub fn scenario(&self) -> &Scenario {
+        &self.scenario
     }
 
     /// True once the scenario's duration has been simulated.
@@ -411,6 +430,7 @@ impl Sim {
         self.radio.release_due();
         self.world.step(self.scenario.dt, &self.commands);
         let (observed, weighted) = self.meter.observe(t, self.scenario.dt, &self.world, &self.drives);
+        self.last_coverage = (observed, weighted);
         if self.tick.is_multiple_of(self.frame_every) {
             self.frame(observed, weighted);
         }

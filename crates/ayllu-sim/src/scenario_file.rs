@@ -22,7 +22,7 @@
 //! ```
 //!
 //! A sweep file is a scenario file plus `seeds` (runs per cell, seeds 1..=N), `controllers`
-//! (names) and a `[grid]` table mapping field paths (`radio.loss`, `robots`, `world.arena`)
+//! (names; `compare` when the file also has a `[controllers]` table of tunables) and a `[grid]` table mapping field paths (`radio.loss`, `robots`, `world.arena`)
 //! to lists of values; the cells are the grid's cartesian product, in the order written.
 //!
 //! Promises: every key must be a field of the scenario (a misspelt key is an error naming it,
@@ -127,8 +127,12 @@ pub fn sweep(text: &str) -> Result<Sweep, String> {
 }
 
 /// In a sweep file `controllers` is the list of controllers to run, unless it is a table (the
-/// scenario's controller tunables).
+/// scenario's controller tunables); a file that sets both names the list `compare` (TOML has
+/// one value per key).
 fn take_controller_list(table: &mut Map<String, Json>) -> Option<Json> {
+    if let Some(list) = table.remove("compare") {
+        return Some(list);
+    }
     if table.get("controllers").is_some_and(Json::is_array) {
         table.remove("controllers")
     } else {
@@ -290,5 +294,9 @@ mod tests {
             vec![("robots".to_owned(), "4".to_owned()), ("radio.loss".to_owned(), "0.3".to_owned())]
         );
         assert!(sweep("[grid]\n\"radio.los\" = [0.1]").unwrap_err().contains("radio.los"));
+        // The list and the tunables together: the list is `compare`.
+        let both = sweep("compare = [\"Planner\"]\n[controllers]\nplan_hz = 4.0\n").unwrap();
+        assert_eq!(both.controllers, [Controller::Planner]);
+        assert_eq!(both.cells[0].scenario.controllers.plan_hz, 4.0);
     }
 }

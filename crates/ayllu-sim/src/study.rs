@@ -321,13 +321,25 @@ fn run_indexed<R: Send>(
     done: &(dyn Fn() + Sync),
     keep: &(dyn Fn(usize, Outcome) -> R + Sync),
 ) -> Result<Vec<R>, Error> {
+    run_each(scenarios, jobs, done, &|i, s| scenario::run(s).map(|outcome| keep(i, outcome)))
+}
+
+/// Call `each(index, scenario)` for every scenario on up to `jobs` worker threads (each a run
+/// of the caller's making: traced, recorded, ...); results in the order of `scenarios`, with
+/// [`run_all`]'s scheduling and error rules.
+pub fn run_each<R: Send, E: Send>(
+    scenarios: &[Scenario],
+    jobs: usize,
+    done: &(dyn Fn() + Sync),
+    each: &(dyn Fn(usize, &Scenario) -> Result<R, E> + Sync),
+) -> Result<Vec<R>, E> {
     // Bigger teams in bigger rooms take longer: start them first so that no long run is left
     // alone at the end while the other workers idle. Only the order of work changes.
     let mut order: Vec<usize> = (0..scenarios.len()).collect();
     order.sort_by(|&a, &b| cost(&scenarios[b]).total_cmp(&cost(&scenarios[a])));
     let next = AtomicUsize::new(0);
     let failed = AtomicBool::new(false);
-    let slots: Vec<Mutex<Option<Result<R, Error>>>> = scenarios.iter().map(|_| Mutex::new(None)).collect();
+    let slots: Vec<Mutex<Option<Result<R, E>>>> = scenarios.iter().map(|_| Mutex::new(None)).collect();
     let workers = jobs.clamp(1, scenarios.len().max(1));
     std::thread::scope(|scope| {
         for _ in 0..workers {
@@ -336,7 +348,7 @@ fn run_indexed<R: Send>(
                     break;
                 }
                 let Some(&i) = order.get(next.fetch_add(1, Ordering::Relaxed)) else { break };
-                let result = scenario::run(&scenarios[i]).map(|outcome| keep(i, outcome));
+                let result = each(i, &scenarios[i]);
                 if result.is_err() {
                     failed.store(true, Ordering::Relaxed);
                 }

@@ -275,7 +275,7 @@ pub(super) fn render(report: &Report, plots: &[Plot]) -> String {
         let _ = writeln!(out, "<h2>{}</h2>", escape(name));
         let table = tables::html(rows, escape);
         // The sweep is long; the plots summarise it, the table is there to look a number up.
-        if i == 2 && rows.len() > 12 {
+        if i == 2 && rows.len() > 12 && report.cells.is_empty() {
             let _ = write!(out, "<details><summary>show all {} rows</summary>\n{table}</details>\n", rows.len());
         } else {
             out.push_str(&table);

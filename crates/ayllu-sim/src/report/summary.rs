@@ -93,6 +93,9 @@ pub fn paper_claim(paper: &[Row]) -> Option<bool> {
 
 pub(super) fn text(report: &Report) -> String {
     let mut out = String::new();
+    if !report.cells.is_empty() {
+        return cells_text(report);
+    }
     let Some(ble) = report.paper.iter().find(|r| r.controller == Controller::Ble.name()) else {
         out.push_str("No BLE runs in the paper's setting: nothing to compare.\n");
         return out;
@@ -149,7 +152,30 @@ pub(super) fn text(report: &Report) -> String {
 }
 
 /// One sentence: whether the paper's claim held (and if not, against whom).
+/// A sweep's summary: in each cell, the controllers by decreasing A_w (± sd), with their
+/// messages per robot per second.
+fn cells_text(report: &Report) -> String {
+    let mut out = String::new();
+    for cell in &report.cells {
+        let _ = writeln!(out, "{}", cell.title);
+        let mut rows: Vec<&Row> = cell.rows.iter().collect();
+        rows.sort_by(|a, b| b.metrics.a_w.total_cmp(&a.metrics.a_w));
+        let width = rows.iter().map(|r| r.controller.chars().count()).max().unwrap_or(0);
+        for r in rows {
+            let _ = writeln!(
+                out,
+                "  {:<width$}  A_w {:.3} ± {:.3}   msgs/robot/s {:.1}",
+                r.controller, r.metrics.a_w, r.a_w_sd, r.metrics.msgs_per_robot_s
+            );
+        }
+    }
+    out
+}
+
 pub(super) fn claim(report: &Report) -> String {
+    if !report.cells.is_empty() {
+        return format!("A sweep of {} cells.", report.cells.len());
+    }
     match paper_claim(&report.paper) {
         Some(true) => "The paper's claim held: BLE beats Random (wandering) and Local (no communication) beyond noise."
             .to_string(),

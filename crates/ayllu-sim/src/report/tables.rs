@@ -95,8 +95,17 @@ pub(super) fn text(rows: &[Row]) -> String {
 }
 
 /// The three tables as fixed-width text under headings that give their settings (what
-/// `ayllu sim cmommt --full` prints after the summary).
+/// `ayllu sim cmommt --full` prints after the summary); a sweep's cells, each under its title.
 pub(super) fn text_all(report: &Report) -> String {
+    if !report.cells.is_empty() {
+        let mut out = String::new();
+        for cell in &report.cells {
+            let seeds = cell.rows.iter().map(|r| r.seeds).max().unwrap_or(0);
+            let _ = writeln!(out, "{} ({seeds} seeds)", cell.title);
+            let _ = writeln!(out, "{}", text(&cell.rows));
+        }
+        return out;
+    }
     let seeds = report.paper.iter().chain(&report.robustness).chain(&report.sweep).map(|r| r.seeds).max().unwrap_or(0);
     let runs = format!("{seeds} seeds x {} s", report.duration);
     let mut out = String::new();
@@ -146,9 +155,13 @@ pub(super) fn markdown(report: &Report) -> String {
     out
 }
 
-/// The report's tables with their titles, in the order the page and the Markdown show them.
-pub(super) fn sections(report: &Report) -> [(&'static str, &[Row]); 3] {
-    [
+/// The report's tables with their titles, in the order the page and the Markdown show them: a
+/// sweep's cells, or the paper study's three tables.
+pub(super) fn sections(report: &Report) -> Vec<(&str, &[Row])> {
+    if !report.cells.is_empty() {
+        return report.cells.iter().map(|c| (c.title.as_str(), &c.rows[..])).collect();
+    }
+    vec![
         ("Paper setting", &report.paper[..]),
         ("Robustness: a robot killed halfway", &report.robustness[..]),
         ("Sweep: robots × targets × loss", &report.sweep[..]),

@@ -284,5 +284,6 @@ pub fn report() -> Report {
         sweep,
         robustness,
         runs,
+        cells: Vec::new(),
     }
 }
