@@ -72,6 +72,13 @@ def test_5_a_study_with_a_sweep_and_a_plot(tmp_path: Path) -> None:
     assert out.count(" loss ") == 8 and plot.stat().st_size > 10_000
 
 
+def quoted(page: str) -> str:
+    """The first unindented ```text block of a tutorial page: the output the page quotes."""
+    text = (ROOT / "docs" / "tutorials" / page).read_text()
+    start = text.index("\n```text\n") + len("\n```text\n")
+    return text[start : text.index("```", start)]
+
+
 def ayllu_bin() -> Path:
     found = os.environ.get("AYLLU_BIN")
     path = Path(found) if found else ROOT / "target" / "debug" / "ayllu"
@@ -98,6 +105,7 @@ def test_6_recording_a_team_and_asking_why_in_the_past(tmp_path: Path) -> None:
     assert "write-inhibit held by n1/" in at_2s, "robot 1's claim is named"
     assert at_7s.startswith("7.000s") and "own writes open" in at_7s
     assert "accepted values reproduced bit for bit" in out
+    assert out.endswith(quoted("06-recording-why-in-the-past.md")), "the page quotes what the replay prints"
 
 
 def test_7_joining_from_a_microcontroller(tmp_path: Path) -> None:
@@ -107,6 +115,7 @@ def test_7_joining_from_a_microcontroller(tmp_path: Path) -> None:
     out = run([sys.executable, str(TUTORIALS / "07_ayllu_lite" / "main.py"), str(client)], tmp_path)
     assert "robot's MOTOR.Speed = 0.4, supplied by node 50" in out
     assert "after udp_client: MOTOR.Speed = 0.25" in out
+    assert out == quoted("07-ayllu-lite.md"), "the page quotes what the program prints"
 
 
 def fenced_blocks(text: str) -> list[tuple[str, str]]:

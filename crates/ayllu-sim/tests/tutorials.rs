@@ -9,9 +9,18 @@ mod ble_in_the_simulator;
 #[allow(dead_code)]
 mod study_sweep_plot;
 
+/// The first unindented ```text block of a tutorial page: the output the page quotes.
+fn quoted(page: &str) -> String {
+    let path = format!("{}/../../docs/tutorials/{page}", env!("CARGO_MANIFEST_DIR"));
+    let text = std::fs::read_to_string(&path).unwrap();
+    let start = text.find("\n```text\n").expect("the page quotes output") + "\n```text\n".len();
+    text[start..start + text[start..].find("```").unwrap()].to_owned()
+}
+
 #[test]
 fn tutorial_4_a_ble_group_of_three_robots() {
     let out = ble_in_the_simulator::run_tutorial().unwrap();
+    assert_eq!(quoted("04-ble-in-the-simulator.md"), out, "the page quotes what the program prints");
     assert!(out.contains("A_w with BLE"), "{out}");
     assert_eq!(out.lines().filter(|l| l.contains(" |  ")).count(), 6, "a line every 10 s for 60 s: {out}");
 }
@@ -25,5 +34,7 @@ fn tutorial_5_a_study_with_a_sweep_and_a_plot() {
     let svg = std::fs::read_to_string(&plot).unwrap();
     assert!(svg.starts_with("<svg") && svg.contains("radio loss") && svg.contains("BLE"), "{svg}");
     assert_eq!(out.lines().filter(|l| l.contains(" loss ")).count(), 8, "{out}");
+    let table: String = out.lines().filter(|l| l.contains(" loss ")).map(|l| format!("{l}\n")).collect();
+    assert_eq!(quoted("05-study-sweep-plot.md"), table, "the page quotes what the program prints");
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -13,9 +13,18 @@ mod subsumption;
 #[allow(dead_code)]
 mod two_nodes_udp;
 
+/// The first unindented ```text block of a tutorial page: the output the page quotes.
+fn quoted(page: &str) -> String {
+    let path = format!("{}/../../docs/tutorials/{page}", env!("CARGO_MANIFEST_DIR"));
+    let text = std::fs::read_to_string(&path).unwrap();
+    let start = text.find("\n```text\n").expect("the page quotes output") + "\n```text\n".len();
+    text[start..start + text[start..].find("```").unwrap()].to_owned()
+}
+
 #[test]
 fn tutorial_1_a_first_behavior() {
     let out = first_behavior::run().unwrap();
+    assert_eq!(quoted("01-first-behavior.md"), out, "the page quotes what the program prints");
     assert!(out.contains("0.0 s: Range 0.3 m -> Turn Some(1.0), Backing true"), "{out}");
     assert!(out.contains("2.0 s: Turn Some(0.0), Backing false"), "{out}");
 }
@@ -23,6 +32,7 @@ fn tutorial_1_a_first_behavior() {
 #[test]
 fn tutorial_2_two_behaviors_in_subsumption() {
     let out = subsumption::run().unwrap();
+    assert_eq!(quoted("02-subsumption.md"), out, "the page quotes what the program prints");
     assert!(out.contains("1.5 s  MOTOR.Turn = 1"), "{out}");
     assert!(out.contains("3.0 s  MOTOR.Turn = 0.2"), "{out}");
 }
