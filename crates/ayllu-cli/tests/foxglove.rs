@@ -89,7 +89,9 @@ fn a_websocket_client_receives_the_live_teams_values_windows_and_claims() {
     let peers: Vec<String> = addrs.iter().map(|a| format!("peer={a}")).collect();
     let url = format!("udp://127.0.0.1:0?{}", peers.join("&"));
     let mut cmd = Command::new(BIN);
-    cmd.args(["foxglove", "--udp", &url, "--port", "0", "--for", "150", "--status-ms", "500"]);
+    // The tool's own node is replaced every 300 requests here (2000 by default), so that the
+    // values written below also have to arrive through a renewed node.
+    cmd.args(["foxglove", "--udp", &url, "--port", "0", "--for", "150", "--status-ms", "500", "--renew-after", "300"]);
     let mut fox = Proc::spawn("ayllu foxglove", cmd);
     let ws = fox.wait_ready();
     assert!(ws.starts_with("ws://127.0.0.1:") && !ws.ends_with(":0"), "{ws}");
@@ -150,6 +152,12 @@ fn a_websocket_client_receives_the_live_teams_values_windows_and_claims() {
     let status = fox.latest().expect("status lines").1;
     assert_eq!(status["nodes"], json!([1, 2, 3]), "{status}");
     assert_eq!(status["clients"], json!(1), "{status}");
+
+    // After a renewal of the tool's node, values still arrive (the nodes are greeted again).
+    wait_for(ARRIVAL, Duration::from_millis(100), || fox.latest().filter(|(_, s)| s["renewals"].as_u64() >= Some(1)))
+        .unwrap_or_else(|| panic!("no renewal after 300 requests: {:?}", fox.latest()));
+    ayllu(&["write", "1", "FRELAY.In", "4.25", "--udp", &node1], LIMIT).ok();
+    wait_message(&client, &fox, "/n1/FRELAY/Aux", "value 4.25 after a renewal", |m| m["value"] == json!(4.25));
 }
 
 fn scratch(name: &str) -> PathBuf {
@@ -200,7 +208,11 @@ fn a_simulator_run_written_to_mcap_reads_back_with_the_reference_reader() {
         assert_eq!(local["first"]["port"], "Local");
     }
     assert_eq!(summary["in_order"], true, "messages are written in log-time order");
-    // The same run again is refused rather than overwritten.
+    // The same run again is refused rather than overwritten; into another file it is the same
+    // bytes (log times are virtual time, the simulator is deterministic).
     ayllu(&["sim", "run", scenario.to_str().unwrap(), "--mcap", file.to_str().unwrap()], LIMIT).fails(1, "run.mcap");
+    let again = dir.join("again.mcap");
+    ayllu(&["sim", "run", scenario.to_str().unwrap(), "--mcap", again.to_str().unwrap()], LIMIT).ok();
+    assert!(std::fs::read(&file).unwrap() == std::fs::read(&again).unwrap(), "two runs of one seed differ");
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -47,18 +47,24 @@ impl LiveServer {
     /// `mcap`, also write every channel to that new file.
     pub fn start(watch: WatchConfig, host: &str, port: u16, mcap: Option<&Path>) -> Result<LiveServer, LiveError> {
         watch.check().map_err(LiveError::Watch)?;
-        let ctx = Context::new();
-        let mcap = match mcap {
-            Some(path) => Some(ctx.mcap_writer().create_new_buffered_file(path).map_err(LiveError::Foxglove)?),
-            None => None,
-        };
+        // The watcher and the server first: a bad URL or a taken port must not leave an empty
+        // MCAP file behind. Channels are made later, as ports are heard, so the file misses none.
         let watch = TeamWatch::open(watch).map_err(|e| LiveError::Watch(e.to_string()))?;
+        let ctx = Context::new();
         let server = WebSocketServer::new()
             .name("ayllu")
             .context(&ctx)
             .bind(host, port)
             .start_blocking()
             .map_err(LiveError::Foxglove)?;
+        let mcap = match mcap.map(|path| ctx.mcap_writer().create_new_buffered_file(path)) {
+            Some(Ok(handle)) => Some(handle),
+            Some(Err(e)) => {
+                server.stop().wait_blocking();
+                return Err(LiveError::Foxglove(e));
+            }
+            None => None,
+        };
         Ok(LiveServer { server, mcap, bridge: TeamBridge::new(&ctx), watch })
     }
 

@@ -19,7 +19,9 @@ use std::collections::{BTreeMap, HashMap};
 use std::sync::Arc;
 
 use ayllu::team_channels::{self, PortChannel};
-use ayllu_core::{NodeId, NodeReport, PortReport, Value, WindowKind};
+use ayllu_core::{
+    BehaviorReport, NodeId, NodeReport, PortReport, RegisterReport, Value, WindowKind, BEST, BLE_SELECT, INHIBIT, LOCAL,
+};
 use foxglove::{ChannelBuilder, Context, PartialMetadata, RawChannel, Schema};
 use serde_json::{json, Value as Json};
 
@@ -120,10 +122,11 @@ impl TeamBridge {
         self.publish(topic, || (channel.schema_name(), channel.schema(), channel.metadata()), &message, log_time);
     }
 
-    /// Every port of a node (its LIST answer): one message per port.
+    /// Every port of a node (its LIST answer): one message per port, except the implicit BLE
+    /// ports of behaviors in no BLE group (see [`published_ports`]).
     pub fn node_report(&mut self, report: &NodeReport, log_time: u64) {
         for b in &report.behaviors {
-            for p in &b.ports {
+            for p in published_ports(b) {
                 self.port_value(report.node, &b.name, &p.name, &p.value, log_time);
             }
         }
@@ -152,6 +155,19 @@ impl TeamBridge {
             log_time,
         );
     }
+}
+
+/// Whether a behavior is a BLE member: it runs the select process `ble_join` adds.
+pub fn is_ble_member(b: &BehaviorReport) -> bool {
+    b.processes.iter().any(|p| p.name == BLE_SELECT)
+}
+
+/// The ports of a behavior that get channels: all of them, except, in a behavior that joined
+/// no BLE group, the implicit BLE ports (`Local`, `Inhibit`, `Best`, rule S11), which every
+/// behavior has but only members use — they would triple the topics of a team for nothing.
+pub fn published_ports(b: &BehaviorReport) -> impl Iterator<Item = &RegisterReport> {
+    let member = is_ble_member(b);
+    b.ports.iter().filter(move |p| member || ![LOCAL, INHIBIT, BEST].contains(&p.name.as_str()))
 }
 
 /// A port's windows as a message: every open window (kind, holder, seconds left), how many,
@@ -284,6 +300,25 @@ mod tests {
         assert_eq!(m["remaining"]["write_inhibit"], json!(0.0));
         let schema: Json = serde_json::from_str(&windows_schema()).unwrap();
         assert_eq!(schema["title"], json!(WINDOWS_SCHEMA));
+    }
+
+    #[test]
+    fn implicit_ble_ports_are_published_for_ble_members_only() {
+        let mut node = ayllu_core::NodeCore::new(NodeId(1));
+        for name in ["Plain", "Member"] {
+            let mut c = ayllu_core::BehaviorClass::new(name);
+            c.port(ayllu_core::PortSpec::new("Rotate", 0.0)).unwrap();
+            node.define(c).unwrap();
+            node.create(name, name).unwrap();
+        }
+        node.ble_join("Member", &ayllu_core::BleConfig::new("Peers", "Rotate", 1.0).unwrap()).unwrap();
+        let report = node.report();
+        let names = |b: &str| -> Vec<String> {
+            let b = report.behaviors.iter().find(|x| x.name == b).unwrap();
+            published_ports(b).map(|p| p.name.clone()).collect()
+        };
+        assert_eq!(names("Plain"), ["Rotate"]);
+        assert_eq!(names("Member"), ["Local", "Inhibit", "Best", "Rotate"]);
     }
 
     #[test]

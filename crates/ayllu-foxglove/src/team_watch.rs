@@ -7,31 +7,32 @@
 //!   previous one is unanswered: one answer carries every port's value, so port topics are
 //!   samples at that rate — a value that lives shorter than a period may never be seen (an
 //!   `ayllu record` of the network sees every message a connection sends instead);
-//! * WHY, one request per port, is spent where windows are: ports that are the destination of
-//!   a windowed connection any LIST shows (suppress, inhibit, override, write-inhibit, which
+//! * WHY, one request per port, is spent within a budget of `why_hz` requests per node per
+//!   second (default 20), first where windows are: ports that are the destination of a
+//!   windowed connection any LIST shows (suppress, inhibit, override, write-inhibit, which
 //!   includes every BLE claim's target), ports a WHY found a window on, and every BLE member's
-//!   `Inhibit` port (its last write is the member's last claim); these are asked every period.
-//!   The other ports are swept round-robin with what is left of a budget of `why_hz` WHY per
-//!   node per second (default 20), so a window opened by a node the watcher cannot LIST (a
-//!   tool that has exited, an AylluLite node) is found within one sweep;
+//!   `Inhibit` port (its last write is the member's last claim); these are asked every period
+//!   while they fit in three quarters of the budget, else in turn. The rest of the budget
+//!   (at least one request a period) sweeps all the other ports round-robin, so a window
+//!   opened by a node the watcher cannot LIST (a tool that has exited, an AylluLite node) is
+//!   found within one sweep (ports / (a quarter of `why_hz`) seconds at worst);
 //! * a node answers at most 50 requests a second from one sender (its `Limits`, burst 100):
 //!   `list_hz + why_hz` must stay below that, which [`WatchConfig::check`] enforces;
 //! * a node keeps every request it sent with its answer (`NodeCore::request_status` has no
 //!   way to forget one), so the watcher's node is replaced by a fresh one, greeting the
-//!   known nodes by address, every [`RENEW_AFTER`] requests: memory stays bounded for a
+//!   known nodes by address, every [`RENEW_AFTER`] requests (by default): memory stays bounded for a
 //!   watch of hours, at the cost of the answers in flight at that moment.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::time::{Duration as StdDuration, Instant as StdInstant, SystemTime, UNIX_EPOCH};
 
 use ayllu::{MonotonicClock, Node, UdpConfig, UdpTransport};
-use ayllu_core::{
-    ConnectionKind, ControlBody, Endpoint, NodeId, NodeReport, ReplyBody, RequestId, RequestStatus, BLE_SELECT,
-};
+use ayllu_core::{ConnectionKind, ControlBody, Endpoint, NodeId, NodeReport, ReplyBody, RequestId, RequestStatus};
 
-use crate::team_bridge::{LayerClaims, TeamBridge};
+use crate::team_bridge::{is_ble_member, published_ports, LayerClaims, TeamBridge};
 
-/// Requests sent by one watcher node before it is replaced (see the module docs).
+/// Requests sent by one watcher node before it is replaced, by default (see the module docs):
+/// its answers (LIST answers are a whole node each) stay in memory until then.
 pub const RENEW_AFTER: u64 = 2_000;
 /// A request unanswered this long is forgotten (the node gives up after 25 sends, 5 s).
 const GIVE_UP: StdDuration = StdDuration::from_secs(6);
@@ -49,6 +50,8 @@ pub struct WatchConfig {
     pub list_hz: f64,
     /// WHY budget per node per second.
     pub why_hz: f64,
+    /// Requests sent by one watcher node before it is replaced ([`RENEW_AFTER`]).
+    pub renew_after: u64,
 }
 
 impl WatchConfig {
@@ -100,6 +103,8 @@ struct Watched {
     /// Every port, for the sweep.
     ports: Vec<(String, String)>,
     sweep: usize,
+    /// Where the watched ports' turn starts, when they are more than the budget.
+    turn: usize,
     /// Ports a WHY found windows on.
     windowed: BTreeSet<(String, String)>,
     members: BTreeMap<String, Member>,
@@ -207,7 +212,7 @@ impl TeamWatch {
 
     /// One period: LIST every node heard, WHY the watched ports and the sweep's next ones.
     fn cycle(&mut self, bridge: &mut TeamBridge) {
-        if self.since_renewal >= RENEW_AFTER {
+        if self.since_renewal >= self.config.renew_after.max(1) {
             self.renew();
         }
         for peer in self.node.peers() {
@@ -220,24 +225,37 @@ impl TeamWatch {
             self.ask(Asked::List(n));
             let w = self.nodes.get_mut(&n).expect("listed");
             w.credit = (w.credit + per_cycle).min(per_cycle * 2.0);
-            let mut asks: Vec<(String, String)> = Vec::new();
-            let add = |b: &str, p: &str, asks: &mut Vec<(String, String)>| {
-                if !asks.iter().any(|(x, y)| x == b && y == p) {
-                    asks.push((b.to_owned(), p.to_owned()));
+            let add = |b: &str, p: &str, list: &mut Vec<(String, String)>| {
+                if !list.iter().any(|(x, y)| x == b && y == p) {
+                    list.push((b.to_owned(), p.to_owned()));
                 }
             };
+            let mut watched: Vec<(String, String)> = Vec::new();
             for (b, p) in targets.get(&n).into_iter().flatten() {
-                add(b, p, &mut asks);
+                add(b, p, &mut watched);
             }
             for (b, p) in &w.windowed {
-                add(b, p, &mut asks);
+                add(b, p, &mut watched);
             }
             for b in w.members.keys() {
-                add(b, ayllu_core::INHIBIT, &mut asks);
+                add(b, ayllu_core::INHIBIT, &mut watched);
             }
-            // The sweep gets what the watched ports leave of the budget.
-            let mut spare = (w.credit - asks.len() as f64).floor().max(0.0) as usize;
-            spare = spare.min(w.ports.len());
+            // The budget is whole requests; watched ports first (in turn when they are more
+            // than the budget), but a quarter (at least one) is kept for the sweep, so that a
+            // window no LIST explains is still found; the sweep also gets what they leave.
+            let budget = w.credit.floor().max(0.0) as usize;
+            let for_watched = if w.ports.is_empty() { budget } else { budget - (budget / 4).max(1).min(budget) };
+            let mut asks: Vec<(String, String)> = Vec::new();
+            let watched_len = watched.len();
+            let taken = watched_len.min(for_watched);
+            for k in 0..taken {
+                let (b, p) = &watched[(w.turn + k) % watched_len];
+                add(b, p, &mut asks);
+            }
+            if watched_len > 0 {
+                w.turn = (w.turn + taken) % watched_len;
+            }
+            let spare = budget.saturating_sub(asks.len()).min(w.ports.len());
             for _ in 0..spare {
                 let (b, p) = w.ports[w.sweep % w.ports.len()].clone();
                 w.sweep = (w.sweep + 1) % w.ports.len();
@@ -310,10 +328,10 @@ impl TeamWatch {
                 w.ports = report
                     .behaviors
                     .iter()
-                    .flat_map(|b| b.ports.iter().map(|p| (b.name.clone(), p.name.clone())))
+                    .flat_map(|b| published_ports(b).map(|p| (b.name.clone(), p.name.clone())))
                     .collect();
                 let mut members = BTreeMap::new();
-                for b in report.behaviors.iter().filter(|b| b.processes.iter().any(|p| p.name == BLE_SELECT)) {
+                for b in report.behaviors.iter().filter(|b| is_ble_member(b)) {
                     // The member's claim connection: its Inhibit port, write-inhibiting the group.
                     let claim = report.connections.iter().find(|c| {
                         matches!(&c.source, Endpoint::Local { behavior, port } if **behavior == *b.name && &**port == ayllu_core::INHIBIT)

@@ -9,6 +9,10 @@ advertised, and prints one JSON line per message received on them:
 `{"topic": T, "log_time": NS, "message": {...}}` (message data frames: opcode 1, a
 little-endian u32 subscription id, a u64 log time, then the payload, JSON here).
 
+The Foxglove SDK 0.30.3 sends an `advertise` before it records the channel as advertised to
+the client, so a client that subscribes at once can be told `Unknown channel ID: N` (a
+status); the subscription is then sent again, up to RESUBSCRIBE times per channel.
+
 Usage: foxglove_ws_client.py WS_URL --topic T [--topic T2] [--seconds S] [--count N]
 It stops after S seconds (default 60) or N messages in all; exit code 0 if at least one message
 arrived, 1 otherwise. The first line is `{"server": NAME, "subprotocol": P}`.
@@ -24,6 +28,7 @@ from websockets.sync.client import connect
 
 SUBPROTOCOLS = ["foxglove.sdk.v1", "foxglove.websocket.v1"]
 MESSAGE_DATA = 0x01
+RESUBSCRIBE = 20
 
 
 def emit(obj):
@@ -41,6 +46,8 @@ def main():
     wanted = set(args.topic)
     deadline = time.monotonic() + args.seconds
     subscribed = {}  # subscription id -> topic
+    by_channel = {}  # channel id -> subscription id
+    retries = {}  # channel id -> subscriptions sent again
     next_sub = 1
     received = 0
     with connect(
@@ -53,7 +60,20 @@ def main():
                 break
             if isinstance(frame, str):
                 op = json.loads(frame)
-                if op.get("op") == "serverInfo":
+                if op.get("op") == "status":
+                    print(json.dumps(op), file=sys.stderr, flush=True)
+                    text = op.get("message", "")
+                    if text.startswith("Unknown channel ID: "):
+                        channel = int(text.rsplit(" ", 1)[1])
+                        sub = by_channel.get(channel)
+                        if sub is not None and retries.get(channel, 0) < RESUBSCRIBE:
+                            retries[channel] = retries.get(channel, 0) + 1
+                            time.sleep(0.05)
+                            one = {"id": sub, "channelId": channel}
+                            ws.send(
+                                json.dumps({"op": "subscribe", "subscriptions": [one]})
+                            )
+                elif op.get("op") == "serverInfo":
                     emit({"server": op.get("name"), "subprotocol": ws.subprotocol})
                 elif op.get("op") == "advertise":
                     subs = []
@@ -63,6 +83,7 @@ def main():
                             and ch["topic"] not in subscribed.values()
                         ):
                             subscribed[next_sub] = ch["topic"]
+                            by_channel[ch["id"]] = next_sub
                             subs.append({"id": next_sub, "channelId": ch["id"]})
                             emit(
                                 {
