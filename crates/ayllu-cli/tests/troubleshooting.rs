@@ -173,3 +173,16 @@ fn the_literal_of_a_format_string_is_what_the_page_is_searched_for() {
     );
     assert_eq!(unescape("a \\\n     b \\\"c\\\" d\" rest"), "a b \"c\" d");
 }
+
+#[path = "../../../examples/tutorial/02_subsumption/main.rs"]
+#[allow(dead_code)] // its `main` is for `cargo run --example`
+mod subsumption;
+
+#[test]
+fn the_why_the_page_shows_is_what_tutorial_2_prints() {
+    let page = page();
+    let start = page.find("\n```text\n").expect("the page shows a why") + "\n```text\n".len();
+    let shown = &page[start..start + page[start..].find("```").unwrap()];
+    let out = subsumption::run().unwrap();
+    assert!(out.contains(shown), "docs/troubleshooting.md's why is not what tutorial 2 prints now:\n{out}");
+}

@@ -42,13 +42,15 @@ def main() -> None:
     # may write MOTOR.Turn.
     node.connect(ayllu.local("AVOID", "Turn"), ayllu.local("MOTOR", "Turn"), ayllu.override_in(0.5))
 
-    turn = {}
+    turn, during = {}, ""
     for tenth in range(41):
         node.set_time(tenth / 10)
         if 10 <= tenth < 20:
             node.write("AVOID", "Range", 0.3)  # an obstacle from 1 s to 2 s
             node.step()
         turn[tenth] = node.read("MOTOR", "Turn")
+        if tenth == 15:
+            during = str(node.why("MOTOR", "Turn"))  # while Avoid holds the motor
         if tenth % 5 == 0:
             print(f"{tenth / 10:.1f} s  MOTOR.Turn = {turn[tenth]}")
     assert turn[5] == 0.2, "Wander drives the motor before the obstacle"
@@ -58,6 +60,8 @@ def main() -> None:
     refused = node.why("MOTOR", "Turn").counters["overridden_in"]
     print(f"Wander's values refused while Avoid held the motor: {refused} (overridden_in)")
     assert refused >= 10
+    print(f"why, at 1.5 s:\n{during}")
+    assert "input     BLOCKED (overridden_in)" in during
 
 
 if __name__ == "__main__":

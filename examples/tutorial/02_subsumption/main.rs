@@ -52,7 +52,7 @@ pub fn run() -> Result<String, Box<dyn std::error::Error>> {
         ConnectionKind::OverrideIn(Duration::from_millis(500)),
     )?;
 
-    let mut seen = Vec::new();
+    let (mut seen, mut during) = (Vec::new(), String::new());
     for tenth in 0..=40u64 {
         let t = tenth as f64 / 10.0;
         if (10..20).contains(&tenth) {
@@ -64,6 +64,9 @@ pub fn run() -> Result<String, Box<dyn std::error::Error>> {
             writeln!(out, "{t:3.1} s  MOTOR.Turn = {turn}")?;
         }
         seen.push((t, turn));
+        if tenth == 15 {
+            during = node.why("MOTOR", "Turn")?.to_string(); // while Avoid holds the motor
+        }
         clock.advance(Duration::from_millis(100));
     }
     let at = |t: f64| seen.iter().find(|(s, _)| (s - t).abs() < 1e-9).map(|p| p.1);
@@ -74,6 +77,7 @@ pub fn run() -> Result<String, Box<dyn std::error::Error>> {
     let why = node.why("MOTOR", "Turn")?;
     let refused = why.counters.get(DropCause::OverriddenIn);
     writeln!(out, "Wander's values refused while Avoid held the motor: {refused} (overridden_in)")?;
+    write!(out, "why, at 1.5 s:\n{during}")?;
     assert!(refused >= 10, "Wander writes 10 times a second; about 14 were refused");
     Ok(out)
 }
