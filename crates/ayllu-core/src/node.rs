@@ -890,15 +890,13 @@ impl NodeCore {
     /// Write `value` into a port as its own behavior would (rule S6: suppression does not stop
     /// it; inhibition and write-inhibition stop its propagation). Triggered processes run at
     /// the next `poll`.
+    #[inline]
     pub fn write(&mut self, now: Instant, port: PortRef, value: impl Into<Value>) -> Result<(), Error> {
         self.advance(now);
         self.resolve(port)?;
         let value = value.into();
         if self.journal.is_some() {
-            let beh = self.behavior(port.b).expect("resolved");
-            let (behavior, name) = (beh.name.clone(), beh.class.ports[usize::from(port.port.0)].name.clone());
-            let recorded = value.clone();
-            self.journal(|| Event::Write { behavior, port: name, value: recorded });
+            self.journal_write(port, &value);
         }
         self.write_internal(port.b, port.port.0, &value).map_err(|cause| self.drop_error(port, cause, &value))
     }
@@ -946,9 +944,8 @@ impl NodeCore {
         }
         port.visited = wave;
         port.accepted += 1;
-        if let Some(j) = self.journal.as_mut() {
-            let value = port.cell.value.clone();
-            j.push(now, Event::Accepted { behavior: beh.name.clone(), class: beh.class.clone(), port: p, value });
+        if let Some(j) = self.journal.as_deref_mut() {
+            journal_accepted(j, now, &beh.name, &beh.class, p, &port.cell.value);
         }
         for &pi in &port.triggers {
             queue(&mut self.pending, &mut beh.processes[usize::from(pi)], b, id, pi);
@@ -1074,9 +1071,8 @@ impl NodeCore {
         }
         port.visited = wave;
         port.accepted += 1;
-        if let Some(j) = self.journal.as_mut() {
-            let value = port.cell.value.clone();
-            j.push(now, Event::Accepted { behavior: beh.name.clone(), class: beh.class.clone(), port: p, value });
+        if let Some(j) = self.journal.as_deref_mut() {
+            journal_accepted(j, now, &beh.name, &beh.class, p, &port.cell.value);
         }
         for &pi in &port.triggers {
             queue(&mut self.pending, &mut beh.processes[usize::from(pi)], b, id, pi);
@@ -1627,6 +1623,16 @@ impl NodeCore {
         v
     }
 
+    /// Journal a write from outside (kept out of line: `write` is the hot path).
+    #[cold]
+    #[inline(never)]
+    fn journal_write(&mut self, port: PortRef, value: &Value) {
+        let Some(beh) = self.behavior(port.b) else { return };
+        let (behavior, name) = (beh.name.clone(), beh.class.ports[usize::from(port.port.0)].name.clone());
+        let value = value.clone();
+        self.journal(|| Event::Write { behavior, port: name, value });
+    }
+
     /// Run `f` with the journal set aside: what it does is the consequence of a call already
     /// journaled, which a replay repeats (crate::journal).
     pub(crate) fn unjournaled<T>(&mut self, f: impl FnOnce(&mut NodeCore) -> T) -> T {
@@ -1639,6 +1645,22 @@ impl NodeCore {
     pub(crate) fn conn_index(&self, id: ConnectionId) -> Option<&Conn> {
         self.conn_ids.get(&id.0).and_then(|&c| self.conns[c as usize].as_ref())
     }
+}
+
+/// Journal a value port `p` of behavior `behavior` accepted (out of line: propagation is the
+/// hot path, and with the journal off only the check that calls this remains).
+#[cold]
+#[inline(never)]
+fn journal_accepted(
+    j: &mut Journal,
+    now: Instant,
+    behavior: &Arc<str>,
+    class: &Arc<BehaviorClass>,
+    p: u16,
+    value: &Value,
+) {
+    let event = Event::Accepted { behavior: behavior.clone(), class: class.clone(), port: p, value: value.clone() };
+    j.push(now, event);
 }
 
 /// The readable value of a cell at `now`: its value, or its default once it released it.

@@ -15,6 +15,9 @@
 //!   (four OverrideOut hops, each refreshing a window); the write is at the top layer L1.
 //! * `process_activation` — a write into a port with an OnWrite process, then the `poll` that
 //!   runs it (the process reads the port and stores it in a slot).
+//! * `normal_hop_journaled` — `normal_hop` with the core's journal on (the flight recorder's
+//!   tap), its entries taken every 256 writes and dropped: what the tap itself costs the
+//!   node's thread, with no writer thread beside it.
 //! * `normal_hop_recorded` — `normal_hop` on a node with the flight recorder on
 //!   (`ayllu::Recorder`, writing an MCAP file in the system's temp directory), drained every
 //!   256 writes as a busy node's loop would: the cost the recorder adds to the node's own
@@ -40,13 +43,14 @@ use criterion::Criterion;
 
 const GROUP: &str = "propagation";
 const BASELINE: &str = "function_call";
-const BENCHES: [&str; 7] = [
+const BENCHES: [&str; 8] = [
     BASELINE,
     "write_no_connection",
     "normal_hop",
     "fan_out_4",
     "override_chain_5",
     "process_activation",
+    "normal_hop_journaled",
     "normal_hop_recorded",
 ];
 
@@ -145,6 +149,24 @@ fn bench_write(
     });
 }
 
+/// `normal_hop` with the core's journal on, taken and dropped every 256 writes.
+fn bench_journaled_hop(c: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>) {
+    let (mut node, port) = fan_node(1);
+    node.start_journal(65_536);
+    let mut taken = Vec::new();
+    let mut t = 0u64;
+    c.bench_function("normal_hop_journaled", |b| {
+        b.iter(|| {
+            t += 1_000;
+            node.write(Instant::from_nanos(t), port, black_box(t as i64)).unwrap();
+            if (t / 1_000).is_multiple_of(256) {
+                node.take_journal(&mut taken);
+                taken.clear();
+            }
+        })
+    });
+}
+
 /// `normal_hop` with the flight recorder on (see the module docs).
 fn bench_recorded_hop(c: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>) {
     let path = std::env::temp_dir().join(format!("ayllu-bench-{}.mcap", std::process::id()));
@@ -193,6 +215,7 @@ fn benches(c: &mut Criterion) {
     bench_write(&mut g, "fan_out_4", fan_node(4), false);
     bench_write(&mut g, "override_chain_5", override_node(), false);
     bench_write(&mut g, "process_activation", process_node(), true);
+    bench_journaled_hop(&mut g);
     bench_recorded_hop(&mut g);
     g.finish();
 }
@@ -257,6 +280,9 @@ fn main() {
         if let Some(w) = median_ns(&dir, "write_no_connection", start) {
             let extra = hop - w;
             println!("  of which the hop itself (normal_hop - write_no_connection): {extra:.2} ns ({:.1}x)", extra / b);
+        }
+        if let Some(j) = median_ns(&dir, "normal_hop_journaled", start) {
+            println!("  with the recorder's journal on: {j:.2} ns ({:.1}x the hop without it)", j / hop);
         }
         if let Some(r) = median_ns(&dir, "normal_hop_recorded", start) {
             println!("  with the flight recorder on: {r:.2} ns ({:.1}x the hop without it)", r / hop);
