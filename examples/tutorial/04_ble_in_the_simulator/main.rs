@@ -37,6 +37,7 @@ pub fn run_tutorial() -> Result<String, Box<dyn std::error::Error>> {
                 .filter(|&i| sim.core(i).ble_status(&format!("OBS{target}")).ok().flatten().is_some_and(|s| s.claiming))
                 .map(|i| i + 1)
                 .collect();
+            assert!(who.len() <= 1, "one claim per target at {t} s: {who:?}"); // cross-inhibition
             let cell = if who.is_empty() { "-".to_owned() } else { who.iter().map(|r| format!("r{r}")).collect() };
             write!(line, " {cell:>2}")?;
             if t > 30.0 {
