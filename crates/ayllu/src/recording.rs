@@ -6,10 +6,11 @@
 //! it as JSON ([`crate::recording_format`]) and writes MCAP segments.
 //!
 //! What it promises:
-//! * The node never waits on the disk: batches go to the writer through a bounded queue; when
-//!   the queue is full the batch is dropped and counted, and the recording says so with a
-//!   `gap` entry (a replay stops there). Memory is bounded by the journal's capacity, the
-//!   queue's length and one MCAP chunk.
+//! * The node never waits on the disk: batches go to the writer through a queue bounded in
+//!   entries ([`RecordOptions::queue`]); while it is full, entries wait in the recorder up to
+//!   the journal's capacity, and past that they are dropped and counted, and the recording
+//!   says so with a `gap` entry (a replay stops there). Memory is bounded by the journal's
+//!   capacity (twice: in the core and waiting here), the queue and one MCAP chunk.
 //! * Files are bounded: a segment is closed before it would pass
 //!   [`RecordOptions::segment_bytes`], and the next one opened (`run.mcap`, `run.1.mcap`,
 //!   `run.2.mcap`, ...) while the segments together stay under [`RecordOptions::max_bytes`];
@@ -51,13 +52,14 @@ pub struct RecordOptions {
     pub segment_bytes: u64,
     /// Journal entries the core holds between two drains, at most (default 65 536).
     pub journal_capacity: usize,
-    /// Batches waiting for the writer thread, at most (default 64); one batch per loop turn.
+    /// Entries waiting for the writer thread, at most (default 262 144: with entries of about
+    /// 150 bytes plus what their values hold, some 40 MB).
     pub queue: usize,
 }
 
 impl Default for RecordOptions {
     fn default() -> Self {
-        RecordOptions { max_bytes: 1 << 30, segment_bytes: 64 << 20, journal_capacity: 65_536, queue: 64 }
+        RecordOptions { max_bytes: 1 << 30, segment_bytes: 64 << 20, journal_capacity: 65_536, queue: 262_144 }
     }
 }
 
@@ -93,6 +95,8 @@ pub struct RecordStats {
 struct Shared {
     written: AtomicU64,
     dropped_queue: AtomicU64,
+    /// Entries handed to the writer and not written yet.
+    queued: AtomicU64,
     dropped_cap: AtomicU64,
     bytes: AtomicU64,
     segments: AtomicU64,
@@ -111,6 +115,8 @@ pub struct Recorder {
     dropped_journal: u64,
     /// Entries that may wait here for the writer, at most (the journal's capacity).
     capacity: usize,
+    /// Entries that may wait in the writer's queue, at most ([`RecordOptions::queue`]).
+    queue_limit: u64,
 }
 
 /// The file of segment `n`: `run.mcap`, then `run.1.mcap`, `run.2.mcap`, ...
@@ -164,7 +170,8 @@ impl Recorder {
             let _ = std::fs::remove_file(segment_path(path, n));
             n += 1;
         }
-        let (tx, rx) = sync_channel(options.queue.max(1));
+        // The channel's own bound only backs up `Shared::queued`, which is the real one.
+        let (tx, rx) = sync_channel(1024);
         let base = core.sequence_base();
         let thread = std::thread::Builder::new()
             .name("ayllu-recorder".into())
@@ -184,6 +191,7 @@ impl Recorder {
             dropped_since: 0,
             dropped_journal: 0,
             capacity: options.journal_capacity.max(1),
+            queue_limit: options.queue.max(1) as u64,
         })
     }
 
@@ -216,7 +224,14 @@ impl Recorder {
             self.dropped_since = 0;
         }
         let batch = std::mem::take(&mut self.batch);
-        match queue.try_send(batch) {
+        let n = batch.len() as u64;
+        // Counted before it is sent: the writer subtracts it once written, maybe at once.
+        let queued = self.shared.queued.fetch_add(n, Ordering::AcqRel);
+        let sent = if queued + n > self.queue_limit { Err(TrySendError::Full(batch)) } else { queue.try_send(batch) };
+        if sent.is_err() {
+            self.shared.queued.fetch_sub(n, Ordering::AcqRel);
+        }
+        match sent {
             Ok(()) => {}
             Err(TrySendError::Full(batch)) if batch.len() <= self.capacity => self.batch = batch,
             Err(TrySendError::Full(mut batch)) => {
@@ -265,6 +280,7 @@ impl Recorder {
                 batch.insert(0, Entry { at, event: Event::Gap { lost: self.dropped_since } });
             }
             if !batch.is_empty() {
+                self.shared.queued.fetch_add(batch.len() as u64, Ordering::AcqRel);
                 let _ = queue.send(batch);
             }
         }
@@ -387,9 +403,11 @@ impl SegmentWriter {
         loop {
             match rx.recv_timeout(FLUSH_INTERVAL) {
                 Ok(batch) => {
+                    let n = batch.len() as u64;
                     for e in batch {
                         self.write(&e);
                     }
+                    self.shared.queued.fetch_sub(n, Ordering::AcqRel);
                 }
                 Err(RecvTimeoutError::Timeout) => {}
                 Err(RecvTimeoutError::Disconnected) => break,

@@ -217,3 +217,38 @@ fn bad_and_cut_files_give_clear_errors_or_shorter_recordings() {
     assert!(rec.entries.iter().any(|e| matches!(e.event, Event::Define(_))));
     assert!(rec.entries.iter().any(|e| matches!(e.event, Event::Receive { .. })));
 }
+
+/// A writer that cannot keep up (here: a queue of 50 entries and a journal of 100; a first
+/// turn of 40 entries, then turns of 300) never makes the node wait: what does not fit is dropped and counted,
+/// the recording marks the hole, and a replay stops before it, exact up to there.
+#[test]
+fn a_writer_that_cannot_keep_up_drops_counts_and_marks_the_hole() {
+    let d = dir("slow");
+    let path = d.join("slow.mcap");
+    let clock = ManualClock::new();
+    let team = Lockstep::new("rec-slow");
+    let mut node = Node::new(clock.clone(), team.network().attach(NodeId(5)).unwrap());
+    let options = RecordOptions { journal_capacity: 100, queue: 50, ..RecordOptions::default() };
+    node.record(&path, options).unwrap();
+    let mut c = BehaviorClass::new("Sink");
+    c.port(PortSpec::new("In", 0i64)).unwrap();
+    node.define(c).unwrap();
+    node.create("Sink", "S").unwrap();
+    node.step();
+    for k in 0..1000i64 {
+        clock.set(Instant::from_millis(k as u64));
+        node.write("S", "In", k).unwrap();
+        if k == 19 || k % 150 == 149 {
+            node.step();
+        }
+    }
+    let stats = node.stop_recording().unwrap();
+    assert!(stats.dropped_journal + stats.dropped_queue > 0, "{stats:?}");
+    let rec = Recording::open(&path).unwrap();
+    let (seq, _) = rec.gap.expect("the hole is marked");
+    let mut replay = Replay::new(&rec);
+    replay.run_to_end().unwrap();
+    let before_gap = rec.entries[..seq as usize].iter().filter(|e| matches!(e.event, Event::Accepted { .. })).count();
+    assert_eq!(replay.checked(), before_gap);
+    assert_eq!(replay.checked(), 20, "the 20 writes of the first turn");
+}
