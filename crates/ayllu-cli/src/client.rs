@@ -202,8 +202,14 @@ impl Client {
     pub fn answer(&mut self, node: NodeId, id: RequestId, what: &str) -> Result<ReplyBody, Fail> {
         loop {
             match self.node.core().request_status(id) {
-                Some(RequestStatus::Done(body)) => return Ok(body),
-                Some(RequestStatus::Failed(text)) => return Err(Fail::error(format!("{what}: {node} says: {text}"))),
+                Some(RequestStatus::Done(body)) => {
+                    self.node.core_mut().forget_request(id);
+                    return Ok(body);
+                }
+                Some(RequestStatus::Failed(text)) => {
+                    self.node.core_mut().forget_request(id);
+                    return Err(Fail::error(format!("{what}: {node} says: {text}")));
+                }
                 Some(RequestStatus::Pending { .. }) | None => {}
             }
             if self.honour_stop && signals::stopped() {

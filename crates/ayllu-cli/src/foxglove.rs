@@ -45,9 +45,9 @@ pub struct FoxgloveArgs {
     /// Print a JSON status line this often.
     #[arg(long, value_name = "MS", default_value_t = 1000, value_parser = clap::value_parser!(u64).range(1..))]
     pub status_ms: u64,
-    /// Replace the tool's own node after this many requests (its answers are kept until then).
-    #[arg(long, value_name = "N", default_value_t = ayllu_foxglove::team_watch::RENEW_AFTER, hide = true,
-          value_parser = clap::value_parser!(u64).range(1..))]
+    /// Replace the tool's own node after this many requests (0: never; for a test that a watch
+    /// survives losing its node's state).
+    #[arg(long, value_name = "N", default_value_t = ayllu_foxglove::team_watch::RENEW_AFTER, hide = true)]
     pub renew_after: u64,
     /// This tool's node id (default 0x7fff0000 + the process id's low 16 bits).
     #[arg(long, value_name = "NODE", value_parser = parse_node)]

@@ -41,6 +41,11 @@ const ANSWERED_BYTES: usize = 2 << 20;
 const RETRY_INTERVAL: Duration = Duration::from_millis(200);
 /// ...and given up after this many sends.
 const RETRY_LIMIT: u32 = 25;
+/// How many of this node's own finished requests (answered or failed) it keeps for
+/// [`NodeCore::request_status`]. A tool that asks forever (a viewer polling LIST) would
+/// otherwise grow without bound; the oldest finished ones are forgotten first, pending ones
+/// never (they end by themselves after `RETRY_LIMIT` sends).
+const FINISHED_REQUESTS_KEPT: usize = 1_024;
 
 /// A handle to a port of a live behavior, cheap to copy. It goes stale (and is reported as
 /// unknown) when its behavior is removed, even if another one later takes the same name.
@@ -285,6 +290,8 @@ pub struct NodeCore {
     newest_seq: HashMap<u128, Incoming, foldhash::fast::RandomState>,
     seq_table_resets: u64,
     requests: Vec<Request>,
+    /// How many of `requests` are finished (see `FINISHED_REQUESTS_KEPT`).
+    finished_requests: usize,
     next_request: u64,
     /// Where new connections start numbering their messages (see `set_sequence_base`).
     seq_base: u64,
@@ -332,6 +339,7 @@ impl NodeCore {
             newest_seq: HashMap::default(),
             seq_table_resets: 0,
             requests: Vec::new(),
+            finished_requests: 0,
             next_request: 1,
             seq_base: 0,
             answered: HashMap::new(),
@@ -859,20 +867,60 @@ impl NodeCore {
         RequestId(id)
     }
 
-    /// Where request `id` stands; `None` if this node never sent it. The runtime's
-    /// [`NodeCore::poll`] drives the retries.
+    /// Where request `id` stands; `None` if this node never sent it or has forgotten it. The
+    /// runtime's [`NodeCore::poll`] drives the retries. A finished request (answered or
+    /// failed) is kept until [`NodeCore::forget_request`] or until 1,024 newer ones have
+    /// finished, whichever comes first, so a program that never forgets stays bounded.
     pub fn request_status(&self, id: RequestId) -> Option<RequestStatus> {
-        self.requests.iter().find(|r| r.id == id.0).map(|r| r.status.clone())
+        self.requests.iter().rev().find(|r| r.id == id.0).map(|r| r.status.clone())
+    }
+
+    /// Forget request `id` and return where it stood: a pending request is no longer retried
+    /// and its answer, if one comes, is ignored. `None` if this node never sent it or has
+    /// already forgotten it.
+    pub fn forget_request(&mut self, id: RequestId) -> Option<RequestStatus> {
+        let i = self.requests.iter().rposition(|r| r.id == id.0)?;
+        let r = self.requests.remove(i);
+        if !matches!(r.status, RequestStatus::Pending { .. }) {
+            self.finished_requests -= 1;
+        }
+        Some(r.status)
+    }
+
+    /// How many requests this node holds (pending and finished): bounded, see
+    /// [`NodeCore::request_status`].
+    pub fn requests_held(&self) -> usize {
+        self.requests.len()
+    }
+
+    /// Count one more finished request and, past the bound, forget the oldest finished ones
+    /// (in batches, so the cost per request stays constant).
+    fn request_finished(&mut self) {
+        self.finished_requests += 1;
+        if self.finished_requests > FINISHED_REQUESTS_KEPT + FINISHED_REQUESTS_KEPT / 4 {
+            let mut excess = self.finished_requests - FINISHED_REQUESTS_KEPT;
+            self.requests.retain(|r| {
+                if excess > 0 && !matches!(r.status, RequestStatus::Pending { .. }) {
+                    excess -= 1;
+                    false
+                } else {
+                    true
+                }
+            });
+            self.finished_requests = FINISHED_REQUESTS_KEPT;
+        }
     }
 
     fn flush_requests(&mut self) {
         let now = self.now;
+        let mut failed = 0;
         for r in &mut self.requests {
             if !matches!(r.status, RequestStatus::Pending { .. }) || r.next_send > now {
                 continue;
             }
             if r.sends >= RETRY_LIMIT {
                 r.status = RequestStatus::Failed(format!("no answer from {} after {} tries", r.to, r.sends));
+                failed += 1;
                 continue;
             }
             r.sends += 1;
@@ -882,6 +930,9 @@ impl NodeCore {
                 to: Destination::Node(r.to),
                 message: Message::Control(ControlMessage { id: r.id, body: r.body.clone() }),
             });
+        }
+        for _ in 0..failed {
+            self.request_finished();
         }
     }
 
@@ -1188,12 +1239,13 @@ impl NodeCore {
     fn receive_control(&mut self, from: NodeId, c: ControlMessage) {
         let result = match c.body {
             ControlBody::Reply { result } => {
-                if let Some(r) = self.requests.iter_mut().find(|r| r.id == c.id && r.to == from) {
+                if let Some(r) = self.requests.iter_mut().rev().find(|r| r.id == c.id && r.to == from) {
                     if matches!(r.status, RequestStatus::Pending { .. }) {
                         r.status = match result {
                             Ok(body) => RequestStatus::Done(body),
                             Err(e) => RequestStatus::Failed(e),
                         };
+                        self.request_finished();
                     }
                 }
                 return;

@@ -18,10 +18,11 @@
 //!   found within one sweep (ports / (a quarter of `why_hz`) seconds at worst);
 //! * a node answers at most 50 requests a second from one sender (its `Limits`, burst 100):
 //!   `list_hz + why_hz` must stay below that, which [`WatchConfig::check`] enforces;
-//! * a node keeps every request it sent with its answer (`NodeCore::request_status` has no
-//!   way to forget one), so the watcher's node is replaced by a fresh one, greeting the
-//!   known nodes by address, every [`RENEW_AFTER`] requests (by default): memory stays bounded for a
-//!   watch of hours, at the cost of the answers in flight at that moment.
+//! * the watcher forgets each request once its answer is read or it is given up
+//!   (`NodeCore::forget_request`), so its node holds only the requests in flight; the core
+//!   would also forget the oldest finished ones by itself past 1,024. Replacing the watcher's
+//!   node every `renew_after` requests is kept as an option (off by default) for a test that a
+//!   watch survives losing its node's state.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::time::{Duration as StdDuration, Instant as StdInstant, SystemTime, UNIX_EPOCH};
@@ -31,9 +32,9 @@ use ayllu_core::{ConnectionKind, ControlBody, Endpoint, NodeId, NodeReport, Repl
 
 use crate::team_bridge::{is_ble_member, published_ports, LayerClaims, TeamBridge};
 
-/// Requests sent by one watcher node before it is replaced, by default (see the module docs):
-/// its answers (LIST answers are a whole node each) stay in memory until then.
-pub const RENEW_AFTER: u64 = 2_000;
+/// Requests sent by one watcher node before it is replaced, by default: 0, never (see the
+/// module docs; requests are forgotten as they are read, so nothing grows).
+pub const RENEW_AFTER: u64 = 0;
 /// A request unanswered this long is forgotten (the node gives up after 25 sends, 5 s).
 const GIVE_UP: StdDuration = StdDuration::from_secs(6);
 /// The most requests a second a node answers from one sender by default (`Limits`).
@@ -50,7 +51,7 @@ pub struct WatchConfig {
     pub list_hz: f64,
     /// WHY budget per node per second.
     pub why_hz: f64,
-    /// Requests sent by one watcher node before it is replaced ([`RENEW_AFTER`]).
+    /// Requests sent by one watcher node before it is replaced; 0 never ([`RENEW_AFTER`]).
     pub renew_after: u64,
 }
 
@@ -212,7 +213,7 @@ impl TeamWatch {
 
     /// One period: LIST every node heard, WHY the watched ports and the sweep's next ones.
     fn cycle(&mut self, bridge: &mut TeamBridge) {
-        if self.since_renewal >= self.config.renew_after.max(1) {
+        if self.config.renew_after > 0 && self.since_renewal >= self.config.renew_after {
             self.renew();
         }
         for peer in self.node.peers() {
@@ -307,13 +308,17 @@ impl TeamWatch {
         let mut keep = Vec::with_capacity(self.pending.len());
         for p in std::mem::take(&mut self.pending) {
             match self.node.core().request_status(p.id) {
-                Some(RequestStatus::Done(body)) => {
-                    self.counts.answers += 1;
-                    self.answered(bridge, &p.asked, body);
+                Some(RequestStatus::Pending { .. }) if now.duration_since(p.sent) <= GIVE_UP => keep.push(p),
+                status => {
+                    self.node.core_mut().forget_request(p.id);
+                    match status {
+                        Some(RequestStatus::Done(body)) => {
+                            self.counts.answers += 1;
+                            self.answered(bridge, &p.asked, body);
+                        }
+                        _ => self.counts.failed += 1,
+                    }
                 }
-                Some(RequestStatus::Failed(_)) | None => self.counts.failed += 1,
-                Some(RequestStatus::Pending { .. }) if now.duration_since(p.sent) > GIVE_UP => self.counts.failed += 1,
-                Some(RequestStatus::Pending { .. }) => keep.push(p),
             }
         }
         self.pending = keep;
