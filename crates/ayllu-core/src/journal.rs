@@ -110,8 +110,10 @@ pub enum Event {
     Write {
         /// The behavior written.
         behavior: Arc<str>,
-        /// The port.
-        port: String,
+        /// Its class (for the port's name: the journal copies no strings on a write).
+        class: Arc<BehaviorClass>,
+        /// The port's handle.
+        port: u16,
         /// The value.
         value: Value,
     },

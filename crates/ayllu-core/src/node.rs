@@ -546,6 +546,17 @@ impl NodeCore {
         }
     }
 
+    /// A handle to the port whose handle within its class is `port` (as the class's
+    /// processes know it), of behavior `behavior`; [`NodeCore::port`] finds it by name.
+    pub fn port_by_handle(&self, behavior: &str, port: Port) -> Result<PortRef, Error> {
+        let b = self.behavior_index(behavior)?;
+        let beh = self.behavior(b).expect("indexed behavior exists");
+        if usize::from(port.0) >= beh.ports.len() {
+            return Err(Error::UnknownPort { behavior: behavior.to_owned(), port: format!("#{}", port.0) });
+        }
+        Ok(PortRef { b, id: beh.id, port })
+    }
+
     /// The behavior handle for `name`.
     pub fn behavior_ref(&self, name: &str) -> Result<BehaviorRef, Error> {
         let b = self.behavior_index(name)?;
@@ -1680,9 +1691,9 @@ impl NodeCore {
     #[inline(never)]
     fn journal_write(&mut self, port: PortRef, value: &Value) {
         let Some(beh) = self.behavior(port.b) else { return };
-        let (behavior, name) = (beh.name.clone(), beh.class.ports[usize::from(port.port.0)].name.clone());
+        let (behavior, class) = (beh.name.clone(), beh.class.clone());
         let value = value.clone();
-        self.journal(|| Event::Write { behavior, port: name, value });
+        self.journal(|| Event::Write { behavior, class, port: port.port.0, value });
     }
 
     /// Run `f` with the journal set aside: what it does is the consequence of a call already

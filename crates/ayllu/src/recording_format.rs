@@ -342,9 +342,10 @@ pub fn encode(seq: u64, entry: &Entry) -> (Topic, Json) {
             put("lost", json!(lost));
             (Topic::Structure, "gap")
         }
-        Event::Write { behavior, port, value } => {
+        Event::Write { behavior, class, port, value } => {
             put("behavior", json!(&**behavior));
-            put("port", json!(port));
+            put("port", json!(class.ports().get(usize::from(*port)).map_or("", |p| p.name.as_str())));
+            put("port_index", json!(port));
             let (ty, v) = typed(value);
             put("type", ty);
             put("value", v);
@@ -586,10 +587,16 @@ pub fn decode(j: &Json) -> Result<Decoded, String> {
         "warn" => Event::Warn(f.str("warning")?),
         "request" => Event::Request { to: NodeId(f.u32("to")?), body: body_from(f.get("body")?)? },
         "gap" => Event::Gap { lost: f.u64("lost")? },
-        "write" if f.0.contains_key("port_index") => {
+        // A process's write names no behavior (it is the running one's).
+        "write" if !f.0.contains_key("behavior") => {
             Event::ProcessWrite { port: f.u16("port_index")?, value: f.value()? }
         }
-        "write" => Event::Write { behavior: Arc::from(f.str("behavior")?), port: f.str("port")?, value: f.value()? },
+        "write" => Event::Write {
+            behavior: Arc::from(f.str("behavior")?),
+            class: Arc::new(BehaviorClass::new("")),
+            port: f.u16("port_index")?,
+            value: f.value()?,
+        },
         "trigger" if f.0.contains_key("mono_index") => {
             Event::ProcessTrigger { mono: f.u16("mono_index")?, period: f.serde("period")? }
         }

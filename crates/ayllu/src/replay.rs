@@ -486,8 +486,8 @@ impl Replay {
             Event::SequenceBase(b) => core.set_sequence_base(b),
             Event::Warn(w) => core.warn(w),
             Event::Request { to, body } => drop(core.request(to, body)),
-            Event::Write { behavior, port, value } => {
-                if let Ok(r) = core.port(&behavior, &port) {
+            Event::Write { behavior, port, value, .. } => {
+                if let Ok(r) = core.port_by_handle(&behavior, Port(port)) {
                     let _ = core.write(at, r, value);
                 }
             }
