@@ -248,9 +248,15 @@ impl NodeCore {
     }
 
     /// Move the entries journaled since the last call into `out` (appended, oldest first).
+    /// An empty `out` is swapped with the journal's buffer rather than filled, so a caller
+    /// that hands back emptied buffers moves no entry at all.
     pub fn take_journal(&mut self, out: &mut Vec<Entry>) {
         if let Some(j) = self.journal.as_mut() {
-            out.append(&mut j.entries);
+            if out.is_empty() {
+                std::mem::swap(out, &mut j.entries);
+            } else {
+                out.append(&mut j.entries);
+            }
         }
     }
 

@@ -107,6 +107,8 @@ struct Shared {
 pub struct Recorder {
     path: PathBuf,
     queue: Option<SyncSender<Vec<Entry>>>,
+    /// Emptied batches the writer hands back, so the journal's buffer is swapped, not copied.
+    recycled: Receiver<Vec<Entry>>,
     thread: Option<JoinHandle<()>>,
     shared: Arc<Shared>,
     batch: Vec<Entry>,
@@ -172,10 +174,11 @@ impl Recorder {
         }
         // The channel's own bound only backs up `Shared::queued`, which is the real one.
         let (tx, rx) = sync_channel(1024);
+        let (recycle, recycled) = sync_channel(4);
         let base = core.sequence_base();
         let thread = std::thread::Builder::new()
             .name("ayllu-recorder".into())
-            .spawn(move || writer.run(rx))
+            .spawn(move || writer.run(rx, recycle))
             .map_err(|e| Error::Recording { what: format!("recorder thread: {e}") })?;
         core.start_journal(options.journal_capacity);
         // The sequence base was set before the journal ran (the runtime sets it at birth).
@@ -185,6 +188,7 @@ impl Recorder {
         Ok(Recorder {
             path: path.to_path_buf(),
             queue: Some(tx),
+            recycled,
             thread: Some(thread),
             shared,
             batch: Vec::new(),
@@ -204,6 +208,11 @@ impl Recorder {
     /// writer's queue is full the entries wait here, up to the journal's capacity; past it they
     /// are dropped, counted, and the recording gets a gap.
     pub fn drain(&mut self, core: &mut NodeCore) {
+        if self.batch.capacity() == 0 {
+            if let Ok(empty) = self.recycled.try_recv() {
+                self.batch = empty;
+            }
+        }
         let before = self.batch.len();
         core.take_journal(&mut self.batch);
         for e in &self.batch[before..] {
@@ -399,15 +408,18 @@ impl SegmentWriter {
         self.current = None;
     }
 
-    fn run(mut self, rx: Receiver<Vec<Entry>>) {
+    fn run(mut self, rx: Receiver<Vec<Entry>>, recycle: SyncSender<Vec<Entry>>) {
         loop {
             match rx.recv_timeout(FLUSH_INTERVAL) {
-                Ok(batch) => {
+                Ok(mut batch) => {
                     let n = batch.len() as u64;
-                    for e in batch {
-                        self.write(&e);
+                    for e in &batch {
+                        self.write(e);
                     }
                     self.shared.queued.fetch_sub(n, Ordering::AcqRel);
+                    batch.clear();
+                    // Back to the recorder for the journal to fill again (dropped if it has enough).
+                    let _ = recycle.try_send(batch);
                 }
                 Err(RecvTimeoutError::Timeout) => {}
                 Err(RecvTimeoutError::Disconnected) => break,
