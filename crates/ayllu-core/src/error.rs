@@ -131,6 +131,20 @@ pub enum Error {
     /// `(group, behavior, port)` cannot be a connection's source: ask each node of the group
     /// to connect its own port instead (as the paper's Fig. 2 does).
     GroupSource,
+    /// No connection of this node runs from `source` to `destination` (a change that removes
+    /// connections by their endpoints).
+    NoConnectionBetween {
+        /// The source, as written.
+        source: String,
+        /// The destination, as written.
+        destination: String,
+    },
+    /// A transaction's request was refused (docs/semantics.md R8–R12): its part does not
+    /// validate here, another transaction is held, or it is unknown or finished.
+    Transaction {
+        /// What is wrong, in words (naming the change at fault).
+        what: String,
+    },
     /// The source of a connection must be on this node or on a named other node.
     NotLocal {
         /// What had to be local, in words.
@@ -212,6 +226,10 @@ impl fmt::Display for Error {
             Error::GroupSource => f.write_str(
                 "a broadcast group cannot be a connection's source; let each node connect its own port",
             ),
+            Error::NoConnectionBetween { source, destination } => {
+                write!(f, "no connection from {source} to {destination} on this node")
+            }
+            Error::Transaction { what } => write!(f, "transaction refused: {what}"),
             Error::NotLocal { what } => write!(f, "{what} must be on this node"),
             Error::TooManyRegisters { behavior } => {
                 write!(f, "behavior `{behavior}` declares more than 65535 registers")

@@ -25,6 +25,7 @@ use crate::access::{Access, Limits};
 use crate::address::{ConnectionId, Endpoint, NodeId};
 use crate::behavior::{BehaviorClass, Trigger};
 use crate::ble::BleConfig;
+use crate::change::Change;
 use crate::connection::ConnectionKind;
 use crate::message::{ControlBody, Message};
 use crate::node::NodeCore;
@@ -183,6 +184,16 @@ pub enum Event {
     ProcessReset {
         /// The port's handle.
         port: u16,
+    },
+    /// Effect of the running process: a structure change it asked for ([`crate::Ctx::change`]),
+    /// applied when it returns.
+    ProcessChange(Change),
+    /// Effect of the running process: a control request it sent ([`crate::Ctx::request`]).
+    ProcessRequest {
+        /// The node asked.
+        to: NodeId,
+        /// What was asked.
+        body: ControlBody,
     },
     /// A port accepted a value (from a write, a connection or a message).
     Accepted {

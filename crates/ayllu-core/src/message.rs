@@ -9,8 +9,10 @@
 use std::sync::Arc;
 
 use crate::address::{ConnectionId, Endpoint, NodeId};
+use crate::change::Change;
 use crate::connection::ConnectionKind;
 use crate::introspect::{NodeReport, PortReport};
+use crate::time::Duration;
 use crate::value::Value;
 
 /// Where an outgoing message goes.
@@ -88,6 +90,31 @@ pub enum ControlBody {
         behavior: Arc<str>,
         /// The port to read.
         port: Arc<str>,
+    },
+    /// Transaction `txn` (docs/semantics.md R8): validate `changes` against the receiver's
+    /// structure and hold them, refusing other structure changes from the network, for
+    /// `hold` after receipt; answered `prepared` or with the refusal.
+    Prepare {
+        /// Chosen by the coordinator, unique among its transactions.
+        txn: u64,
+        /// The receiver's part, in order. Endpoints on the receiver name its node.
+        changes: Vec<Change>,
+        /// How long the receiver holds them waiting for COMMIT or ABORT, on its clock from
+        /// receipt; then it aborts by itself.
+        hold: Duration,
+    },
+    /// Switch transaction `txn` in: apply its changes `delay` after receipt (on the
+    /// receiver's clock). Repeats do not move the switch; answered `committed`.
+    Commit {
+        /// The transaction.
+        txn: u64,
+        /// How long after receipt the switch happens.
+        delay: Duration,
+    },
+    /// Drop prepared transaction `txn`; answered `aborted`.
+    Abort {
+        /// The transaction.
+        txn: u64,
     },
     /// The answer to request `id`, or why it could not be carried out.
     Reply {

@@ -19,6 +19,7 @@ use crate::address::{ConnectionId, Endpoint, NodeId, Source};
 use crate::arbitration::{Origin, WindowKind, Windows};
 use crate::behavior::{validate_process, BehaviorClass, Mono, Port, ProcessSpec, Slot, Trigger};
 use crate::ble::BleState;
+use crate::change::{Change, ChangeOutcome};
 use crate::connection::{ConnectOptions, ConnectionInfo, ConnectionKind};
 use crate::counters::{Counters, DropCause};
 use crate::error::Error;
@@ -118,12 +119,23 @@ pub(crate) struct ProcState {
     /// Times it was triggered again in a poll in which it had already run (by its own write
     /// or a cycle of processes) and was held back by [`RETRIGGER_INTERVAL`] (D7.3).
     pub(crate) retriggers: u64,
+    /// What became of the structure changes its previous activation asked for (R2).
+    pub(crate) outcomes: Vec<ChangeOutcome>,
 }
 
 impl ProcState {
     /// A process that has not run yet, first due at `now` (periodic ones; D7.2).
     fn new(spec: ProcessSpec, now: Instant) -> ProcState {
-        ProcState { spec, next_due: now, runs: 0, overruns: 0, pending: false, ran_in_poll: 0, retriggers: 0 }
+        ProcState {
+            spec,
+            next_due: now,
+            runs: 0,
+            overruns: 0,
+            pending: false,
+            ran_in_poll: 0,
+            retriggers: 0,
+            outcomes: Vec::new(),
+        }
     }
 }
 
@@ -307,6 +319,8 @@ pub struct NodeCore {
     request_buckets: HashMap<NodeId, (f64, Instant)>,
     /// The flight recorder's tap (crate::journal); `None`, and then free, unless started.
     pub(crate) journal: Option<Box<Journal>>,
+    /// This node's part in transactions (crate::transaction).
+    pub(crate) txns: crate::transaction::Transactions,
 }
 
 impl NodeCore {
@@ -351,6 +365,7 @@ impl NodeCore {
             limits: Limits::default(),
             request_buckets: HashMap::new(),
             journal: None,
+            txns: crate::transaction::Transactions::default(),
         }
     }
 
@@ -519,6 +534,17 @@ impl NodeCore {
         beh.processes.push(ProcState::new(spec, now));
         self.journal(|| Event::AddProcess { behavior: behavior.to_owned(), name: name.to_owned(), trigger });
         Ok(())
+    }
+
+    /// Whether class `class` has a port named `port`; `None` if no such class is defined.
+    pub(crate) fn class_port(&self, class: &str, port: &str) -> Option<bool> {
+        self.classes.get(class).map(|c| c.port_handle(port).is_some())
+    }
+
+    /// The class of behavior `name`, if it exists.
+    pub(crate) fn class_name_of(&self, name: &str) -> Option<String> {
+        let b = self.behavior_index(name).ok()?;
+        self.behavior(b).map(|beh| beh.class.name.clone())
     }
 
     pub(crate) fn behavior_index(&self, name: &str) -> Result<u32, Error> {
@@ -1300,13 +1326,31 @@ impl NodeCore {
     }
 
     fn apply_control(&mut self, from: NodeId, body: ControlBody) -> Result<ReplyBody, Error> {
-        let changes_structure = matches!(body, ControlBody::Connect { .. } | ControlBody::Disconnect { .. });
+        let changes_structure = matches!(
+            body,
+            ControlBody::Connect { .. }
+                | ControlBody::Disconnect { .. }
+                | ControlBody::Prepare { .. }
+                | ControlBody::Commit { .. }
+                | ControlBody::Abort { .. }
+        );
         if changes_structure && !self.access.structure.admits(from) {
             return Err(Error::NotAllowed {
                 what: format!("{from} may not change this node's structure (its access rules)"),
             });
         }
+        if matches!(body, ControlBody::Connect { .. } | ControlBody::Disconnect { .. }) {
+            if let Some((coordinator, txn)) = self.transaction_held() {
+                // The reservation a PREPARE holds (R9).
+                return Err(Error::Transaction {
+                    what: format!("busy: transaction {txn} of {coordinator} is held here"),
+                });
+            }
+        }
         match body {
+            body @ (ControlBody::Prepare { .. } | ControlBody::Commit { .. } | ControlBody::Abort { .. }) => {
+                self.apply_transaction(from, body)
+            }
             ControlBody::Connect { source_behavior, source_port, destination, kind, priority } => {
                 if matches!(destination, Endpoint::Local { .. }) {
                     return Err(Error::NotLocal {
@@ -1380,6 +1424,7 @@ impl NodeCore {
         self.advance(now);
         self.journal(|| Event::Poll);
         let now = self.now;
+        self.poll_transaction();
         self.poll_epoch += 1;
         if now >= self.deferred_due {
             self.pending.extend(self.deferred.drain(..));
@@ -1468,8 +1513,33 @@ impl NodeCore {
             let native = beh.ble.is_some() && spec.name == crate::ble::BLE_SELECT;
             j.push(self.now, Event::Run { behavior: beh.name.clone(), process: spec.name.clone(), native });
         }
-        let mut ctx = Ctx { core: self, b };
+        let mut ctx = Ctx { core: self, b, pi, changes: Vec::new() };
         body(&mut ctx);
+        let changes = std::mem::take(&mut ctx.changes);
+        self.apply_process_changes(b, pi, changes);
+    }
+
+    /// Apply the structure changes an activation of process `pi` of behavior `b` asked for,
+    /// in order, now that it has returned (R1), and keep their outcomes for its next
+    /// activation (R2). They were journaled as the process's effects when asked for, so they
+    /// are applied unjournaled (a replay repeats them through its player).
+    fn apply_process_changes(&mut self, b: u32, pi: u16, changes: Vec<Change>) {
+        let id = self.behavior(b).map(|beh| beh.id);
+        let had_outcomes = self.behavior(b).is_some_and(|beh| !beh.processes[usize::from(pi)].outcomes.is_empty());
+        if changes.is_empty() && !had_outcomes {
+            return;
+        }
+        let outcomes: Vec<ChangeOutcome> = changes
+            .into_iter()
+            .map(|change| {
+                let result = self.unjournaled(|core| core.apply_change(&change));
+                ChangeOutcome { change, result }
+            })
+            .collect();
+        // A behavior that removed itself has no next activation to read them (R3).
+        if let Some(beh) = self.behavior_mut(b).filter(|beh| Some(beh.id) == id) {
+            beh.processes[usize::from(pi)].outcomes = outcomes;
+        }
     }
 
     /// When `poll` next has work: the earliest periodic activation, monostable edge or
@@ -1499,6 +1569,9 @@ impl NodeCore {
             if matches!(r.status, RequestStatus::Pending { .. }) {
                 consider(r.next_send);
             }
+        }
+        if let Some(t) = self.transaction_due() {
+            consider(t);
         }
         at
     }

@@ -3,13 +3,25 @@
 //! A process reaches its own behavior's registers through the handles its class declared.
 //! Writes to ports start a propagation wave at once (rule S5); processes triggered by them
 //! run after the current process returns, never inside it.
+//!
+//! A process may also change its node's structure ([`Ctx::change`] and the calls named after
+//! each change): the changes wait in the context and are applied, in order, when it returns,
+//! before any other process runs (docs/semantics.md, R1–R6). Their outcomes are what the
+//! process's next activation reads in [`Ctx::changes`]. Requests to other nodes
+//! ([`Ctx::request_connect`]) leave at once, as the node's own would; their answers come back
+//! in [`Ctx::request_status`]. Each change and request is a process effect in the journal,
+//! so a replay repeats it.
 
-use crate::address::{NodeId, Source};
+use crate::address::{ConnectionId, Endpoint, NodeId, Source};
 use crate::behavior::{Mono, Port, Slot};
+use crate::ble::BleConfig;
+use crate::change::{Change, ChangeOutcome};
+use crate::connection::{ConnectOptions, ConnectionKind};
 use crate::counters::DropCause;
 use crate::error::Error;
 use crate::journal::Event;
-use crate::node::{current, NodeCore};
+use crate::message::ControlBody;
+use crate::node::{current, NodeCore, RequestId, RequestStatus};
 use crate::time::{Duration, Instant};
 use crate::value::Value;
 
@@ -17,6 +29,10 @@ use crate::value::Value;
 pub struct Ctx<'a> {
     pub(crate) core: &'a mut NodeCore,
     pub(crate) b: u32,
+    /// The running process's number in its behavior.
+    pub(crate) pi: u16,
+    /// Structure changes asked for, applied when the process returns (R1).
+    pub(crate) changes: Vec<Change>,
 }
 
 impl Ctx<'_> {
@@ -127,5 +143,145 @@ impl Ctx<'_> {
     pub fn is_high(&self, m: Mono) -> bool {
         let now = self.now();
         self.core.behavior(self.b).and_then(|beh| beh.monos.get(usize::from(m.0))).is_some_and(|mono| now < mono.end)
+    }
+
+    // ----- structure (docs/semantics.md, "Reconfiguration") ---------------------------------
+
+    /// Ask for a structure change of this node, applied when the process returns (R1). Returns
+    /// its position in this activation's list: the next activation finds its outcome at that
+    /// position in [`Ctx::changes`]. Refused at once, and not queued: what is wrong whatever
+    /// the node holds ([`Change::check`]); everything else is found when it is applied (R2).
+    pub fn change(&mut self, change: Change) -> Result<usize, Error> {
+        change.check()?;
+        if self.core.journal.is_some() {
+            let recorded = change.clone();
+            self.core.journal(|| Event::ProcessChange(recorded));
+        }
+        self.changes.push(change);
+        Ok(self.changes.len() - 1)
+    }
+
+    /// Ask to create behavior `name` of class `class` (see [`Ctx::change`]).
+    pub fn create(&mut self, class: &str, name: &str) -> Result<usize, Error> {
+        self.change(Change::Create { class: class.to_owned(), name: name.to_owned() })
+    }
+
+    /// Ask to remove behavior `name` (possibly this very one: R3).
+    pub fn remove(&mut self, name: &str) -> Result<usize, Error> {
+        self.change(Change::Remove { name: name.to_owned() })
+    }
+
+    /// Ask to connect `source` (a port of this node) to `destination`.
+    pub fn connect(
+        &mut self,
+        source: &Endpoint,
+        destination: &Endpoint,
+        kind: ConnectionKind,
+        options: ConnectOptions,
+    ) -> Result<usize, Error> {
+        self.change(Change::Connect {
+            source: source.clone(),
+            destination: destination.clone(),
+            kind,
+            priority: options.priority,
+        })
+    }
+
+    /// Ask to remove connection `conn` of this node.
+    pub fn disconnect(&mut self, conn: ConnectionId) -> Result<usize, Error> {
+        self.change(Change::Disconnect { conn })
+    }
+
+    /// Ask to remove every connection of this node from `source` to `destination`.
+    pub fn disconnect_between(&mut self, source: &Endpoint, destination: &Endpoint) -> Result<usize, Error> {
+        self.change(Change::DisconnectBetween { source: source.clone(), destination: destination.clone() })
+    }
+
+    /// Ask to join broadcast group `group`.
+    pub fn join(&mut self, group: &str) -> Result<usize, Error> {
+        self.change(Change::Join { group: group.to_owned() })
+    }
+
+    /// Ask to leave broadcast group `group`.
+    pub fn leave(&mut self, group: &str) -> Result<usize, Error> {
+        self.change(Change::Leave { group: group.to_owned() })
+    }
+
+    /// Ask to make `behavior` a member of a BLE peer group.
+    pub fn ble_join(&mut self, behavior: &str, config: &BleConfig) -> Result<usize, Error> {
+        self.change(Change::BleJoin { behavior: behavior.to_owned(), config: config.clone() })
+    }
+
+    /// The changes this activation has asked for so far (applied when it returns).
+    pub fn pending_changes(&self) -> &[Change] {
+        &self.changes
+    }
+
+    /// What became of the changes this process's previous activation asked for, in the order
+    /// asked (R2). Empty if it asked for none.
+    pub fn changes(&self) -> &[ChangeOutcome] {
+        self.core
+            .behavior(self.b)
+            .and_then(|beh| beh.processes.get(usize::from(self.pi)))
+            .map_or(&[], |p| p.outcomes.as_slice())
+    }
+
+    /// Ask `source`'s node (another node) to connect its port to `destination`, as
+    /// [`NodeCore::request_connect`] does; sent at once, answered in [`Ctx::request_status`]
+    /// (R6). A `Local` destination means a port of this node.
+    pub fn request_connect(
+        &mut self,
+        source: &Endpoint,
+        destination: &Endpoint,
+        kind: ConnectionKind,
+        options: ConnectOptions,
+    ) -> Result<RequestId, Error> {
+        if kind.period().is_some_and(|p| p.is_zero()) {
+            return Err(Error::ZeroPeriod { kind });
+        }
+        let Endpoint::Node { node, behavior, port } = source else {
+            return Err(if matches!(source, Endpoint::Group { .. }) {
+                Error::GroupSource
+            } else {
+                Error::NotLocal { what: "request_connect's source must be a (node, behavior, port)".into() }
+            });
+        };
+        let destination = match destination {
+            Endpoint::Local { behavior, port } => {
+                Endpoint::Node { node: self.core.id(), behavior: behavior.clone(), port: port.clone() }
+            }
+            other => other.clone(),
+        };
+        let body = ControlBody::Connect {
+            source_behavior: behavior.clone(),
+            source_port: port.clone(),
+            destination,
+            kind,
+            priority: options.priority,
+        };
+        self.request(*node, body)
+    }
+
+    /// Ask `node` to remove its connection `conn` (R6).
+    pub fn request_disconnect(&mut self, node: NodeId, conn: ConnectionId) -> RequestId {
+        self.request(node, ControlBody::Disconnect { conn }).expect("a disconnect is a request")
+    }
+
+    /// Send control request `body` to `node` at once, as [`NodeCore::request`] does (R6);
+    /// journaled as this process's effect. A reply is not a request.
+    pub fn request(&mut self, node: NodeId, body: ControlBody) -> Result<RequestId, Error> {
+        if matches!(body, ControlBody::Reply { .. }) {
+            return Err(Error::NotLocal { what: "a reply is not a request".into() });
+        }
+        if self.core.journal.is_some() {
+            let recorded = body.clone();
+            self.core.journal(|| Event::ProcessRequest { to: node, body: recorded });
+        }
+        self.core.unjournaled(|core| core.request(node, body))
+    }
+
+    /// Where a request this node sent stands (see [`NodeCore::request_status`]).
+    pub fn request_status(&self, id: RequestId) -> Option<RequestStatus> {
+        self.core.request_status(id)
     }
 }

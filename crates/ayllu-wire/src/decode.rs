@@ -11,13 +11,15 @@
 use core::fmt;
 use std::sync::Arc;
 
-use ayllu_core::{ConnectionId, ConnectionKind, ControlBody, Endpoint, NodeId, PortMessage, Value};
+use ayllu_core::{
+    BleConfig, Change, ConnectionId, ConnectionKind, ControlBody, Duration, Endpoint, NodeId, PortMessage, Value,
+};
 
 use crate::auth::{verify_mac, Key};
 use crate::message::{conn_kind_from, endpoint_tag, reply_code, value_type, ReplyPart, WireMessage};
 use crate::{
-    kind, op, COOKIE_LEN, FLAG_AUTH, HEADER_LEN, MAC_LEN, MAGIC, MAX_DATAGRAM_LEN, MAX_REPLY_PARTS, MESSAGE_HEADER_LEN,
-    VERSION,
+    change_tag, kind, op, COOKIE_LEN, FLAG_AUTH, HEADER_LEN, MAC_LEN, MAGIC, MAX_DATAGRAM_LEN, MAX_REPLY_PARTS,
+    MESSAGE_HEADER_LEN, VERSION,
 };
 
 /// How the receiving node is configured.
@@ -309,6 +311,18 @@ fn decode_request(body: &[u8], names: &mut NameCache) -> Option<WireMessage> {
         op::LIST => ControlBody::List,
         op::WHY => ControlBody::Why { behavior: r.str8()?, port: r.str8()? },
         op::READ => ControlBody::Read { behavior: r.str8()?, port: r.str8()? },
+        op::PREPARE => {
+            let txn = r.u64()?;
+            let hold = Duration::from_nanos(r.u64()?);
+            let n = r.u8()?;
+            let mut changes = Vec::with_capacity(usize::from(n));
+            for _ in 0..n {
+                changes.push(r.change()?);
+            }
+            ControlBody::Prepare { txn, changes, hold }
+        }
+        op::COMMIT => ControlBody::Commit { txn: r.u64()?, delay: Duration::from_nanos(r.u64()?) },
+        op::ABORT => ControlBody::Abort { txn: r.u64()? },
         // Not malformed: the receiver answers "unknown operation" (spec, REQUEST).
         other => return Some(WireMessage::UnknownRequest { id, op: other }),
     };
@@ -447,6 +461,37 @@ impl<'a> Reader<'a, '_> {
                     .collect();
                 Value::Vector(Arc::from(xs))
             }
+            _ => return None,
+        })
+    }
+
+    /// One change of a PREPARE; names are non-empty, endpoints never local.
+    fn change(&mut self) -> Option<Change> {
+        Some(match self.u8()? {
+            change_tag::CREATE => Change::Create { class: self.name()?.to_string(), name: self.name()?.to_string() },
+            change_tag::REMOVE => Change::Remove { name: self.name()?.to_string() },
+            change_tag::CONNECT => Change::Connect {
+                source: self.endpoint()?,
+                destination: self.endpoint()?,
+                kind: self.kind()?,
+                priority: self.i32()?,
+            },
+            change_tag::DISCONNECT => Change::Disconnect { conn: ConnectionId(self.u64()?) },
+            change_tag::DISCONNECT_BETWEEN => {
+                Change::DisconnectBetween { source: self.endpoint()?, destination: self.endpoint()? }
+            }
+            change_tag::JOIN => Change::Join { group: self.name()?.to_string() },
+            change_tag::LEAVE => Change::Leave { group: self.name()?.to_string() },
+            change_tag::BLE_JOIN => Change::BleJoin {
+                behavior: self.name()?.to_string(),
+                config: BleConfig {
+                    group: self.name()?.to_string(),
+                    output: self.name()?.to_string(),
+                    claim_rate_hz: self.f64()?,
+                    inhibit_period: Duration::from_nanos(self.u64()?),
+                    network_delay: Duration::from_nanos(self.u64()?),
+                },
+            },
             _ => return None,
         })
     }

@@ -9,12 +9,13 @@
 
 use core::fmt;
 
-use ayllu_core::{ControlBody, Endpoint, NodeId, PortMessage, Value};
+use ayllu_core::{Change, ControlBody, Endpoint, NodeId, PortMessage, Value};
 
 use crate::auth::{mac, Key};
 use crate::message::{conn_kind_code, endpoint_tag, reply_code, value_type, ReplyPart, WireMessage};
 use crate::{
-    op, FLAG_AUTH, HEADER_LEN, MAC_LEN, MAGIC, MAX_DATAGRAM_LEN, MAX_REPLY_PARTS, MESSAGE_HEADER_LEN, VERSION,
+    change_tag, op, FLAG_AUTH, HEADER_LEN, MAC_LEN, MAGIC, MAX_DATAGRAM_LEN, MAX_REPLY_PARTS, MESSAGE_HEADER_LEN,
+    VERSION,
 };
 
 /// Why a message was not added to a datagram.
@@ -273,7 +274,7 @@ fn encode_body(buf: &mut Vec<u8>, message: &WireMessage) -> Result<(), EncodeErr
             Ok(())
         }
         WireMessage::UnknownRequest { id, op } => {
-            if (op::CONNECT..=op::READ).contains(op) {
+            if (op::CONNECT..=op::ABORT).contains(op) {
                 return Err(EncodeError::Invalid("UnknownRequest with a known operation code"));
             }
             buf.extend_from_slice(&id.to_le_bytes());
@@ -375,8 +376,82 @@ pub(crate) fn put_request(buf: &mut Vec<u8>, body: &ControlBody) -> Result<(), E
             put_str8(buf, behavior, NonEmpty::No)?;
             put_str8(buf, port, NonEmpty::No)
         }
+        ControlBody::Prepare { txn, changes, hold } => {
+            buf.push(op::PREPARE);
+            buf.extend_from_slice(&txn.to_le_bytes());
+            buf.extend_from_slice(&hold.as_nanos().to_le_bytes());
+            let n = u8::try_from(changes.len())
+                .map_err(|_| EncodeError::Invalid("a PREPARE carries at most 255 changes"))?;
+            buf.push(n);
+            for c in changes {
+                put_change(buf, c)?;
+            }
+            Ok(())
+        }
+        ControlBody::Commit { txn, delay } => {
+            buf.push(op::COMMIT);
+            buf.extend_from_slice(&txn.to_le_bytes());
+            buf.extend_from_slice(&delay.as_nanos().to_le_bytes());
+            Ok(())
+        }
+        ControlBody::Abort { txn } => {
+            buf.push(op::ABORT);
+            buf.extend_from_slice(&txn.to_le_bytes());
+            Ok(())
+        }
         ControlBody::Reply { .. } => {
             Err(EncodeError::Invalid("a reply is sent as REPLY parts (reply_messages), not as a REQUEST"))
+        }
+    }
+}
+
+/// One change of a PREPARE: its tag, then its fields (spec/protocol.md "PREPARE").
+fn put_change(buf: &mut Vec<u8>, c: &Change) -> Result<(), EncodeError> {
+    match c {
+        Change::Create { class, name } => {
+            buf.push(change_tag::CREATE);
+            put_str8(buf, class, NonEmpty::Yes)?;
+            put_str8(buf, name, NonEmpty::Yes)
+        }
+        Change::Remove { name } => {
+            buf.push(change_tag::REMOVE);
+            put_str8(buf, name, NonEmpty::Yes)
+        }
+        Change::Connect { source, destination, kind, priority } => {
+            buf.push(change_tag::CONNECT);
+            put_endpoint(buf, source)?;
+            put_endpoint(buf, destination)?;
+            put_kind(buf, *kind)?;
+            buf.extend_from_slice(&priority.to_le_bytes());
+            Ok(())
+        }
+        Change::Disconnect { conn } => {
+            buf.push(change_tag::DISCONNECT);
+            buf.extend_from_slice(&conn.0.to_le_bytes());
+            Ok(())
+        }
+        Change::DisconnectBetween { source, destination } => {
+            buf.push(change_tag::DISCONNECT_BETWEEN);
+            put_endpoint(buf, source)?;
+            put_endpoint(buf, destination)
+        }
+        Change::Join { group } => {
+            buf.push(change_tag::JOIN);
+            put_str8(buf, group, NonEmpty::Yes)
+        }
+        Change::Leave { group } => {
+            buf.push(change_tag::LEAVE);
+            put_str8(buf, group, NonEmpty::Yes)
+        }
+        Change::BleJoin { behavior, config } => {
+            buf.push(change_tag::BLE_JOIN);
+            put_str8(buf, behavior, NonEmpty::Yes)?;
+            put_str8(buf, &config.group, NonEmpty::Yes)?;
+            put_str8(buf, &config.output, NonEmpty::Yes)?;
+            buf.extend_from_slice(&config.claim_rate_hz.to_bits().to_le_bytes());
+            buf.extend_from_slice(&config.inhibit_period.as_nanos().to_le_bytes());
+            buf.extend_from_slice(&config.network_delay.as_nanos().to_le_bytes());
+            Ok(())
         }
     }
 }

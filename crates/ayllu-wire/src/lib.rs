@@ -115,6 +115,32 @@ pub mod op {
     pub const WHY: u8 = 4;
     /// Read one port's value.
     pub const READ: u8 = 5;
+    /// Validate and hold a transaction's part (answered with the text value `prepared`).
+    pub const PREPARE: u8 = 6;
+    /// Switch a prepared transaction in, after a delay from receipt (answered `committed`).
+    pub const COMMIT: u8 = 7;
+    /// Drop a prepared transaction (answered `aborted`).
+    pub const ABORT: u8 = 8;
+}
+
+/// The tags of the structure changes a PREPARE carries.
+pub mod change_tag {
+    /// Create a behavior: class, name.
+    pub const CREATE: u8 = 1;
+    /// Remove a behavior: name.
+    pub const REMOVE: u8 = 2;
+    /// Connect: source and destination endpoints, kind, priority.
+    pub const CONNECT: u8 = 3;
+    /// Disconnect by id.
+    pub const DISCONNECT: u8 = 4;
+    /// Disconnect every connection between two endpoints.
+    pub const DISCONNECT_BETWEEN: u8 = 5;
+    /// Join a group.
+    pub const JOIN: u8 = 6;
+    /// Leave a group.
+    pub const LEAVE: u8 = 7;
+    /// Join a BLE peer group: behavior, group, output, claim rate, inhibit period, delay.
+    pub const BLE_JOIN: u8 = 8;
 }
 
 /// The first datagram sequence number of a sender started at `boot_unix_seconds`: the

@@ -144,7 +144,14 @@ impl fmt::Debug for OperatorPublic {
 
 /// Whether a request changes the receiver's structure, the right an operator key guards.
 pub fn changes_structure(body: &ControlBody) -> bool {
-    matches!(body, ControlBody::Connect { .. } | ControlBody::Disconnect { .. })
+    matches!(
+        body,
+        ControlBody::Connect { .. }
+            | ControlBody::Disconnect { .. }
+            | ControlBody::Prepare { .. }
+            | ControlBody::Commit { .. }
+            | ControlBody::Abort { .. }
+    )
 }
 
 #[cfg(test)]

@@ -5,7 +5,9 @@
 use std::collections::BTreeSet;
 use std::sync::Arc;
 
-use ayllu_core::{ConnectionId, ConnectionKind, ControlBody, Duration, Endpoint, NodeId, PortMessage, Value};
+use ayllu_core::{
+    BleConfig, Change, ConnectionId, ConnectionKind, ControlBody, Duration, Endpoint, NodeId, PortMessage, Value,
+};
 use ayllu_wire::{
     decode, encode_datagram, DatagramWriter, EncodeError, Key, ReceiverConfig, ReplayWindow, ReplyPart, WireMessage,
     MAX_DATAGRAM_LEN,
@@ -69,6 +71,38 @@ fn request_body() -> impl Strategy<Value = ControlBody> {
         Just(ControlBody::List),
         (name(), name()).prop_map(|(behavior, port)| ControlBody::Why { behavior, port }),
         (name(), name()).prop_map(|(behavior, port)| ControlBody::Read { behavior, port }),
+        (any::<u64>(), proptest::collection::vec(change(), 0..6), any::<u64>())
+            .prop_map(|(txn, changes, hold)| ControlBody::Prepare { txn, changes, hold: Duration::from_nanos(hold) }),
+        (any::<u64>(), any::<u64>()).prop_map(|(txn, d)| ControlBody::Commit { txn, delay: Duration::from_nanos(d) }),
+        any::<u64>().prop_map(|txn| ControlBody::Abort { txn }),
+    ]
+}
+
+/// A change as a PREPARE carries it: non-empty names, endpoints never local.
+fn change() -> impl Strategy<Value = Change> {
+    let s = || "[A-Za-z0-9]{1,8}";
+    prop_oneof![
+        (s(), s()).prop_map(|(class, name)| Change::Create { class, name }),
+        s().prop_map(|name| Change::Remove { name }),
+        (endpoint(), endpoint(), conn_kind(), any::<i32>()).prop_map(|(source, destination, kind, priority)| {
+            Change::Connect { source, destination, kind, priority }
+        }),
+        any::<u64>().prop_map(|c| Change::Disconnect { conn: ConnectionId(c) }),
+        (endpoint(), endpoint()).prop_map(|(source, destination)| Change::DisconnectBetween { source, destination }),
+        s().prop_map(|group| Change::Join { group }),
+        s().prop_map(|group| Change::Leave { group }),
+        (s(), s(), s(), any::<u32>(), any::<u64>(), any::<u64>()).prop_map(|(behavior, group, output, r, i, d)| {
+            Change::BleJoin {
+                behavior,
+                config: BleConfig {
+                    group,
+                    output,
+                    claim_rate_hz: f64::from(r) / 8.0,
+                    inhibit_period: Duration::from_nanos(i),
+                    network_delay: Duration::from_nanos(d),
+                },
+            }
+        }),
     ]
 }
 
@@ -118,7 +152,7 @@ fn message() -> impl Strategy<Value = WireMessage> {
         }),
         any::<[u8; 16]>().prop_map(|cookie| WireMessage::Challenge { cookie }),
         any::<[u8; 16]>().prop_map(|cookie| WireMessage::Echo { cookie }),
-        (any::<u64>(), prop_oneof![Just(0u8), 6u8..=255]).prop_map(|(id, op)| WireMessage::UnknownRequest { id, op }),
+        (any::<u64>(), prop_oneof![Just(0u8), 9u8..=255]).prop_map(|(id, op)| WireMessage::UnknownRequest { id, op }),
         reply(),
     ]
 }

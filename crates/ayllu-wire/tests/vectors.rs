@@ -915,6 +915,9 @@ fn message_json(m: &WireMessage) -> Json {
                     o.insert("port".into(), json!(&**port));
                 }
                 ControlBody::Reply { .. } => panic!("replies are REPLY messages"),
+                ControlBody::Prepare { .. } | ControlBody::Commit { .. } | ControlBody::Abort { .. } => {
+                    panic!("transaction requests have their own vectors (tests/transaction_vectors.rs)")
+                }
             }
             if let Some(sig) = signature {
                 o.insert("signature_hex".into(), json!(hex(sig)));

@@ -15,9 +15,9 @@
 use std::sync::Arc;
 
 use ayllu_core::{
-    Access, Allow, BehaviorClass, BleConfig, ConnectionId, ConnectionKind, ControlBody, ControlMessage, Duration,
-    Endpoint, Entry, Event, Instant, Limits, Message, NodeId, PortKind, PortMessage, PortSpec, ReplyBody, Trigger,
-    Value, ValueType,
+    Access, Allow, BehaviorClass, BleConfig, Change, ConnectionId, ConnectionKind, ControlBody, ControlMessage,
+    Duration, Endpoint, Entry, Event, Instant, Limits, Message, NodeId, PortKind, PortMessage, PortSpec, ReplyBody,
+    Trigger, Value, ValueType,
 };
 use serde::de::DeserializeOwned;
 use serde_json::{json, Map, Value as Json};
@@ -247,8 +247,67 @@ fn body_json(b: &ControlBody) -> Json {
         ControlBody::List => json!("list"),
         ControlBody::Why { behavior, port } => json!({"why": {"behavior": &**behavior, "port": &**port}}),
         ControlBody::Read { behavior, port } => json!({"read": {"behavior": &**behavior, "port": &**port}}),
+        ControlBody::Prepare { txn, changes, hold } => json!({"prepare": {"txn": txn,
+            "changes": changes.iter().map(change_json).collect::<Vec<_>>(), "hold": to_json(hold)}}),
+        ControlBody::Commit { txn, delay } => json!({"commit": {"txn": txn, "delay": to_json(delay)}}),
+        ControlBody::Abort { txn } => json!({"abort": {"txn": txn}}),
         ControlBody::Reply { result } => json!({"reply": to_json(result)}),
     }
+}
+
+/// A structure change ([`Change`]) as a JSON object: `{"op": "connect", ...}`.
+pub fn change_json(c: &Change) -> Json {
+    match c {
+        Change::Create { class, name } => json!({"op": "create", "class": class, "behavior": name}),
+        Change::Remove { name } => json!({"op": "remove", "behavior": name}),
+        Change::Connect { source, destination, kind, priority } => json!({"op": "connect",
+            "source": to_json(source), "destination": to_json(destination), "kind": to_json(kind),
+            "priority": priority}),
+        Change::Disconnect { conn } => json!({"op": "disconnect", "conn": conn.0}),
+        Change::DisconnectBetween { source, destination } => json!({"op": "disconnect_between",
+            "source": to_json(source), "destination": to_json(destination)}),
+        Change::Join { group } => json!({"op": "join", "group": group}),
+        Change::Leave { group } => json!({"op": "leave", "group": group}),
+        Change::BleJoin { behavior, config } => json!({"op": "ble_join", "behavior": behavior,
+            "group": config.group, "output": config.output, "claim_rate_hz": float_json(config.claim_rate_hz),
+            "inhibit_period": to_json(&config.inhibit_period), "network_delay": to_json(&config.network_delay)}),
+    }
+}
+
+/// The change [`change_json`] wrote as `f`.
+fn change_from(f: &Fields<'_>) -> Result<Change, String> {
+    Ok(match f.str("op")?.as_str() {
+        "create" => Change::Create { class: f.str("class")?, name: f.str("behavior")? },
+        "remove" => Change::Remove { name: f.str("behavior")? },
+        "connect" => Change::Connect {
+            source: f.serde("source")?,
+            destination: f.serde("destination")?,
+            kind: f.serde("kind")?,
+            priority: f.i32("priority")?,
+        },
+        "disconnect" => Change::Disconnect { conn: ConnectionId(f.u64("conn")?) },
+        "disconnect_between" => {
+            Change::DisconnectBetween { source: f.serde("source")?, destination: f.serde("destination")? }
+        }
+        "join" => Change::Join { group: f.str("group")? },
+        "leave" => Change::Leave { group: f.str("group")? },
+        "ble_join" => Change::BleJoin {
+            behavior: f.str("behavior")?,
+            config: BleConfig {
+                group: f.str("group")?,
+                output: f.str("output")?,
+                claim_rate_hz: float_from(f.get("claim_rate_hz")?)?,
+                inhibit_period: f.serde("inhibit_period")?,
+                network_delay: f.serde("network_delay")?,
+            },
+        },
+        other => return Err(format!("unknown change `{other}`")),
+    })
+}
+
+/// Whether a `request` entry is a process's effect (it says so: `"by": "process"`).
+fn topic_is_process(f: &Fields<'_>) -> bool {
+    f.0.get("by").and_then(Json::as_str) == Some("process")
 }
 
 /// The topic and JSON object of journal entry number `seq`.
@@ -397,6 +456,16 @@ pub fn encode(seq: u64, entry: &Entry) -> (Topic, Json) {
             put("port_index", json!(port));
             (Topic::Process, "reset")
         }
+        Event::ProcessChange(change) => {
+            put("change", change_json(change));
+            (Topic::Process, "change")
+        }
+        Event::ProcessRequest { to, body } => {
+            put("to", json!(to.0));
+            put("body", body_json(body));
+            put("by", json!("process"));
+            (Topic::Process, "request")
+        }
         Event::Accepted { behavior, class, port, value } => {
             put("behavior", json!(&**behavior));
             put("port", json!(class.ports().get(usize::from(*port)).map_or("", |p| p.name.as_str())));
@@ -507,6 +576,18 @@ fn body_from(j: &Json) -> Result<ControlBody, String> {
         let (behavior, port) = names("read")?;
         return Ok(ControlBody::Read { behavior, port });
     }
+    if let Ok(p) = o.object("prepare") {
+        let list = p.get("changes")?.as_array().ok_or("`changes` is not a list")?;
+        let changes: Result<Vec<Change>, String> =
+            list.iter().map(|c| change_from(&Fields(c.as_object().ok_or("a change is not an object")?))).collect();
+        return Ok(ControlBody::Prepare { txn: p.u64("txn")?, changes: changes?, hold: p.serde("hold")? });
+    }
+    if let Ok(c) = o.object("commit") {
+        return Ok(ControlBody::Commit { txn: c.u64("txn")?, delay: c.serde("delay")? });
+    }
+    if let Ok(a) = o.object("abort") {
+        return Ok(ControlBody::Abort { txn: a.u64("txn")? });
+    }
     if o.0.contains_key("reply") {
         return Ok(ControlBody::Reply { result: o.serde::<Result<ReplyBody, String>>("reply")? });
     }
@@ -585,6 +666,10 @@ pub fn decode(j: &Json) -> Result<Decoded, String> {
         },
         "sequence_base" => Event::SequenceBase(f.u64("base")?),
         "warn" => Event::Warn(f.str("warning")?),
+        "change" => Event::ProcessChange(change_from(&f.object("change")?)?),
+        "request" if topic_is_process(&f) => {
+            Event::ProcessRequest { to: NodeId(f.u32("to")?), body: body_from(f.get("body")?)? }
+        }
         "request" => Event::Request { to: NodeId(f.u32("to")?), body: body_from(f.get("body")?)? },
         "gap" => Event::Gap { lost: f.u64("lost")? },
         // A process's write names no behavior (it is the running one's).

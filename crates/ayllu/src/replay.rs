@@ -6,8 +6,8 @@
 //! polls at their times) are fed to a new [`NodeCore`] in their order. The application's
 //! processes are not needed: each class process is replaced by a *player* that, when the core
 //! runs it, applies the effects the recorded activation had (its writes, slot changes,
-//! triggers and resets, in order). Processes the core provides itself (BLE's select) run as
-//! they are.
+//! triggers, resets, structure changes and requests, in order). Processes the core provides
+//! itself (BLE's select) run as they are.
 //!
 //! What it promises:
 //! * Checked, not assumed: every value a port accepts during the replay is compared, bit for
@@ -236,6 +236,8 @@ fn is_effect(e: &Event) -> bool {
             | Event::ProcessSetSlot { .. }
             | Event::ProcessTrigger { .. }
             | Event::ProcessReset { .. }
+            | Event::ProcessChange(_)
+            | Event::ProcessRequest { .. }
     )
 }
 
@@ -313,6 +315,14 @@ fn player(tape: Arc<Mutex<Tape>>, name: String) -> impl Fn(&mut Ctx<'_>) + Send 
                 }
                 Event::ProcessTrigger { mono, period } => ctx.trigger(Mono(mono), period),
                 Event::ProcessReset { port } => ctx.reset(Port(port)),
+                // Asked for again, so the core applies them when the player returns, as it
+                // did live when the process returned.
+                Event::ProcessChange(change) => {
+                    let _ = ctx.change(change);
+                }
+                Event::ProcessRequest { to, body } => {
+                    let _ = ctx.request(to, body);
+                }
                 _ => {}
             }
         }
