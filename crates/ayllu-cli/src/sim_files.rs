@@ -105,7 +105,7 @@ fn print_run(args: &RunArgs, scenario: &Scenario, outcome: &Outcome) -> Result<(
     writeln!(
         out,
         "{}, {} robots, {} targets, seed {}, {} s: A_w {:.3}, A {:.2}, top-k {:.3} (alive {:.3}), switches/min {:.2}, \
-         recover {}, msgs/robot/s {:.1}",
+         recover {}, msgs/robot/s {:.1} ({:.0} bytes)",
         scenario.controller.name(),
         scenario.robots,
         scenario.world.targets.len(),
@@ -117,7 +117,8 @@ fn print_run(args: &RunArgs, scenario: &Scenario, outcome: &Outcome) -> Result<(
         m.top_k_alive,
         m.switches_per_min,
         m.recover_s.map_or("-".to_owned(), |r| format!("{r:.1} s")),
-        m.msgs_per_robot_s
+        m.msgs_per_robot_s,
+        m.bytes_per_robot_s
     )?;
     Ok(())
 }
@@ -144,8 +145,8 @@ pub fn sweep_file(args: &SweepArgs) -> Result<(), Fail> {
         for r in &cell.rows {
             writeln!(
                 out,
-                "  {:<12} A_w {:.3} ± {:.3}   msgs/robot/s {:.1}",
-                r.controller, r.metrics.a_w, r.a_w_sd, r.metrics.msgs_per_robot_s
+                "  {:<12} A_w {:.3} ± {:.3}   msgs/robot/s {:.1} ({:.0} bytes)",
+                r.controller, r.metrics.a_w, r.a_w_sd, r.metrics.msgs_per_robot_s, r.metrics.bytes_per_robot_s
             )?;
         }
     }

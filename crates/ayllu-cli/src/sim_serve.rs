@@ -436,7 +436,7 @@ pub fn serve(args: &ServeArgs) -> Result<(), Fail> {
     let t = tick as f64 * dt;
     let sent: u64 = bodies.iter().map(|b| b.reported(3)).sum();
     let bytes: u64 = bodies.iter().map(|b| b.reported(4)).sum();
-    let metrics = meter.finish(t, robots, sent);
+    let metrics = meter.finish(t, robots, sent, bytes);
     let done = json!({
         "done": true,
         "t": round3(t),
@@ -444,7 +444,6 @@ pub fn serve(args: &ServeArgs) -> Result<(), Fail> {
         "resyncs": resyncs,
         "metrics": serde_json::to_value(&metrics).map_err(|e| Fail::error(format!("metrics as JSON: {e}")))?,
         "radio": {"sent": sent, "bytes": bytes},
-        "bytes_per_robot_s": bytes as f64 / robots.max(1) as f64 / t.max(f64::MIN_POSITIVE),
     });
     writeln!(out, "{done}")?;
     out.flush()?;

@@ -10,7 +10,7 @@
 //! * the radio model was applied to the real traffic: the robots that talk (BLE, ForceField)
 //!   lost part of what their peers sent them, at about the scenario's rate;
 //! * the metrics are the in-process ones: switches per minute above 0 (reported drives);
-//!   messages per robot per second within a factor of two of in-process (0 for Local);
+//!   messages and bytes per robot per second within a factor of two of in-process (0 for Local);
 //! * A_w falls within the in-process spread for the same scenario (wander seeds 1..=8, the
 //!   world's seed fixed), widened by [`SLACK`] for real processes on a real clock.
 //!
@@ -45,10 +45,11 @@ fn scenario_text(controller: &str) -> String {
     )
 }
 
-/// In-process for the same scenario over wander seeds 1..=8: (min A_w, max A_w, mean msgs/robot/s).
-fn in_process(controller: &str) -> (f64, f64, f64) {
+/// In-process for the same scenario over wander seeds 1..=8: (min A_w, max A_w, mean
+/// msgs/robot/s, mean bytes/robot/s).
+fn in_process(controller: &str) -> (f64, f64, f64, f64) {
     let base = scenario_file::scenario(&scenario_text(controller)).expect("the scenario reads");
-    let (mut lo, mut hi, mut msgs) = (f64::INFINITY, f64::NEG_INFINITY, 0.0);
+    let (mut lo, mut hi, mut msgs, mut bytes) = (f64::INFINITY, f64::NEG_INFINITY, 0.0, 0.0);
     for w in 1..=8 {
         let mut s = base.clone();
         s.controllers.wander_seed = w;
@@ -56,8 +57,9 @@ fn in_process(controller: &str) -> (f64, f64, f64) {
         lo = lo.min(m.a_w);
         hi = hi.max(m.a_w);
         msgs += m.msgs_per_robot_s / 8.0;
+        bytes += m.bytes_per_robot_s / 8.0;
     }
-    (lo, hi, msgs)
+    (lo, hi, msgs, bytes)
 }
 
 struct Team {
@@ -125,7 +127,8 @@ fn check(team: &mut Team, started: Instant) {
     let a_w = m["a_w"].as_f64().expect("a_w");
     let msgs = m["msgs_per_robot_s"].as_f64().expect("msgs");
     let switches = m["switches_per_min"].as_f64().expect("switches");
-    let (lo, hi, msgs_in) = in_process(name);
+    let bytes = m["bytes_per_robot_s"].as_f64().expect("bytes");
+    let (lo, hi, msgs_in, bytes_in) = in_process(name);
 
     // The kill: announced by the server at its instant, carried out by robot 2's process.
     let kill = lines.iter().find(|j| j.get("kill").is_some()).unwrap_or_else(|| panic!("{name}: no kill line"));
@@ -148,7 +151,8 @@ fn check(team: &mut Team, started: Instant) {
     let share = lost as f64 / (lost + delivered).max(1) as f64;
     eprintln!(
         "{name}: distributed A_w {a_w:.3} (in-process {lo:.3}..{hi:.3}), msgs/robot/s {msgs:.2} (in-process \
-         {msgs_in:.2}), switches/min {switches:.2}, lost {lost} of {} ({:.0} %), recover {}, resyncs {}",
+         {msgs_in:.2}), bytes/robot/s {bytes:.0} (in-process {bytes_in:.0}), switches/min {switches:.2}, lost \
+         {lost} of {} ({:.0} %), recover {}, resyncs {}",
         lost + delivered,
         share * 100.0,
         m["recover_s"],
@@ -159,6 +163,7 @@ fn check(team: &mut Team, started: Instant) {
         assert_eq!(msgs, 0.0, "{name}: Local does not talk");
     } else {
         assert!(msgs > msgs_in / 2.0 && msgs < msgs_in * 2.0, "{name}: {msgs} msgs/robot/s vs {msgs_in} in-process");
+        assert!(bytes > bytes_in / 2.0 && bytes < bytes_in * 2.0, "{name}: {bytes} bytes/robot/s vs {bytes_in}");
         assert!(lost + delivered > 100, "{name}: too little traffic to judge the loss");
         assert!((share - LOSS).abs() < 0.1, "{name}: {:.0} % lost, the scenario says {LOSS}", share * 100.0);
     }

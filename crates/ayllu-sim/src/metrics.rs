@@ -18,7 +18,7 @@
 //!   instant are all dead before their lost targets are judged, so one doomed robot does not
 //!   count as re-covering another's target, and a target they shared is one task.
 //! * msgs/robot/s: radio messages sent (one per destination node, a broadcast counts once per
-//!   sender) per robot per second.
+//!   sender) per robot per second; bytes/robot/s: their encoded size (the udp:// wire format).
 
 use serde::{Deserialize, Serialize};
 
@@ -53,6 +53,10 @@ pub struct Metrics {
     /// Radio emissions per robot per second of virtual time (a broadcast counts once per
     /// sender; Centralized: one per assigned robot per second).
     pub msgs_per_robot_s: f64,
+    /// Their encoded size, bytes per robot per second ([`crate::radio::wire_len`]; the
+    /// omniscient planner's words are no radio messages and weigh nothing).
+    #[serde(default)]
+    pub bytes_per_robot_s: f64,
 }
 
 use crate::world::World;
@@ -198,8 +202,9 @@ impl Meter {
         }
     }
 
-    /// The metrics of the whole run; `messages` radio emissions by `robots` robots.
-    pub fn finish(mut self, end: f64, robots: usize, messages: u64) -> Metrics {
+    /// The metrics of the whole run; `messages` radio emissions of `bytes` bytes in all by
+    /// `robots` robots.
+    pub fn finish(mut self, end: f64, robots: usize, messages: u64, bytes: u64) -> Metrics {
         let unrecovered = self.pending.len() as u32;
         for (_, since) in self.pending.drain(..) {
             self.recovered.push(end - since);
@@ -223,6 +228,7 @@ impl Meter {
                 .then(|| self.recovered.iter().sum::<f64>() / self.recovered.len() as f64),
             unrecovered,
             msgs_per_robot_s: messages as f64 / robots.max(1) as f64 / t,
+            bytes_per_robot_s: bytes as f64 / robots.max(1) as f64 / t,
         }
     }
 }

@@ -66,6 +66,15 @@ impl Default for RadioConfig {
     }
 }
 
+/// Bytes `message` takes on the wire: the udp:// transport's encoding (ayllu-wire), message
+/// headers included, datagram headers, MACs and HELLOs not; 0 if it cannot be encoded (the
+/// transport would drop it too). How `bytes_per_robot_s` counts, in-process and distributed.
+pub fn wire_len(message: &Message) -> u64 {
+    ayllu_wire::WireMessage::from_core(message, ayllu_wire::DEFAULT_MTU, false)
+        .map(|parts| parts.iter().map(|p| ayllu_wire::encoded_len(p).unwrap_or(0) as u64).sum())
+        .unwrap_or(0)
+}
+
 /// What the radio needs to know about a robot when it routes.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Station {
@@ -131,6 +140,8 @@ pub struct Radio {
     groups: Vec<(Arc<str>, Vec<usize>)>,
     /// Emissions per station (a group message counts once).
     pub sent: Vec<u64>,
+    /// Their encoded size per station, in bytes ([`wire_len`]).
+    pub bytes: Vec<u64>,
     /// Deliveries (one per receiver) dropped by the loss draw.
     pub lost: u64,
     /// Deliveries (one per receiver) cut by the range limit or a partition.
@@ -153,6 +164,7 @@ impl Radio {
             cursor: Vec::new(),
             groups: Vec::new(),
             sent: vec![0; stations],
+            bytes: vec![0; stations],
             lost: 0,
             cut: 0,
             delivered: 0,
@@ -189,6 +201,7 @@ impl Radio {
     /// Station `from` emits `out` at `now`.
     pub fn send(&mut self, now: Instant, from: usize, out: Outgoing, stations: &[Station]) {
         self.sent[from] += 1;
+        self.bytes[from] += wire_len(&out.message);
         let src = stations[from];
         let t = now.as_secs_f64();
         let slot = self.free.pop().unwrap_or_else(|| {

@@ -119,13 +119,13 @@ pub fn write(dir: &Path, report: &Report) -> io::Result<Vec<PathBuf>> {
 pub fn runs_csv(runs: &[RunRow]) -> String {
     let mut out = String::from(
         "table,controller,robots,targets,loss,kill,seed,duration,a,a_per_m,a_w,top_k,k,top_k_alive,redundant,\
-         switches_per_min,recover_s,unrecovered,msgs_per_robot_s\n",
+         switches_per_min,recover_s,unrecovered,msgs_per_robot_s,bytes_per_robot_s\n",
     );
     for r in runs {
         let m = &r.metrics;
         let recover = m.recover_s.map_or(String::new(), |x| x.to_string());
         out.push_str(&format!(
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
             r.table,
             r.controller,
             r.robots,
@@ -144,7 +144,8 @@ pub fn runs_csv(runs: &[RunRow]) -> String {
             m.switches_per_min,
             recover,
             m.unrecovered,
-            m.msgs_per_robot_s
+            m.msgs_per_robot_s,
+            m.bytes_per_robot_s
         ));
     }
     out

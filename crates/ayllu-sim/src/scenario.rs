@@ -183,6 +183,9 @@ pub struct RadioStats {
     pub lost: u64,
     /// Deliveries cut by the range limit or a partition (one per receiver).
     pub cut: u64,
+    /// The emissions' encoded size in bytes ([`crate::radio::wire_len`]).
+    #[serde(default)]
+    pub bytes: u64,
 }
 
 /// What a run produced.
@@ -560,7 +563,8 @@ impl Sim {
         let s = &self.scenario;
         let end = self.now().as_secs_f64();
         let sent = self.radio.sent.iter().sum::<u64>() + self.oracle_messages;
-        let metrics = self.meter.finish(end, s.robots, sent);
+        let bytes = self.radio.bytes.iter().sum::<u64>();
+        let metrics = self.meter.finish(end, s.robots, sent, bytes);
         let recording = s.record.then(|| Recording {
             meta: RecordingMeta {
                 controller: s.controller.name().to_owned(),
@@ -590,7 +594,13 @@ impl Sim {
             trace_hash: hash,
             coverage: self.coverage,
             recording,
-            radio: RadioStats { sent, delivered: self.radio.delivered, lost: self.radio.lost, cut: self.radio.cut },
+            radio: RadioStats {
+                sent,
+                delivered: self.radio.delivered,
+                lost: self.radio.lost,
+                cut: self.radio.cut,
+                bytes,
+            },
         }
     }
 }

@@ -30,7 +30,7 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use ayllu::{PeerInfo, Sent, Transport};
 use ayllu_core::{Destination, Duration, Instant, Message, NodeId, Outgoing};
 
-use crate::radio::RadioConfig;
+use crate::radio::{wire_len, RadioConfig};
 use crate::served_robot::BODY_BASE;
 
 /// What a link has done so far.
@@ -141,13 +141,6 @@ impl<T: Transport> RadioLink<T> {
         let state = Arc::new(Mutex::new(state));
         (RadioLink { inner, state: state.clone() }, LinkHandle(state))
     }
-}
-
-/// Bytes `message` takes on the wire (0 if it cannot be encoded: the transport drops it too).
-fn wire_len(message: &Message) -> u64 {
-    ayllu_wire::WireMessage::from_core(message, ayllu_wire::DEFAULT_MTU, false)
-        .map(|parts| parts.iter().map(|p| ayllu_wire::encoded_len(p).unwrap_or(0) as u64).sum())
-        .unwrap_or(0)
 }
 
 impl<T: Transport> Transport for RadioLink<T> {

@@ -296,6 +296,7 @@ pub fn aggregate(cell: &Cell, runs: &[Metrics]) -> Row {
             recover_s: (!recovers.is_empty()).then(|| recovers.iter().sum::<f64>() / recovers.len() as f64),
             unrecovered: runs.iter().map(|m| m.unrecovered).sum(),
             msgs_per_robot_s: mean(|m| m.msgs_per_robot_s),
+            bytes_per_robot_s: mean(|m| m.bytes_per_robot_s),
         },
         a_w_sd,
     }
@@ -472,6 +473,7 @@ mod tests {
             recover_s,
             unrecovered: u32::from(recover_s.is_some()),
             msgs_per_robot_s: 10.0,
+            bytes_per_robot_s: 400.0,
         }
     }
 

@@ -30,7 +30,7 @@ fn two_robots_killed_at_once_do_not_re_cover_each_others_target() {
     meter.observe(12.0, 0.1, &w, &[0, 0, 0]);
     w.robots[2].pose = Pose { x: 3.0, y: 3.0, theta: std::f64::consts::FRAC_PI_4 };
     meter.observe(15.0, 0.1, &w, &[0, 0, 1]);
-    let m = meter.finish(20.0, 3, 0);
+    let m = meter.finish(20.0, 3, 0, 0);
     assert_eq!(m.recover_s, Some(5.0), "one shared task, re-covered after 5 s: {m:?}");
     assert_eq!(m.unrecovered, 0);
 
@@ -39,7 +39,7 @@ fn two_robots_killed_at_once_do_not_re_cover_each_others_target() {
     let mut old = Meter::new(&[1.0], 3);
     w.robots[0].alive = false;
     old.killed(10.0, &w, 0);
-    assert_eq!(old.finish(20.0, 3, 0).recover_s, Some(0.0), "what the simultaneous case used to report");
+    assert_eq!(old.finish(20.0, 3, 0, 0).recover_s, Some(0.0), "what the simultaneous case used to report");
 }
 
 #[test]
@@ -56,6 +56,6 @@ fn top_k_alive_judges_a_shrunk_team_by_what_it_can_still_cover() {
     w.robots[1].alive = false;
     let mut meter = Meter::new(&[2.0, 1.0], 2);
     meter.observe(1.0, 1.0, &w, &[1, 0]);
-    let m = meter.finish(1.0, 2, 0);
+    let m = meter.finish(1.0, 2, 0, 0);
     assert_eq!((m.k, m.top_k, m.top_k_alive), (2, 0.5, 1.0), "{m:?}");
 }

@@ -234,6 +234,7 @@ fn row(controller: &str, robots: u32, targets: u32, loss: f64, kill: bool) -> Ro
             recover_s: kill.then(|| r3(4.0 + 20.0 * loss + 10.0 * (1.0 - quality(controller)))),
             unrecovered: 0,
             msgs_per_robot_s: if controller == "BLE" { r3(4.0 * f64::from(targets)) } else { 0.0 },
+            bytes_per_robot_s: if controller == "BLE" { r3(160.0 * f64::from(targets)) } else { 0.0 },
         },
         a_w_sd: r3(0.02 + 0.05 * loss),
     }
