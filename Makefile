@@ -2,7 +2,7 @@
 # CI (.ci/run) runs `make lint` and `make test`.
 CARGO ?= cargo
 
-.PHONY: demo test lint test-python lint-python bench-python bench bench-c bench-net bench-sim fuzz fuzz-long soak fmt docs
+.PHONY: demo test lint test-python lint-python bench-python bench bench-c bench-net bench-peers bench-sim fuzz fuzz-long soak fmt docs
 
 ## Run the main demo: W-CMOMMT in the simulator (the paper's setting, a sweep, a robot killed
 ## halfway) for BLE and every baseline; prints a short summary (BLE against each baseline, whether
@@ -61,6 +61,13 @@ bench-c:
 ## Network benchmarks (loopback UDP), each beside a raw-UDP baseline from the same run.
 bench-net:
 	$(CARGO) bench -p ayllu --bench network
+
+## Raw UDP, Ayllu, Cyclone DDS, LCM, ZeroMQ and Zenoh side by side: round trip and one-way rate,
+## same payloads, pinning and two-process layout, one table of ratios to raw UDP (ROUNDS=5). Installs
+## LCM, ddsperf and ZeroMQ from Debian, builds the C peers and a Zenoh peer (its own target
+## directory: the first build takes 5-10 min); then about 3 min (benches/peers/run).
+bench-peers:
+	CARGO=$(CARGO) benches/peers/run
 
 ## Simulation speed against real time (10, 100, 1000 robots, BLE and Random), one thread.
 bench-sim:

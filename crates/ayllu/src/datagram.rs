@@ -3,6 +3,10 @@
 //! fault injector ([`crate::faults::FaultySocket`]) in its place.
 //!
 //! Promises: `send_to` and `recv_from` never block; `wait` blocks at most for its timeout.
+//! On Linux, [`OsSocket`]'s wait of `BLOCKING_WAIT_MIN` (20 ms) or more *is* the receive (one
+//! `recvmmsg` that waits), and for a node on a real-time clock a receive that found the socket
+//! empty stands for [`RECHECK`] (20 µs):
+//! see docs/performance.md for the system calls this saves.
 //! Errors from the OS are returned, never turned into panics.
 
 use std::collections::{BTreeMap, VecDeque};
@@ -19,6 +23,13 @@ pub trait DatagramSocket: Send {
     fn recv_from(&mut self, buf: &mut [u8]) -> io::Result<Option<(usize, SocketAddr)>>;
     /// Block until a datagram may be waiting or `timeout` passes.
     fn wait(&mut self, timeout: StdDuration);
+    /// For how long a receive that found nothing may answer later receives without asking
+    /// again (zero, the default: every receive asks). A node on a real-time clock sets
+    /// [`RECHECK`] through [`crate::Transport::set_real_time`]; on a manual clock (lockstep
+    /// teams, simulated time) every step must hear what has arrived.
+    fn set_recheck(&mut self, interval: StdDuration) {
+        let _ = interval;
+    }
     /// The address the socket is bound to.
     fn local_addr(&self) -> io::Result<SocketAddr>;
     /// Also receive datagrams sent to multicast `group` (on the default interface).
@@ -47,15 +58,40 @@ pub struct OsSocket {
     extra: Vec<UdpSocket>,
     /// Datagrams read from the main socket ahead of `recv_from`.
     ahead: ReadAhead,
+    /// Until when the sockets count as empty: they were found empty `recheck` before, and
+    /// until then `recv_from` answers "nothing waiting" without asking the kernel again.
+    empty_until: Option<std::time::Instant>,
+    /// See [`DatagramSocket::set_recheck`].
+    recheck: StdDuration,
+    /// The main socket's receive timeout (`SO_RCVTIMEO`) as last set, for blocking waits.
+    #[cfg(target_os = "linux")]
+    receive_timeout: StdDuration,
 }
+
+/// How long a finding that the sockets are empty stands, for a node on a real-time clock: a
+/// node that steps in a tight loop without waiting asks the kernel at most once per `RECHECK`
+/// (a datagram arriving meanwhile is read up to this much later), instead of once per turn. A
+/// node that waits reads in the wait itself, at once. Why: a turn's receive attempt that
+/// finds nothing is a system call as expensive as the send the turn makes; a sender stepping
+/// once per message paid two calls per message instead of raw UDP's one.
+pub const RECHECK: StdDuration = StdDuration::from_micros(20);
+
+/// Waits at least this long block in the receive itself (`recvmmsg` bounded by `SO_RCVTIMEO`,
+/// one system call that waits and reads) instead of `ppoll` then a receive (two). Shorter
+/// waits use `ppoll`, which keeps time to the nanosecond: the receive timeout counts in
+/// scheduler ticks (1-10 ms) and the kernel's timer wheel may fire it up to an eighth late.
+#[cfg(target_os = "linux")]
+const BLOCKING_WAIT_MIN: StdDuration = StdDuration::from_millis(20);
+/// The most a receive timeout may overrun, in ticks: one tick at HZ = 100.
+#[cfg(target_os = "linux")]
+const TICK_MARGIN: StdDuration = StdDuration::from_millis(10);
 
 /// Datagrams the main socket delivered in one system call (`recvmmsg(2)` on Linux), handed
 /// out one per `recv_from`. Under load that is one call for up to [`READ_AHEAD`] datagrams
 /// instead of one each. At any load it saves the call that only answers "nothing more": a
 /// read that filled fewer slots than it offered shows the socket was empty at that moment, so
 /// once those datagrams are handed out, `recv_from` says "nothing waiting" without asking the
-/// kernel again (the next `recv_from` asks, and so does `wait`, which returns at once if
-/// something arrived since).
+/// kernel again for [`RECHECK`] (and `wait` reads at once whatever arrived since).
 struct ReadAhead {
     /// `READ_AHEAD` slots of `SLOT` bytes.
     data: Vec<u8>,
@@ -139,6 +175,13 @@ impl ReadAhead {
     /// Read what the socket has, up to `READ_AHEAD` datagrams, without blocking.
     #[cfg(target_os = "linux")]
     fn fill(&mut self, socket: &UdpSocket) -> io::Result<()> {
+        self.fill_with(socket, libc::MSG_DONTWAIT)
+    }
+    /// Read up to `READ_AHEAD` datagrams with `recvmmsg` flags `flags`: `MSG_DONTWAIT` never
+    /// blocks; `MSG_WAITFORONE` on the (blocking) main socket waits for the first datagram, at
+    /// most its receive timeout, then takes what else is there without waiting.
+    #[cfg(target_os = "linux")]
+    fn fill_with(&mut self, socket: &UdpSocket, flags: libc::c_int) -> io::Result<()> {
         use std::os::fd::AsRawFd;
         self.got.clear();
         self.next = 0;
@@ -155,7 +198,7 @@ impl ReadAhead {
                 socket.as_raw_fd(),
                 call.headers.as_mut_ptr(),
                 READ_AHEAD as libc::c_uint,
-                libc::MSG_DONTWAIT,
+                flags,
                 std::ptr::null_mut(),
             )
         };
@@ -232,7 +275,50 @@ fn os_socket(addr: SocketAddr, shared: bool) -> io::Result<UdpSocket> {
 impl OsSocket {
     /// An exclusive, non-blocking socket bound to `addr` (port 0: the system chooses).
     pub fn bind(addr: SocketAddr) -> io::Result<OsSocket> {
-        Ok(OsSocket { socket: os_socket(addr, false)?, extra: Vec::new(), ahead: ReadAhead::new() })
+        let socket = os_socket(addr, false)?;
+        // On Linux the main socket itself blocks, so that a wait can be the receive (see
+        // `wait`); every other call on it passes MSG_DONTWAIT, so none of them blocks.
+        #[cfg(target_os = "linux")]
+        socket.set_nonblocking(false)?;
+        Ok(OsSocket {
+            socket,
+            extra: Vec::new(),
+            ahead: ReadAhead::new(),
+            empty_until: None,
+            recheck: StdDuration::ZERO,
+            #[cfg(target_os = "linux")]
+            receive_timeout: StdDuration::ZERO,
+        })
+    }
+
+    /// Wait for the main socket's first datagram for at most `timeout` (at least
+    /// [`BLOCKING_WAIT_MIN`]) and read what has come, in one system call. False if the receive
+    /// timed out with nothing read: its timeout is shorter than `timeout` (see below), and the
+    /// caller sleeps out the rest.
+    #[cfg(target_os = "linux")]
+    fn receive_waiting(&mut self, timeout: StdDuration) -> bool {
+        // The longest timeout that, overrun by a tick and an eighth, still ends before
+        // `timeout`. The one set is kept while it lies between a third of that and that, and a
+        // new one is set to two thirds of it, so that a loop's waits (each a little shorter
+        // than the last) do not cost a `setsockopt` each.
+        let longest = (timeout - TICK_MARGIN) * 3 / 4;
+        if self.receive_timeout > longest || self.receive_timeout < longest / 3 {
+            let set = longest * 2 / 3;
+            if self.socket.set_read_timeout(Some(set)).is_err() {
+                return false;
+            }
+            self.receive_timeout = set;
+        }
+        match self.ahead.fill_with(&self.socket, libc::MSG_WAITFORONE) {
+            Ok(()) if !self.ahead.drained => self.empty_until = None,
+            // A datagram arriving after the read is read by the next wait or, after RECHECK,
+            // by the next turn.
+            Ok(()) => self.empty_until = Some(std::time::Instant::now() + self.recheck),
+            Err(e) if e.kind() == io::ErrorKind::WouldBlock => return false,
+            // Interrupted, or an error the next receive reports.
+            Err(_) => self.empty_until = None,
+        }
+        true
     }
 
     /// Also receive datagrams sent to `addr` (a broadcast or multicast address), unless the
@@ -252,7 +338,12 @@ impl OsSocket {
 
 impl DatagramSocket for OsSocket {
     fn send_to(&mut self, bytes: &[u8], to: SocketAddr) -> io::Result<()> {
-        match self.socket.send_to(bytes, to) {
+        // The main socket blocks on Linux (see `bind`): this send must not.
+        #[cfg(target_os = "linux")]
+        let sent = socket2::SockRef::from(&self.socket).send_to_with_flags(bytes, &to.into(), libc::MSG_DONTWAIT);
+        #[cfg(not(target_os = "linux"))]
+        let sent = self.socket.send_to(bytes, to);
+        match sent {
             Ok(_) => Ok(()),
             // A full send buffer loses this datagram, as the network would: best effort (N1).
             Err(e) if e.kind() == io::ErrorKind::WouldBlock => Ok(()),
@@ -263,17 +354,25 @@ impl DatagramSocket for OsSocket {
         if let Some(got) = self.ahead.pop(buf) {
             return Ok(Some(got));
         }
-        // After a read that emptied the socket, this call answers without asking again.
-        if !std::mem::take(&mut self.ahead.drained) {
-            match self.ahead.fill(&self.socket) {
-                Ok(()) => {
-                    if let Some(got) = self.ahead.pop(buf) {
-                        return Ok(Some(got));
-                    }
-                }
-                Err(e) if nothing_waiting(&e) => {}
-                Err(e) => return Err(e),
+        // Found empty a moment ago (by a read that emptied the socket, or by the wait): the
+        // answer stands for RECHECK.
+        if let Some(until) = self.empty_until {
+            if std::time::Instant::now() < until {
+                return Ok(None);
             }
+            self.empty_until = None;
+        }
+        match self.ahead.fill(&self.socket) {
+            Ok(()) => {
+                if self.ahead.drained && self.extra.is_empty() {
+                    self.empty_until = Some(std::time::Instant::now() + self.recheck);
+                }
+                if let Some(got) = self.ahead.pop(buf) {
+                    return Ok(Some(got));
+                }
+            }
+            Err(e) if nothing_waiting(&e) => {}
+            Err(e) => return Err(e),
         }
         for socket in &self.extra {
             match socket.recv_from(buf) {
@@ -282,6 +381,7 @@ impl DatagramSocket for OsSocket {
                 Err(e) => return Err(e),
             }
         }
+        self.empty_until = Some(std::time::Instant::now() + self.recheck);
         Ok(None)
     }
     fn wait(&mut self, timeout: StdDuration) {
@@ -289,6 +389,19 @@ impl DatagramSocket for OsSocket {
         if self.ahead.pending() {
             return;
         }
+        #[cfg(target_os = "linux")]
+        let timeout = if self.extra.is_empty() && timeout >= BLOCKING_WAIT_MIN {
+            let started = std::time::Instant::now();
+            if self.receive_waiting(timeout) {
+                return;
+            }
+            // Timed out early by design: sleep out the rest to the nanosecond.
+            timeout.saturating_sub(started.elapsed())
+        } else {
+            timeout
+        };
+        // Whatever ppoll finds, the next receive asks the kernel.
+        self.empty_until = None;
         let pollfd = |s: &UdpSocket| libc::pollfd { fd: s.as_raw_fd(), events: libc::POLLIN, revents: 0 };
         // On the stack for the usual single socket: this runs every loop turn.
         let mut one = [pollfd(&self.socket)];
@@ -318,6 +431,10 @@ impl DatagramSocket for OsSocket {
     }
     fn local_addr(&self) -> io::Result<SocketAddr> {
         self.socket.local_addr()
+    }
+    fn set_recheck(&mut self, interval: StdDuration) {
+        self.recheck = interval;
+        self.empty_until = None;
     }
     fn set_multicast_ttl(&mut self, ttl: u32) -> io::Result<()> {
         self.socket.set_multicast_ttl_v4(ttl)

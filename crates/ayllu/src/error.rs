@@ -39,6 +39,11 @@ pub enum Error {
         /// What went wrong, naming the file.
         what: String,
     },
+    /// A transaction's plan or options that cannot be run (see `transaction`).
+    Plan {
+        /// What is wrong, naming the node and change at fault.
+        what: String,
+    },
 }
 
 impl fmt::Display for Error {
@@ -50,6 +55,7 @@ impl fmt::Display for Error {
             Error::DuplicateNode { node } => write!(f, "node {node} is already attached to this network"),
             Error::Io { what, error } => write!(f, "{what}: {error}"),
             Error::Recording { what } => write!(f, "{what}"),
+            Error::Plan { what } => write!(f, "plan: {what}"),
         }
     }
 }

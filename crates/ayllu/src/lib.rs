@@ -27,6 +27,7 @@ pub mod shaper;
 pub mod stdlib;
 pub mod team_channels;
 pub mod team_recording;
+pub mod transaction;
 pub mod transport;
 pub mod udp;
 pub mod udp_config;

@@ -97,7 +97,8 @@ impl Node {
         Ok(Node::assemble(NodeCore::new(id), Box::new(clock), transport))
     }
 
-    fn assemble(mut core: NodeCore, clock: Box<dyn Clock>, transport: Box<dyn Transport>) -> Node {
+    fn assemble(mut core: NodeCore, clock: Box<dyn Clock>, mut transport: Box<dyn Transport>) -> Node {
+        transport.set_real_time(clock.is_real_time());
         if clock.is_real_time() {
             // A restarted process may reuse its node id: number its messages and requests above
             // anything its previous life sent (like datagrams).

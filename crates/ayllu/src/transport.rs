@@ -41,6 +41,13 @@ pub trait Transport: Send {
     fn counters(&self) -> Vec<(String, u64)> {
         Vec::new()
     }
+    /// Whether the node's clock is real time (told once, when the node is made). A transport
+    /// may then trade exactness at the microsecond for system calls: the UDP transport lets a
+    /// receive that found nothing stand for [`crate::datagram::RECHECK`]. On a manual clock
+    /// (lockstep teams, simulated time) every step must hear what has arrived.
+    fn set_real_time(&mut self, real_time: bool) {
+        let _ = real_time;
+    }
     /// Write what `counters` returns into `out`. A node calls this after every loop turn in
     /// which the counters changed, so transports that count per datagram should override it to
     /// reuse `out`'s strings instead of allocating them again.
