@@ -51,7 +51,7 @@ use ayllu_sim::metrics::Meter;
 use ayllu_sim::radio::{RadioConfig, Station};
 use ayllu_sim::scenario::{apply_due_kills, node_id, priorities, Scenario};
 use ayllu_sim::scenario_file;
-use ayllu_sim::served_radio::{LinkHandle, RadioLink};
+use ayllu_sim::served_radio::{reach_row, LinkHandle, RadioLink};
 use ayllu_sim::served_robot::LINK;
 use ayllu_sim::world::{Command, World, WorldConfig};
 use clap::Args;
@@ -384,10 +384,7 @@ pub fn serve(args: &ServeArgs) -> Result<(), Fail> {
             let alive = world.robots[i].alive;
             if sense {
                 // Who robot i hears now: alive, in range, on its side of every partition.
-                for (j, r) in reach.iter_mut().enumerate() {
-                    let heard = j != i && alive && stations[j].alive;
-                    *r = f64::from(u8::from(heard && scenario.radio.connects(t, &stations[j], &stations[i])));
-                }
+                reach_row(&scenario.radio, t, &stations, i, &mut reach);
                 b.tell(&reach, alive)?;
                 if alive {
                     let now = b.node.now();

@@ -30,8 +30,19 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use ayllu::{PeerInfo, Sent, Transport};
 use ayllu_core::{Destination, Duration, Instant, Message, NodeId, Outgoing};
 
-use crate::radio::{wire_len, RadioConfig};
+use crate::radio::{wire_len, RadioConfig, Station};
 use crate::served_robot::BODY_BASE;
+
+/// Robot `i`'s row of reachability at `t` (s), as the server sends it (`LINK.Reach`): entry j
+/// is 1.0 when robot j + 1's messages reach robot i + 1 — both alive, and `radio` connects
+/// them ([`RadioConfig::connects`]: range, partitions) — else 0.0 (itself: 0.0).
+pub fn reach_row(radio: &RadioConfig, t: f64, stations: &[Station], i: usize, row: &mut [f64]) {
+    let me = &stations[i];
+    for (j, (r, s)) in row.iter_mut().zip(stations).enumerate() {
+        let heard = j != i && me.alive && s.alive && radio.connects(t, s, me);
+        *r = f64::from(u8::from(heard));
+    }
+}
 
 /// What a link has done so far.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -305,6 +316,27 @@ mod tests {
         let c = handle.counts();
         assert_eq!((c.sent, c.delivered), (1, 1));
         assert!(c.bytes > 0);
+    }
+
+    #[test]
+    fn the_reach_row_follows_life_range_and_partitions() {
+        use crate::radio::Partition;
+        let at = |node: u32, x: f64, alive: bool| Station { node: NodeId(node), x, y: 0.0, alive };
+        let stations = [at(1, 0.0, true), at(2, 3.0, true), at(3, 9.0, true), at(4, 1.0, false)];
+        let radio = RadioConfig {
+            range: Some(5.0),
+            partitions: vec![Partition { start: 10.0, end: 20.0, island: vec![1] }],
+            ..RadioConfig::default()
+        };
+        let mut row = [9.0; 4];
+        reach_row(&radio, 0.0, &stations, 0, &mut row);
+        assert_eq!(row, [0.0, 1.0, 0.0, 0.0], "itself no, 3 m yes, 9 m out of range, dead no");
+        reach_row(&radio, 15.0, &stations, 0, &mut row);
+        assert_eq!(row, [0.0; 4], "robot 1 alone on its island");
+        reach_row(&radio, 15.0, &stations, 1, &mut row);
+        assert_eq!(row, [0.0, 0.0, 0.0, 0.0], "robot 2: 1 across the partition, 3 out of range");
+        reach_row(&radio, 0.0, &stations, 3, &mut row);
+        assert_eq!(row, [0.0; 4], "a dead robot hears nobody");
     }
 
     #[test]
