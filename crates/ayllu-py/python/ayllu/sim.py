@@ -39,7 +39,7 @@ __all__ = [
 
 RobotBuilder = _native.RobotBuilder
 CONTROLLERS: list[str] = list(_native.controller_names())
-"""The built-in controllers: BLE (the paper's Fig. 2), Random, Local, ForceField, Centralized."""
+"""The built-in controllers: BLE (the paper's Fig. 2), Random, Local, ForceField, Centralized, Planner."""
 
 BrainSpec = Optional[tuple[str, Any]]
 Controller = Callable[[Any], BrainSpec]
