@@ -20,6 +20,7 @@
 //! * every wait is bounded by `--timeout`, except those the user ends (Ctrl-C, `--for`);
 //!   Ctrl-C still disconnects what `echo` connected.
 
+mod apply;
 mod client;
 mod commands;
 mod controllers;
@@ -189,6 +190,14 @@ enum Command {
         /// The connection's id on that node (`c4` or `4`).
         #[arg(value_parser = parse_connection)]
         connection: ConnectionId,
+        #[command(flatten)]
+        net: Net,
+    },
+    /// Apply structure changes on several nodes all at once, or on none (a plan file:
+    /// docs/cli.md "ayllu apply").
+    Apply {
+        /// The plan: a TOML file of changes per node.
+        plan: std::path::PathBuf,
         #[command(flatten)]
         net: Net,
     },
@@ -436,6 +445,7 @@ fn run(cli: Cli) -> Result<(), Fail> {
         Command::Echo { node, target, count, net } => commands::echo(node, &target, count, &net),
         Command::Write(args) => commands::write(&args),
         Command::Disconnect { node, connection, net } => commands::disconnect_command(node, connection, &net),
+        Command::Apply { plan, net } => apply::apply_command(&plan, &net),
         Command::Node(args) => controllers::run(&args),
         Command::Keygen { file } => {
             let public = ayllu::operator::keygen(&file)?;
@@ -595,6 +605,7 @@ mod tests {
                 "echo",
                 "write",
                 "disconnect",
+                "apply",
                 "node",
                 "sim",
                 "cmommt",

@@ -172,9 +172,18 @@ impl NodeCore {
         match change {
             Change::Create { class, name } => self.create(class, name).map(|_| Applied::Done),
             Change::Remove { name } => self.remove(name).map(|()| Applied::Done),
-            Change::Connect { source, destination, kind, priority } => self
-                .connect(source, destination, *kind, ConnectOptions { priority: *priority })
-                .map(Applied::Connection),
+            Change::Connect { source, destination, kind, priority } => {
+                // A port of this node named with its id (as a plan sends it) is made a local
+                // connection, the same as one made in code.
+                let destination = match destination {
+                    Endpoint::Node { node, behavior, port } if *node == self.id() => {
+                        Endpoint::Local { behavior: behavior.clone(), port: port.clone() }
+                    }
+                    other => other.clone(),
+                };
+                self.connect(source, &destination, *kind, ConnectOptions { priority: *priority })
+                    .map(Applied::Connection)
+            }
             Change::Disconnect { conn } => self.disconnect(*conn).map(|()| Applied::Connection(*conn)),
             Change::DisconnectBetween { source, destination } => {
                 let ids = self.connections_between(source, destination);

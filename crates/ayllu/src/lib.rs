@@ -17,6 +17,7 @@ pub mod lockstep;
 pub mod mem;
 pub mod node;
 pub mod operator;
+pub mod plan_file;
 pub mod rate;
 pub mod recording;
 pub mod recording_format;

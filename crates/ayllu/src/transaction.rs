@@ -147,6 +147,47 @@ impl ApplyReport {
     }
 }
 
+impl ApplyReport {
+    /// The report as JSON (times in seconds on the coordinator's clock, as `ayllu apply
+    /// --json` prints it).
+    pub fn to_json(&self) -> serde_json::Value {
+        let secs = |d: Duration| d.as_secs_f64();
+        let nodes: Vec<serde_json::Value> = self
+            .nodes
+            .iter()
+            .map(|n| {
+                let mut o = serde_json::json!({"node": n.node.0, "refused": n.refused});
+                match &n.prepare {
+                    Ok(rtt) => o["round_trip"] = secs(*rtt).into(),
+                    Err(e) => o["prepare_error"] = e.clone().into(),
+                }
+                match &n.commit {
+                    Some(Ok(w)) => {
+                        o["switch_earliest"] = w.earliest.as_secs_f64().into();
+                        o["switch_latest"] = w.latest.as_secs_f64().into();
+                    }
+                    Some(Err(e)) => o["commit_error"] = e.clone().into(),
+                    None => {}
+                }
+                match &n.abort {
+                    Some(Ok(())) => o["aborted"] = true.into(),
+                    Some(Err(e)) => o["abort_error"] = e.clone().into(),
+                    None => {}
+                }
+                o
+            })
+            .collect();
+        serde_json::json!({
+            "txn": self.txn,
+            "outcome": self.outcome.to_string(),
+            "switch_at": self.switch_at.map(Instant::as_secs_f64),
+            "skew_bound": self.skew_bound.map(secs),
+            "max_round_trip": secs(self.max_rtt),
+            "nodes": nodes,
+        })
+    }
+}
+
 impl fmt::Display for ApplyReport {
     /// One line for the transaction, one per node.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
@@ -541,8 +582,9 @@ pub fn fresh_txn(node: &Node) -> u64 {
 }
 
 /// Apply `plan` from `node` (which must not be part of it) in real time: the blocking form of
-/// [`Coordinator`], as `ayllu apply` uses it. Returns when the transaction has ended (at most
-/// the plan's hold after it started).
+/// [`Coordinator`], as `ayllu apply` uses it. Returns when the transaction has ended and, if
+/// the team switched, once every node's switch is past (at most the plan's hold after it
+/// started).
 pub fn apply(node: &mut Node, plan: &Plan) -> Result<ApplyReport, Error> {
     let mut c = Coordinator::new(fresh_txn(node), plan, node.id())?;
     loop {
@@ -552,6 +594,13 @@ pub fn apply(node: &mut Node, plan: &Plan) -> Result<ApplyReport, Error> {
         // Send what the step asked at once: a COMMIT copy's delay counts from now.
         node.step();
         if let Some(r) = report {
+            // Return once every node has switched (the latest end of their windows), so that
+            // what the caller asks next sees the new structure.
+            let latest = r.nodes.iter().filter_map(|n| n.commit.as_ref()?.as_ref().ok().map(|w| w.latest)).max();
+            while let Some(t) = latest.filter(|&t| node.now() < t) {
+                node.wait(std::time::Duration::from_nanos((t - node.now()).as_nanos()));
+                node.step();
+            }
             return Ok(r);
         }
         let wait = c.next_due(now) - now;
