@@ -16,6 +16,7 @@ pub mod controller;
 pub mod metrics;
 pub mod radio;
 pub mod recording;
+pub mod redistribution;
 pub mod report;
 pub mod scenario;
 pub mod scenario_file;

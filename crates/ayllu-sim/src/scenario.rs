@@ -335,6 +335,12 @@ impl Sim {
         &self.robots[i].core
     }
 
+    /// The node of robot index `i`, to change it while the run goes on (a transaction's
+    /// messages delivered from outside the radio: crate::redistribution).
+    pub fn core_mut(&mut self, i: usize) -> &mut NodeCore {
+        &mut self.robots[i].core
+    }
+
     /// The target driving robot `i` now (0: none).
     pub fn drive(&self, i: usize) -> u32 {
         self.drives[i]
