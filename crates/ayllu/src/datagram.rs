@@ -301,7 +301,9 @@ impl OsSocket {
         // `timeout`. The one set is kept while it lies between a third of that and that, and a
         // new one is set to two thirds of it, so that a loop's waits (each a little shorter
         // than the last) do not cost a `setsockopt` each.
-        let longest = (timeout - TICK_MARGIN) * 3 / 4;
+        // (A wait of a day or of `Duration::MAX` asks for an hour at most: the rest is slept by
+        // the caller, and the arithmetic cannot overflow.)
+        let longest = (timeout.min(StdDuration::from_secs(3600)) - TICK_MARGIN) * 3 / 4;
         if self.receive_timeout > longest || self.receive_timeout < longest / 3 {
             let set = longest * 2 / 3;
             if self.socket.set_read_timeout(Some(set)).is_err() {
@@ -588,5 +590,33 @@ mod tests {
         let t = std::time::Instant::now();
         rx.wait(StdDuration::from_millis(20));
         assert!(t.elapsed() >= StdDuration::from_millis(15), "wait returned early with nothing to read");
+    }
+
+    /// A receive that found nothing may stand for a while (a real-time node's RECHECK), but a
+    /// wait always reads what has arrived since, whether it waits in `ppoll` (short waits) or
+    /// in the receive itself (long ones).
+    #[test]
+    fn os_socket_wait_hears_what_came_after_an_empty_receive() {
+        let loopback: SocketAddr = "127.0.0.1:0".parse().unwrap();
+        let mut rx = OsSocket::bind(loopback).unwrap();
+        let mut tx = OsSocket::bind(loopback).unwrap();
+        let to = rx.local_addr().unwrap();
+        let mut buf = vec![0u8; SLOT];
+        for (i, (recheck, wait)) in [
+            (RECHECK, StdDuration::from_millis(5)),
+            (RECHECK, StdDuration::from_secs(1)),
+            (StdDuration::from_secs(3600), StdDuration::from_secs(60)),
+            (StdDuration::ZERO, StdDuration::from_secs(1)),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            rx.set_recheck(recheck);
+            assert_eq!(rx.recv_from(&mut buf).unwrap(), None, "case {i}: nothing sent yet");
+            tx.send_to(&[i as u8; 3], to).unwrap();
+            rx.wait(wait);
+            let (len, _) = rx.recv_from(&mut buf).unwrap().expect("the wait read the datagram");
+            assert_eq!(&buf[..len], &[i as u8; 3], "case {i}");
+        }
     }
 }
