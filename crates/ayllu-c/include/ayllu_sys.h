@@ -1230,6 +1230,128 @@ ay_status ay_ctx_node(ay_ctx *ctx, uint32_t *out);
 // As [`ay_ctx_read_text`].
 ay_status ay_ctx_behavior(ay_ctx *ctx, char *buffer, size_t capacity, size_t *length);
 
+// Ask to create behavior `name` of class `class` on this node when the process returns (R1).
+// Its position among this activation's changes goes to `*index` (may be NULL): the next
+// activation reads its outcome there with [`ay_ctx_change_outcome`].
+//
+// Errors at the call (R2): `AY_ERR_NULL`, `AY_ERR_CONTEXT`, `AY_ERR_INVALID` (an empty name).
+// What depends on the node (an unknown class, a taken name) is the change's outcome.
+//
+// Ownership: copies the strings. Thread-safety: only inside the process `ctx` was given to.
+//
+// # Safety
+// `ctx` is NULL or a context passed to a process; the strings are NULL or NUL-terminated;
+// `index` is NULL or valid for a write.
+ay_status ay_ctx_create(ay_ctx *ctx, const char *class_, const char *name, size_t *index);
+
+// Ask to remove behavior `name` (possibly the running one: R3) when the process returns.
+// As [`ay_ctx_create`] otherwise.
+//
+// # Safety
+// As [`ay_ctx_create`].
+ay_status ay_ctx_remove(ay_ctx *ctx, const char *name, size_t *index);
+
+// Ask to connect `source` (a port of this node) to `destination` with `kind` and `period`
+// (as `ay_node_connect`) when the process returns. The outcome holds the connection's id.
+//
+// Errors at the call: `AY_ERR_NULL`, `AY_ERR_CONTEXT`, `AY_ERR_PERIOD`, `AY_ERR_INVALID`
+// (an unknown kind or scope, a group as source, an empty name).
+//
+// # Safety
+// `ctx` as [`ay_ctx_create`]; the endpoints are NULL or valid with NULL-or-NUL-terminated
+// strings; `index` is NULL or valid for a write.
+ay_status ay_ctx_connect(ay_ctx *ctx,
+                         const ay_endpoint *source,
+                         const ay_endpoint *destination,
+                         uint32_t kind_,
+                         double period,
+                         int32_t priority,
+                         size_t *index);
+
+// Ask to remove connection `id` of this node when the process returns.
+//
+// # Safety
+// As [`ay_ctx_create`].
+ay_status ay_ctx_disconnect(ay_ctx *ctx, uint64_t id, size_t *index);
+
+// Ask to remove every connection of this node from `source` to `destination` when the
+// process returns (refused, as its outcome, if there is none).
+//
+// # Safety
+// As [`ay_ctx_connect`].
+ay_status ay_ctx_disconnect_between(ay_ctx *ctx,
+                                    const ay_endpoint *source,
+                                    const ay_endpoint *destination,
+                                    size_t *index);
+
+// Ask to join broadcast group `group` when the process returns.
+//
+// # Safety
+// As [`ay_ctx_create`].
+ay_status ay_ctx_join(ay_ctx *ctx, const char *group, size_t *index);
+
+// Ask to leave broadcast group `group` when the process returns.
+//
+// # Safety
+// As [`ay_ctx_create`].
+ay_status ay_ctx_leave(ay_ctx *ctx, const char *group, size_t *index);
+
+// How many changes this process's previous activation asked for (their outcomes), into
+// `*out`.
+//
+// Errors: `AY_ERR_NULL`, `AY_ERR_CONTEXT`.
+//
+// # Safety
+// `ctx` is NULL or a context passed to a process; `out` is NULL or valid for a write.
+ay_status ay_ctx_change_count(ay_ctx *ctx, size_t *out);
+
+// The outcome of change `index` of this process's previous activation: `AY_OK` if it was
+// applied (a connection it made or removed goes to `*connection`, may be NULL; 0 when it
+// concerns none), else the status of the node's refusal with its message in
+// `ay_last_error` (`AY_ERR_UNKNOWN` for an unknown class, behavior or port, ...).
+//
+// Errors besides the outcome's: `AY_ERR_NULL`, `AY_ERR_CONTEXT`, `AY_ERR_ABSENT` (no change
+// `index`).
+//
+// # Safety
+// `ctx` is NULL or a context passed to a process; `connection` is NULL or valid for a write.
+ay_status ay_ctx_change_outcome(ay_ctx *ctx, size_t index, uint64_t *connection);
+
+// Ask node `source.node` to connect its port to `destination`, from a process: sent at once
+// (R6). The request's id goes to `*request` (follow it with `ay_node_request_status`).
+//
+// Errors: `AY_ERR_NULL`, `AY_ERR_CONTEXT`, `AY_ERR_PERIOD`, `AY_ERR_INVALID` (the source is
+// not `AY_NODE`).
+//
+// # Safety
+// As [`ay_ctx_connect`]; `request` is NULL or valid for a write.
+ay_status ay_ctx_request_connect(ay_ctx *ctx,
+                                 const ay_endpoint *source,
+                                 const ay_endpoint *destination,
+                                 uint32_t kind_,
+                                 double period,
+                                 int32_t priority,
+                                 uint64_t *request);
+
+// Apply a plan (the TOML of `ayllu apply`, docs/cli.md) from this node to the nodes it
+// names, all at once or not at all (R8–R12), in real time: returns when it has ended (at most
+// the plan's hold). The report, as JSON (`ayllu apply --json`'s), goes to `buffer` as
+// `ay_ctx_read_text` copies text (`*length` gets its length even when it does not fit).
+//
+// `AY_OK`: the team switched. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`,
+// `AY_ERR_INVALID` (a plan that does not parse or cannot run: the message says why),
+// `AY_ERR_ABSENT` (it aborted or is split: the report says which node refused and why),
+// `AY_ERR_BUFFER` (the report did not fit; the outcome is then in the message).
+//
+// # Safety
+// `node` is NULL or a pointer from this library; `plan` is NULL or NUL-terminated; `buffer`
+// is NULL or valid for `capacity` bytes; `length` is NULL or valid for a write.
+ay_status ay_node_apply(ay_node *node,
+                        const char *plan,
+                        char *buffer,
+                        size_t capacity,
+                        size_t *length);
+
 // Start recording `node` into the MCAP file `path` (numbered segments follow it:
 // `run.1.mcap`, ...), all segments together at most `max_bytes` (0: the default, 1 GiB; at
 // least 65536). Call it before defining classes: a replay rebuilds the node from its first

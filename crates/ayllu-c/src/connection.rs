@@ -55,7 +55,7 @@ pub struct ay_endpoint {
 
 /// # Safety
 /// `p` is NULL or points to an endpoint whose strings are NULL or NUL-terminated.
-unsafe fn endpoint(p: *const ay_endpoint, what: &str) -> Result<Endpoint, Fail> {
+pub(crate) unsafe fn endpoint(p: *const ay_endpoint, what: &str) -> Result<Endpoint, Fail> {
     if p.is_null() {
         return Err(Fail::null(what));
     }
@@ -79,7 +79,7 @@ unsafe fn endpoint(p: *const ay_endpoint, what: &str) -> Result<Endpoint, Fail> 
     })
 }
 
-fn kind(kind: u32, period: f64) -> Result<ConnectionKind, Fail> {
+pub(crate) fn kind(kind: u32, period: f64) -> Result<ConnectionKind, Fail> {
     if kind == AY_NORMAL {
         if period != 0.0 {
             return Err(Fail::new(

@@ -25,6 +25,7 @@ pub mod connection;
 mod cstr;
 pub mod node;
 pub mod process;
+pub mod reconfiguration;
 pub mod recording;
 mod registry;
 pub mod report;

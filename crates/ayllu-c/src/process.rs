@@ -76,7 +76,10 @@ pub(crate) fn run(
 }
 
 /// Run `f` with the context `p`, if it is the running process's.
-fn with_ctx<T>(p: *mut ay_ctx, f: impl FnOnce(&mut Ctx<'_>, &Registers) -> Result<T, Fail>) -> Result<T, Fail> {
+pub(crate) fn with_ctx<T>(
+    p: *mut ay_ctx,
+    f: impl FnOnce(&mut Ctx<'_>, &Registers) -> Result<T, Fail>,
+) -> Result<T, Fail> {
     if p.is_null() {
         return Err(Fail::null("ctx"));
     }
