@@ -90,17 +90,22 @@ pub enum RequestStatus {
     Failed(String),
 }
 
+/// Laid out in declaration order (`repr(C)`), what every accepted value touches first and the
+/// drop counters (136 bytes, touched only when something is refused) last: a port that takes a
+/// message from cold memory (a simulator stepping hundreds of nodes) then costs two cache
+/// lines, not the four or five the compiler's own order spread them over.
+#[repr(C)]
 pub(crate) struct PortState {
-    pub(crate) cell: PortCell,
-    pub(crate) windows: Windows,
+    pub(crate) visited: u64,
+    pub(crate) accepted: u64,
     /// Outgoing connections, with what a hop needs copied in so that a local hop never
     /// touches the connection table (see [`Edge`]).
     pub(crate) out: Vec<Edge>,
     /// Processes of this behavior triggered when the port accepts a value.
     pub(crate) triggers: Vec<u16>,
-    pub(crate) visited: u64,
+    pub(crate) windows: Windows,
+    pub(crate) cell: PortCell,
     pub(crate) counters: Counters,
-    pub(crate) accepted: u64,
 }
 
 pub(crate) struct MonoState {
@@ -1043,16 +1048,50 @@ impl NodeCore {
             return Ok(());
         }
         match port.windows.admit_propagation(now, Origin::Internal) {
-            Ok(()) => {
-                self.stack.push(Frame { b, p, next: 0 });
-                self.run_wave();
-            }
+            Ok(()) => self.propagate_from(b, p),
             Err(cause) => {
                 port.counters.add(cause);
                 self.counters.add(cause);
             }
         }
         Ok(())
+    }
+
+    /// The wave from port (b, p), which has just accepted and may propagate (rule S5): the
+    /// common case — local edges into ports that do not pass the value on — is taken here
+    /// without a stack frame. The first edge that needs more (a destination that propagates
+    /// further, a remote destination) hands the rest of the wave to [`NodeCore::run_wave`] at
+    /// exactly that point, so the depth-first order, and every check `deliver` makes, are
+    /// those of the general path.
+    #[inline]
+    fn propagate_from(&mut self, b: u32, p: u16) {
+        let me = self.id;
+        let mut next = 0u32;
+        loop {
+            let Some(beh) = self.behaviors.get(b as usize).and_then(Option::as_ref) else { return };
+            let port = &beh.ports[usize::from(p)];
+            let Some(&edge) = port.out.get(next as usize) else { return };
+            let Some((db, dp)) = edge.local else {
+                self.stack.push(Frame { b, p, next });
+                self.run_wave();
+                return;
+            };
+            let last = next as usize + 1 == port.out.len();
+            let value = port.cell.value.clone();
+            next += 1;
+            let from = Source::connection(me, ConnectionId(edge.id));
+            if self.deliver(db, dp, edge.kind, from, edge.priority, &value) {
+                if !last {
+                    self.stack.push(Frame { b, p, next });
+                }
+                self.stack.push(Frame { b: db, p: dp, next: 0 });
+                self.run_wave();
+                return;
+            }
+            if last {
+                return;
+            }
+        }
     }
 
     /// Depth-first propagation from the frames on the stack (rule S5).
@@ -1268,8 +1307,7 @@ impl NodeCore {
         self.wave += 1;
         let source = Source::connection(from, m.conn);
         if self.deliver(b, p, m.kind, source, m.priority, &m.value) {
-            self.stack.push(Frame { b, p, next: 0 });
-            self.run_wave();
+            self.propagate_from(b, p);
         }
     }
 

@@ -184,18 +184,21 @@ impl PortSpec {
 
 /// A live port's value state. Arbitration windows live beside it (see `arbitration`).
 #[derive(Clone, Debug)]
+// In declaration order (`repr(C)`): what a merge reads and writes first, the default (read
+// only by a reset) last, so that a merge from cold memory touches as few cache lines as it can.
+#[repr(C)]
 pub struct PortCell {
     pub(crate) kind: PortKind,
-    pub(crate) default: Value,
-    pub(crate) value: Value,
     /// Aggregating ports: no value in the current window. Normal ports are never empty.
     pub(crate) empty: bool,
-    pub(crate) supplier: Option<Source>,
     pub(crate) supplier_priority: i32,
+    pub(crate) value: Value,
+    pub(crate) supplier: Option<Source>,
     pub(crate) last_accepted: Option<Instant>,
     pub(crate) window_end: Instant,
     pub(crate) lifespan: Option<Duration>,
     pub(crate) window: Option<Duration>,
+    pub(crate) default: Value,
 }
 
 impl PortCell {

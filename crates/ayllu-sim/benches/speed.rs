@@ -13,6 +13,11 @@
 //! the median wall time is kept. Figures, not verdicts: nothing here fails.
 //!
 //! `cargo bench -p ayllu-sim --bench speed -- 100 ble` runs one size and/or one controller.
+//!
+//! `speed callgrind [ROBOTS] [SECONDS]` (BLE, default 100 robots, 10 simulated seconds after a
+//! 5 s warm-up) steps the timed stretch inside `callgrind_ticks`, for instruction counts (and,
+//! with `--cache-sim=yes`, cache misses) that a loaded machine cannot move:
+//! `valgrind --tool=callgrind --toggle-collect='*callgrind_ticks*' BINARY callgrind 100 10`.
 
 use std::time::Instant as WallClock;
 
@@ -71,9 +76,30 @@ fn measure(controller: Controller, robots: usize, warmup: f64, timed: f64) -> Fi
     Figures { robots, sim_s, wall_s, deliveries_per_s: delivered as f64 / total_s }
 }
 
+/// Step `sim` until it is done, alone in a function so that callgrind can collect just this.
+#[inline(never)]
+fn callgrind_ticks(sim: &mut Sim) {
+    while !sim.done() {
+        sim.step().expect("a tick runs");
+    }
+}
+
 fn main() {
     // `cargo bench` passes `--bench`; the filters are the other arguments.
     let args: Vec<String> = std::env::args().skip(1).filter(|a| !a.starts_with("--")).collect();
+    if args.first().map(String::as_str) == Some("callgrind") {
+        let robots = args.get(1).and_then(|a| a.parse().ok()).unwrap_or(100);
+        let timed: f64 = args.get(2).and_then(|a| a.parse().ok()).unwrap_or(10.0);
+        let scenario = Scenario::sized(Controller::Ble, robots, TARGETS, SEED).duration(5.0 + timed);
+        let mut sim = Sim::new(&scenario).expect("the scenario builds");
+        while sim.now().as_secs_f64() < 5.0 - 1e-9 {
+            sim.step().expect("a tick runs");
+        }
+        callgrind_ticks(&mut sim);
+        let ticks = (timed * 20.0).round();
+        println!("BLE, {robots} robots: {timed} simulated s ({ticks} ticks) after a 5 s warm-up");
+        return;
+    }
     let only_size: Option<usize> = args.iter().find_map(|a| a.parse().ok());
     let only_ctl: Option<Controller> = args.iter().find_map(|a| Controller::parse(a));
     println!("Simulation speed, one thread: CMOMMT, {TARGETS} targets (5 observer layers), 20 Hz ticks, seed {SEED}");

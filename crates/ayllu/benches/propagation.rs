@@ -25,6 +25,11 @@
 //!   beside it, and drops (counted) what it cannot keep up with.
 //!
 //! The clock advances 1 µs per iteration, so windows are refreshed as in a live system.
+//!
+//! `propagation callgrind [N]` skips Criterion and makes N (default 100 000) `normal_hop`
+//! writes in `callgrind_normal_hops`, for instruction counts that a noisy machine cannot move:
+//! `valgrind --tool=callgrind --toggle-collect='*callgrind_normal_hops*' BINARY callgrind`,
+//! collected instructions ÷ N = instructions per write + hop.
 
 #[path = "machine/mod.rs"]
 mod machine;
@@ -250,7 +255,23 @@ fn median_ns(dir: &std::path::Path, name: &str, since: SystemTime) -> Option<f64
     rest[..end].trim().parse().ok()
 }
 
+/// N writes through one Normal hop, alone in a function so callgrind can collect just them.
+#[inline(never)]
+fn callgrind_normal_hops(node: &mut NodeCore, port: PortRef, n: u64) {
+    for t in 1..=n {
+        node.write(Instant::from_nanos(t * 1_000), port, black_box(t as i64)).unwrap();
+    }
+}
+
 fn main() {
+    let mut args = std::env::args().skip(1).filter(|a| !a.starts_with("--"));
+    if args.next().as_deref() == Some("callgrind") {
+        let n = args.next().and_then(|a| a.parse().ok()).unwrap_or(100_000);
+        let (mut node, port) = fan_node(1);
+        callgrind_normal_hops(&mut node, port, n);
+        println!("{n} writes through one Normal hop");
+        return;
+    }
     // Files written by Criterion in this run are at least as new as this (minus fs granularity).
     let start = SystemTime::now() - StdDuration::from_secs(1);
     let mut c = Criterion::default()
