@@ -48,6 +48,10 @@ impl Ctx<'_> {
     pub fn behavior(&self) -> &str {
         self.core.behavior(self.b).map_or("", |beh| &beh.name)
     }
+    /// The class of the running behavior (`Observer`).
+    pub fn class_name(&self) -> &str {
+        self.core.behavior(self.b).map_or("", |beh| beh.class.name())
+    }
 
     fn cell(&self, p: Port) -> Option<&crate::port::PortCell> {
         self.core.behavior(self.b).and_then(|beh| beh.ports.get(usize::from(p.0))).map(|ps| &ps.cell)

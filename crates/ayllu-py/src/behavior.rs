@@ -14,12 +14,16 @@ use std::collections::{HashMap, VecDeque};
 use std::sync::atomic::{AtomicPtr, AtomicU32, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
 
-use ayllu_core::{BehaviorClass, Ctx, DropCause, Mono, NodeCore, Port, PortKind, PortSpec, Slot, Trigger};
+use ayllu_core::{
+    Applied, BehaviorClass, Change, ConnectOptions, ConnectionId, Ctx, DropCause, Mono, NodeCore, Port, PortKind, PortSpec,
+    Slot, Trigger,
+};
 use pyo3::exceptions::PyRuntimeError;
 use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 
 use crate::errors::{self, ValueTypeError};
+use crate::wiring;
 use crate::value::{duration, secs, to_py, to_value};
 
 const UNASSIGNED: u32 = u32::MAX;
@@ -420,7 +424,14 @@ pub fn define(py: Python<'_>, core: &mut NodeCore, procs: &Arc<Processes>, cls: 
 }
 
 fn run_process(py: Python<'_>, shared: &Processes, process: &str, func: &Py<PyAny>, ctx: &mut Ctx<'_>) {
-    let Some(inst) = shared.instance(py, ctx.behavior()) else { return };
+    // A behavior a process created (R1) has no Python object yet: made at its first run.
+    let inst = match shared.instance(py, ctx.behavior()) {
+        Some(inst) => inst,
+        None => match shared.instantiate(py, ctx.class_name(), ctx.behavior()) {
+            Ok(Some(inst)) => inst,
+            _ => return,
+        },
+    };
     let c = shared.context.get();
     let ptr: *mut Ctx<'_> = ctx;
     c.ptr.store(ptr.cast(), Ordering::Release);
@@ -566,5 +577,87 @@ impl Context {
     fn is_high(&self, mono: &Bound<'_, PyAny>) -> PyResult<bool> {
         let m = mono_of(mono)?;
         self.with(|c| c.is_high(m))
+    }
+
+    // ----- structure (docs/semantics.md R1-R7) ---------------------------------------------
+
+    /// Ask to create behavior `name` of class `class_name` when the process returns (R1).
+    /// Returns its position among this activation's changes: the next activation finds its
+    /// outcome there in `changes()`. Raises at once only for what is wrong whatever the node
+    /// holds (an empty name: R2).
+    fn create(&self, class_name: &str, name: &str) -> PyResult<usize> {
+        self.ask(Change::Create { class: class_name.to_owned(), name: name.to_owned() })
+    }
+    /// Ask to remove behavior `name` (possibly this one: R3) when the process returns.
+    fn remove(&self, name: &str) -> PyResult<usize> {
+        self.ask(Change::Remove { name: name.to_owned() })
+    }
+    /// Ask to connect `source` (a port of this node) to `destination` when the process
+    /// returns; endpoints and kinds as `Node.connect`.
+    #[pyo3(signature = (source, destination, kind = None, *, priority = 0))]
+    fn connect(
+        &self,
+        source: &Bound<'_, PyAny>,
+        destination: &Bound<'_, PyAny>,
+        kind: Option<&Bound<'_, PyAny>>,
+        priority: i32,
+    ) -> PyResult<usize> {
+        let (s, d, k) = wiring::connect_args(source, destination, kind)?;
+        self.ask(Change::Connect { source: wiring::endpoint(&s)?, destination: wiring::endpoint(&d)?, kind: k, priority })
+    }
+    /// Ask to remove connection `id` of this node when the process returns.
+    fn disconnect(&self, id: u64) -> PyResult<usize> {
+        self.ask(Change::Disconnect { conn: ConnectionId(id) })
+    }
+    /// Ask to remove every connection from `source` to `destination` when the process returns.
+    fn disconnect_between(&self, source: &Bound<'_, PyAny>, destination: &Bound<'_, PyAny>) -> PyResult<usize> {
+        let (s, d) = (wiring::endpoint_arg(source)?, wiring::endpoint_arg(destination)?);
+        self.ask(Change::DisconnectBetween { source: wiring::endpoint(&s)?, destination: wiring::endpoint(&d)? })
+    }
+    /// Ask to join broadcast group `group` when the process returns.
+    fn join(&self, group: &str) -> PyResult<usize> {
+        self.ask(Change::Join { group: group.to_owned() })
+    }
+    /// Ask to leave broadcast group `group` when the process returns.
+    fn leave(&self, group: &str) -> PyResult<usize> {
+        self.ask(Change::Leave { group: group.to_owned() })
+    }
+    /// What became of the changes this process's previous activation asked for, in order:
+    /// `(change, error, connection)` — `error` None if applied (else the node's reason),
+    /// `connection` the id of a connection made or removed (else None).
+    fn changes(&self) -> PyResult<Vec<(String, Option<String>, Option<u64>)>> {
+        self.with(|c| {
+            c.changes()
+                .iter()
+                .map(|o| {
+                    let (error, conn) = match &o.result {
+                        Ok(Applied::Connection(id)) => (None, Some(id.0)),
+                        Ok(_) => (None, None),
+                        Err(e) => (Some(e.to_string()), None),
+                    };
+                    (o.change.describe(), error, conn)
+                })
+                .collect()
+        })
+    }
+    /// Ask `source`'s node (`ayllu.remote(node, b, p)`) to connect that port to `destination`,
+    /// at once (R6). Returns the request's id (`Node.request_status` follows it).
+    #[pyo3(signature = (source, destination, kind = None, *, priority = 0))]
+    fn request_connect(
+        &self,
+        source: &Bound<'_, PyAny>,
+        destination: &Bound<'_, PyAny>,
+        kind: Option<&Bound<'_, PyAny>>,
+        priority: i32,
+    ) -> PyResult<u64> {
+        let (s, d, k) = wiring::connect_args(source, destination, kind)?;
+        let (s, d) = (wiring::endpoint(&s)?, wiring::endpoint(&d)?);
+        self.with(|c| c.request_connect(&s, &d, k, ConnectOptions { priority }))?.map(|r| r.0).map_err(errors::core)
+    }
+}
+
+impl Context {
+    fn ask(&self, change: Change) -> PyResult<usize> {
+        self.with(|c| c.change(change))?.map_err(errors::core)
     }
 }

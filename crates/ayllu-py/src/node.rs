@@ -357,6 +357,22 @@ impl Node {
         self.shared.with(py, |n| wiring::request(n.core_mut(), node, body))
     }
 
+    /// Apply a plan (the TOML text of `ayllu apply`, docs/cli.md) from this node to the nodes
+    /// it names, all at once or not at all (docs/semantics.md R8-R12). Blocks until the
+    /// transaction has ended and the switch is past; returns the report as a dict (`outcome`
+    /// is "switched", "aborted" or "split"; `nodes` says which refused and why). Raises
+    /// `ValueError` for a plan that does not parse or names this node.
+    fn apply(&self, py: Python<'_>, plan: &str) -> PyResult<Py<PyAny>> {
+        let plan = ayllu::transaction::Plan::from_toml(plan).map_err(|e| errors::value_error(e.to_string()))?;
+        // Without the GIL while it waits: the team's other nodes in this process (started in
+        // the background) take it to run their Python processes.
+        let report = self.shared.with(py, |n| {
+            py.detach(|| ayllu::transaction::apply(n, &plan)).map_err(|e| errors::value_error(e.to_string()))
+        })?;
+        let json = py.import("json")?;
+        Ok(json.call_method1("loads", (report.to_json().to_string(),))?.unbind())
+    }
+
     /// Where request `request_id` stands: an `ayllu.RequestStatus` (`pending` with `sends`,
     /// `done` with `result`, `failed` with `error`).
     fn request_status(&self, py: Python<'_>, request_id: u64) -> PyResult<Py<PyAny>> {
