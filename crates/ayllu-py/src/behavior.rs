@@ -15,16 +15,16 @@ use std::sync::atomic::{AtomicPtr, AtomicU32, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
 
 use ayllu_core::{
-    Applied, BehaviorClass, Change, ConnectOptions, ConnectionId, Ctx, DropCause, Mono, NodeCore, Port, PortKind, PortSpec,
-    Slot, Trigger,
+    Applied, BehaviorClass, Change, ConnectOptions, ConnectionId, Ctx, DropCause, Mono, NodeCore, Port, PortKind,
+    PortSpec, Slot, Trigger,
 };
 use pyo3::exceptions::PyRuntimeError;
 use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 
 use crate::errors::{self, ValueTypeError};
-use crate::wiring;
 use crate::value::{duration, secs, to_py, to_value};
+use crate::wiring;
 
 const UNASSIGNED: u32 = u32::MAX;
 
@@ -603,7 +603,12 @@ impl Context {
         priority: i32,
     ) -> PyResult<usize> {
         let (s, d, k) = wiring::connect_args(source, destination, kind)?;
-        self.ask(Change::Connect { source: wiring::endpoint(&s)?, destination: wiring::endpoint(&d)?, kind: k, priority })
+        self.ask(Change::Connect {
+            source: wiring::endpoint(&s)?,
+            destination: wiring::endpoint(&d)?,
+            kind: k,
+            priority,
+        })
     }
     /// Ask to remove connection `id` of this node when the process returns.
     fn disconnect(&self, id: u64) -> PyResult<usize> {
@@ -625,7 +630,7 @@ impl Context {
     /// What became of the changes this process's previous activation asked for, in order:
     /// `(change, error, connection)` — `error` None if applied (else the node's reason),
     /// `connection` the id of a connection made or removed (else None).
-    fn changes(&self) -> PyResult<Vec<(String, Option<String>, Option<u64>)>> {
+    fn changes(&self) -> PyResult<Vec<ChangeOutcomeTuple>> {
         self.with(|c| {
             c.changes()
                 .iter()
@@ -655,6 +660,9 @@ impl Context {
         self.with(|c| c.request_connect(&s, &d, k, ConnectOptions { priority }))?.map(|r| r.0).map_err(errors::core)
     }
 }
+
+/// One outcome as Python sees it: `(change, error, connection)`.
+type ChangeOutcomeTuple = (String, Option<String>, Option<u64>);
 
 impl Context {
     fn ask(&self, change: Change) -> PyResult<usize> {
