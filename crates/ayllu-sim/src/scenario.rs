@@ -421,7 +421,8 @@ impl Sim {
                 self.steer(now, i)?;
             }
             let r = &mut self.robots[i];
-            r.core.poll(now);
+            // The next tick comes at its time whatever is due: no `poll_at` scan.
+            r.core.run_due(now);
             while let Some(out) = r.core.pop_outgoing() {
                 self.radio.send(now, i, out, &self.stations);
             }
@@ -431,7 +432,7 @@ impl Sim {
         if let Some((core, _)) = &mut self.planner {
             let station = self.robots.len();
             self.radio.deliver_due(station, |from, msg| core.receive_shared(now, from, msg));
-            core.poll(now);
+            core.run_due(now);
             while let Some(out) = core.pop_outgoing() {
                 self.radio.send(now, station, out, &self.stations);
             }
