@@ -110,3 +110,72 @@ fn a_process_that_rewires_replays_with_no_application_code() {
     let count: Arc<str> = Arc::from("Helper");
     assert!(replay.accepted().iter().any(|x| x.behavior == count && x.port == "Count" && x.value == Value::Int(3)));
 }
+
+/// A participant's side of a transaction (PREPARE, COMMIT with a delay, the switch inside a
+/// later poll; then a second transaction ABORTed) replays from its journal alone: the
+/// messages are `receive` inputs and the switch a consequence of a `poll` (R7).
+#[test]
+fn a_transaction_applied_to_a_node_replays() {
+    use ayllu::{Change, ControlBody, ControlMessage, Duration, Message, TransactionState};
+    let mut live = NodeCore::new(NodeId(2));
+    live.start_journal(1 << 20);
+    let mut layer = BehaviorClass::new("Layer");
+    layer.port(PortSpec::new("Out", 0i64)).unwrap();
+    layer.port(PortSpec::new("In", 0i64)).unwrap();
+    live.define(layer).unwrap();
+    live.create("Layer", "A").unwrap();
+    live.create("Layer", "B").unwrap();
+    live.connect(
+        &Endpoint::local("A", "Out"),
+        &Endpoint::local("B", "In"),
+        ConnectionKind::Normal,
+        ConnectOptions::default(),
+    )
+    .unwrap();
+    let here = |b: &str, p: &str| Endpoint::node(NodeId(2), b, p);
+    let changes = vec![
+        Change::DisconnectBetween { source: here("A", "Out"), destination: here("B", "In") },
+        Change::Create { class: "Layer".into(), name: "C".into() },
+        Change::Connect {
+            source: here("A", "Out"),
+            destination: here("C", "In"),
+            kind: ConnectionKind::Suppress(Duration::from_millis(300)),
+            priority: 0,
+        },
+    ];
+    let send = |core: &mut NodeCore, t: u64, id: u64, body: ControlBody| {
+        core.receive(ms(t), NodeId(9), Message::Control(ControlMessage { id, body }));
+        while core.pop_outgoing().is_some() {}
+    };
+    send(&mut live, 0, 1, ControlBody::Prepare { txn: 1, changes: changes.clone(), hold: Duration::from_secs(2) });
+    send(&mut live, 10, 2, ControlBody::Commit { txn: 1, delay: Duration::from_millis(40) });
+    for t in [20, 49, 50, 60] {
+        live.poll(ms(t));
+        live.write_named(ms(t), "A", "Out", t as i64).unwrap();
+    }
+    send(
+        &mut live,
+        70,
+        3,
+        ControlBody::Prepare {
+            txn: 2,
+            changes: vec![Change::Remove { name: "C".into() }],
+            hold: Duration::from_secs(2),
+        },
+    );
+    send(&mut live, 80, 4, ControlBody::Abort { txn: 2 });
+    live.poll(ms(90));
+    assert!(matches!(live.transactions()[0].state, TransactionState::Applied { at, .. } if at == ms(50)));
+    let journal = live.stop_journal();
+    let entries: Vec<Entry> =
+        journal.iter().enumerate().map(|(i, e)| decode(&encode(i as u64, e).1).unwrap().entry).collect();
+    let recording = Recording { node: NodeId(2), segments: Vec::new(), entries, ending: Ending::Closed, gap: None };
+    let mut replay = Replay::new(&recording);
+    replay.run_to_end().unwrap_or_else(|d| panic!("{d}"));
+    let conns = |r: &ayllu::NodeReport| {
+        r.connections.iter().map(|c| (c.source.to_string(), c.destination.to_string(), c.kind)).collect::<Vec<_>>()
+    };
+    assert_eq!(conns(&live.report()), conns(&replay.core().report()));
+    assert_eq!(live.transactions(), replay.core().transactions());
+    assert!(replay.checked() >= 4);
+}
