@@ -587,7 +587,19 @@ pub fn fresh_txn(node: &Node) -> u64 {
 /// started).
 pub fn apply(node: &mut Node, plan: &Plan) -> Result<ApplyReport, Error> {
     let mut c = Coordinator::new(fresh_txn(node), plan, node.id())?;
+    // On a manual clock nothing would ever time out: bounded by the wall clock as well.
+    let wall_end = std::time::Instant::now()
+        + std::time::Duration::from_nanos(plan.options.hold.as_nanos())
+        + std::time::Duration::from_secs(2);
+    let stuck = || Error::Plan {
+        what: "the node's clock does not advance (a manual clock?): apply needs a node on the real clock; \
+               drive a Coordinator with your own clock instead"
+            .into(),
+    };
     loop {
+        if std::time::Instant::now() > wall_end {
+            return Err(stuck());
+        }
         node.step();
         let now = node.now();
         let report = c.step(node.core_mut(), now);
@@ -598,7 +610,10 @@ pub fn apply(node: &mut Node, plan: &Plan) -> Result<ApplyReport, Error> {
             // what the caller asks next sees the new structure.
             let latest = r.nodes.iter().filter_map(|n| n.commit.as_ref()?.as_ref().ok().map(|w| w.latest)).max();
             while let Some(t) = latest.filter(|&t| node.now() < t) {
-                node.wait(std::time::Duration::from_nanos((t - node.now()).as_nanos()));
+                if std::time::Instant::now() > wall_end {
+                    return Err(stuck());
+                }
+                node.wait(std::time::Duration::from_nanos((t - node.now()).as_nanos().min(1_000_000)));
                 node.step();
             }
             return Ok(r);

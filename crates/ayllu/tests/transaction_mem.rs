@@ -337,3 +337,20 @@ fn the_coordinator_cannot_be_in_its_own_plan_and_bad_plans_are_refused_before_se
     p.options.hold = Duration::from_millis(500);
     assert!(Coordinator::new(1, &p, COORD).unwrap_err().to_string().contains("no time to commit"));
 }
+
+/// `apply` needs a node on the real clock: on a manual one it fails after its bound instead of
+/// waiting for ever.
+#[test]
+fn apply_on_a_manual_clock_fails_instead_of_hanging() {
+    let mut team = Lockstep::new(&format!("txn-manual-{}", std::process::id()));
+    let i = team.add(COORD).unwrap();
+    let mut p = plan(vec![(1, swap())]);
+    p.options = ApplyOptions {
+        hold: Duration::from_millis(400),
+        prepare_timeout: Duration::from_millis(100),
+        margin: Duration::from_millis(20),
+        resend: Duration::from_millis(20),
+    };
+    let e = ayllu::transaction::apply(team.node(i), &p).unwrap_err();
+    assert!(e.to_string().contains("does not advance"), "{e}");
+}
