@@ -17,7 +17,7 @@ use std::sync::Arc;
 use ayllu_core::{
     Access, Allow, BehaviorClass, BleConfig, Change, ConnectionId, ConnectionKind, ControlBody, ControlMessage,
     Duration, Endpoint, Entry, Event, Instant, Limits, Message, NodeId, PortKind, PortMessage, PortSpec, ReplyBody,
-    Trigger, Value, ValueType,
+    Trigger, Value,
 };
 use serde::de::DeserializeOwned;
 use serde_json::{json, Map, Value as Json};
@@ -103,80 +103,24 @@ impl Topic {
     }
 }
 
-/// The JSON type name of a value type.
-fn type_name(ty: ValueType) -> &'static str {
-    match ty {
-        ValueType::Bool => "bool",
-        ValueType::Int => "int",
-        ValueType::Float => "float",
-        ValueType::Text => "text",
-        ValueType::Bytes => "bytes",
-        ValueType::Vector => "vector",
-    }
-}
-
-fn float_json(x: f64) -> Json {
-    if x.is_finite() {
-        json!(x)
-    } else if x.is_nan() {
-        json!("NaN")
-    } else if x > 0.0 {
-        json!("inf")
-    } else {
-        json!("-inf")
-    }
-}
+/// Values use the team channels' JSON form (spec/recording.md): one encoder and decoder for
+/// every recording Ayllu writes.
+pub use crate::team_channels::value_json;
+use crate::team_channels::{float_json, value_from_json, value_type};
 
 fn float_from(j: &Json) -> Result<f64, String> {
-    match j {
-        Json::Number(n) => n.as_f64().ok_or_else(|| format!("{n} is not a float")),
-        Json::String(s) if s == "NaN" => Ok(f64::NAN),
-        Json::String(s) if s == "inf" => Ok(f64::INFINITY),
-        Json::String(s) if s == "-inf" => Ok(f64::NEG_INFINITY),
-        other => Err(format!("{other} is not a float")),
-    }
+    crate::team_channels::float_from_json(j).ok_or_else(|| format!("{j} is not a float"))
 }
 
-/// A value as plain JSON (its type goes beside it): numbers, strings, bytes as hex, vectors as
-/// arrays — what Foxglove's plot panel reads.
-pub fn value_json(v: &Value) -> Json {
-    match v {
-        Value::Bool(b) => json!(b),
-        Value::Int(i) => json!(i),
-        Value::Float(x) => float_json(*x),
-        Value::Text(t) => json!(&**t),
-        Value::Bytes(b) => json!(b.iter().map(|x| format!("{x:02x}")).collect::<String>()),
-        Value::Vector(x) => Json::Array(x.iter().map(|x| float_json(*x)).collect()),
-    }
-}
-
-/// The value of type `ty` that [`value_json`] wrote as `j`.
+/// The value of type `ty` (as [`ayllu_core::ValueType::name`] writes it) that [`value_json`]
+/// wrote as `j`.
 pub fn value_from(ty: &str, j: &Json) -> Result<Value, String> {
-    let bad = || format!("{j} is not a {ty}");
-    Ok(match ty {
-        "bool" => Value::Bool(j.as_bool().ok_or_else(bad)?),
-        "int" => Value::Int(j.as_i64().ok_or_else(bad)?),
-        "float" => Value::Float(float_from(j)?),
-        "text" => Value::text(j.as_str().ok_or_else(bad)?),
-        "bytes" => {
-            let s = j.as_str().ok_or_else(bad)?;
-            if s.len() % 2 != 0 || !s.is_ascii() {
-                return Err(bad());
-            }
-            let bytes: Result<Vec<u8>, _> =
-                (0..s.len()).step_by(2).map(|i| u8::from_str_radix(&s[i..i + 2], 16)).collect();
-            Value::bytes(&bytes.map_err(|_| bad())?)
-        }
-        "vector" => {
-            let xs: Result<Vec<f64>, String> = j.as_array().ok_or_else(bad)?.iter().map(float_from).collect();
-            Value::vector(&xs?)
-        }
-        other => return Err(format!("unknown value type `{other}`")),
-    })
+    let t = value_type(ty).ok_or_else(|| format!("unknown value type `{ty}`"))?;
+    value_from_json(t, j).ok_or_else(|| format!("{j} is not a {ty}"))
 }
 
 fn typed(v: &Value) -> (Json, Json) {
-    (json!(type_name(v.ty())), value_json(v))
+    (json!(v.ty().name()), value_json(v))
 }
 
 fn to_json<T: serde::Serialize>(x: &T) -> Json {

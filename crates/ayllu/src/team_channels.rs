@@ -164,7 +164,8 @@ pub fn value_type(name: &str) -> Option<ValueType> {
         .find(|t| t.name() == name)
 }
 
-fn float_json(x: f64) -> Json {
+/// A float as the layout writes it: a number, or `"NaN"`, `"inf"`, `"-inf"`.
+pub(crate) fn float_json(x: f64) -> Json {
     if x.is_finite() {
         json!(x)
     } else if x.is_nan() {
@@ -176,7 +177,8 @@ fn float_json(x: f64) -> Json {
     }
 }
 
-fn float_from_json(j: &Json) -> Option<f64> {
+/// The float [`float_json`] wrote as `j`.
+pub(crate) fn float_from_json(j: &Json) -> Option<f64> {
     match j {
         Json::Number(n) => n.as_f64(),
         Json::String(s) => match s.as_str() {
