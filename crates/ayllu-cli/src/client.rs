@@ -10,7 +10,8 @@
 use std::time::{Duration as StdDuration, Instant as StdInstant};
 
 use ayllu::{
-    ControlBody, MonotonicClock, Node, NodeId, PeerInfo, ReplyBody, RequestId, RequestStatus, UdpConfig, UdpTransport,
+    ConnectOptions, ConnectionId, ConnectionKind, ControlBody, Endpoint, MonotonicClock, Node, NodeId, PeerInfo,
+    ReplyBody, RequestId, RequestStatus, UdpConfig, UdpTransport,
 };
 
 use crate::fail::Fail;
@@ -196,6 +197,28 @@ impl Client {
     pub fn ask(&mut self, node: NodeId, body: ControlBody, what: &str) -> Result<ReplyBody, Fail> {
         let id = self.node.core_mut().request(node, body)?;
         self.answer(node, id, what)
+    }
+
+    /// Ask `node` to copy its port `behavior.port` to this tool's port `to_behavior.to_port`
+    /// along a Normal connection (how `echo`, `hz` and `record` listen to a port), and wait
+    /// for the connection's id on `node`.
+    pub fn copy_port(
+        &mut self,
+        node: NodeId,
+        (behavior, port): (&str, &str),
+        (to_behavior, to_port): (&str, &str),
+    ) -> Result<ConnectionId, Fail> {
+        let what = format!("CONNECT {node}:{behavior}.{port} -> {}:{to_behavior}.{to_port}", self.id());
+        let request = self.node.core_mut().request_connect(
+            &Endpoint::node(node, behavior, port),
+            &Endpoint::local(to_behavior, to_port),
+            ConnectionKind::Normal,
+            ConnectOptions::default(),
+        )?;
+        match self.answer(node, request, &what)? {
+            ReplyBody::Connection(c) => Ok(c),
+            other => Err(crate::commands::unexpected(&what, &other)),
+        }
     }
 
     /// Wait for the answer to request `id` sent to `node`.

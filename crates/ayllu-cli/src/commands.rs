@@ -218,17 +218,7 @@ pub fn echo(node: NodeId, path: &PortPath, count: Option<u64>, net: &Net) -> Res
     client.node.define(class)?;
     client.node.create("Echo", "ECHO")?;
 
-    let what = format!("CONNECT {node}:{path} -> {}:ECHO.In", client.id());
-    let request = client.node.core_mut().request_connect(
-        &Endpoint::node(node, &path.behavior, &path.port),
-        &Endpoint::local("ECHO", "In"),
-        ConnectionKind::Normal,
-        ConnectOptions::default(),
-    )?;
-    let conn = match client.answer(node, request, &what)? {
-        ReplyBody::Connection(c) => c,
-        other => return Err(unexpected(&what, &other)),
-    };
+    let conn = client.copy_port(node, (&path.behavior, &path.port), ("ECHO", "In"))?;
     eprintln!("echo: {node}:{path} ({ty}) -> {}:ECHO.In as {node}'s connection {conn}", client.id());
     if net.timeout.is_none() {
         // Without --timeout, echo runs until --count values or Ctrl-C.

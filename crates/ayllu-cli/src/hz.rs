@@ -8,11 +8,11 @@ use std::time::{Duration as StdDuration, Instant as StdInstant};
 
 use ayllu::rate::{Arrival, RateReport, RateWindow};
 use ayllu::team_recording::{HeardLog, Tap};
-use ayllu::{BehaviorClass, ConnectOptions, ConnectionKind, Endpoint, NodeId, PortSpec, ReplyBody, Value};
+use ayllu::{BehaviorClass, NodeId, PortSpec, Value};
 use clap::Args;
 
 use crate::client::{Client, SLICE};
-use crate::commands::{disconnect, emit, read, unexpected};
+use crate::commands::{disconnect, emit, read};
 use crate::fail::Fail;
 use crate::{parse_node, parse_port_path, positive_secs, signals, Net, PortPath};
 
@@ -80,17 +80,7 @@ pub fn hz(args: &HzArgs) -> Result<(), Fail> {
     class.port(PortSpec::new("In", Value::zero(ty)))?;
     client.node.define(class)?;
     client.node.create("Hz", "HZ")?;
-    let what = format!("CONNECT {node}:{path} -> {}:HZ.In", client.id());
-    let request = client.node.core_mut().request_connect(
-        &Endpoint::node(node, &path.behavior, &path.port),
-        &Endpoint::local("HZ", "In"),
-        ConnectionKind::Normal,
-        ConnectOptions::default(),
-    )?;
-    let conn = match client.answer(node, request, &what)? {
-        ReplyBody::Connection(c) => c,
-        other => return Err(unexpected(&what, &other)),
-    };
+    let conn = client.copy_port(node, (&path.behavior, &path.port), ("HZ", "In"))?;
     eprintln!("hz: {node}:{path} ({ty}) -> {}:HZ.In as {node}'s connection {conn}", client.id());
 
     let started = StdInstant::now();

@@ -18,7 +18,7 @@ use ayllu::{
 use clap::Args;
 
 use crate::client::{Client, SLICE};
-use crate::commands::{disconnect, emit, read, unexpected};
+use crate::commands::{disconnect, emit, read};
 use crate::fail::Fail;
 use crate::{parse_node, positive_secs, signals, Net, PortPath};
 
@@ -248,30 +248,16 @@ fn survey(
             if !patterns.iter().any(|c| c.matches(node, &b.name, &p.name)) {
                 continue;
             }
-            let what = format!("CONNECT {node}:{}.{} -> {}:REC.{}", b.name, p.name, client.id(), p.ty.name());
-            let request = client.node.core_mut().request_connect(
-                &Endpoint::node(node, &b.name, &p.name),
-                &Endpoint::local("REC", p.ty.name()),
-                ConnectionKind::Normal,
-                ConnectOptions::default(),
-            );
-            let answer = match request {
-                Ok(id) => {
-                    client.set_deadline(Some(StdInstant::now() + REQUEST_WAIT));
-                    let a = client.answer(node, id, &what);
-                    client.set_deadline(None);
-                    a
-                }
-                Err(e) => Err(Fail::from(e)),
-            };
+            client.set_deadline(Some(StdInstant::now() + REQUEST_WAIT));
+            let answer = client.copy_port(node, (&b.name, &p.name), ("REC", p.ty.name()));
+            client.set_deadline(None);
             match answer {
-                Ok(ReplyBody::Connection(conn)) => {
+                Ok(conn) => {
                     let to = format!("{}:REC.{}", client.id(), p.ty.name());
                     recorder.learn_route(node, conn.0, Route { behavior: b.name.clone(), port: p.name.clone(), to });
                     copies.push((node, conn));
                     eprintln!("record: copying {node}:{}.{} as {node}'s connection {conn}", b.name, p.name);
                 }
-                Ok(other) => eprintln!("ayllu: warning: {}", unexpected(&what, &other).message),
                 Err(e) => eprintln!("ayllu: warning: {}", e.message),
             }
         }
