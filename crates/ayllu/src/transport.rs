@@ -109,12 +109,40 @@ pub struct PeerInfo {
     pub last_heard: Instant,
 }
 
+/// Opens a transport for a URL of a registered scheme, for node `id` (see [`register_scheme`]).
+pub type SchemeFactory = fn(url: &str, id: NodeId) -> Result<Box<dyn Transport>, Error>;
+
+/// Schemes added by other crates. A registry rather than a dependency: transports with heavy
+/// dependencies (`zenoh://`, crates/ayllu-zenoh) live in their own projects and plug in here,
+/// so the default build never compiles them.
+static SCHEMES: std::sync::RwLock<Vec<(String, SchemeFactory)>> = std::sync::RwLock::new(Vec::new());
+
+/// Make [`open`] (and so [`crate::Node::open`]) hand URLs of `scheme` (without `://`) to
+/// `factory`. Registering a scheme again replaces its factory. Built-in schemes (`mem`,
+/// `udp`) cannot be replaced: they are matched first.
+pub fn register_scheme(scheme: &str, factory: SchemeFactory) {
+    let mut schemes = SCHEMES.write().unwrap_or_else(|poisoned| poisoned.into_inner());
+    schemes.retain(|(s, _)| s != scheme);
+    schemes.push((scheme.to_owned(), factory));
+}
+
 /// Open the transport a URL names, for node `id`.
 pub fn open(url: &str, id: NodeId) -> Result<Box<dyn Transport>, Error> {
     let (scheme, rest) = url.split_once("://").ok_or_else(|| Error::BadUrl {
         url: url.to_owned(),
         reason: "expected SCHEME://..., e.g. mem://team".into(),
     })?;
+    if !matches!(scheme, "mem" | "udp") {
+        let registered = SCHEMES
+            .read()
+            .unwrap_or_else(|poisoned| poisoned.into_inner())
+            .iter()
+            .find(|(s, _)| s == scheme)
+            .map(|(_, factory)| *factory);
+        if let Some(factory) = registered {
+            return factory(url, id);
+        }
+    }
     match scheme {
         "mem" => {
             if rest.is_empty() {
@@ -123,7 +151,44 @@ pub fn open(url: &str, id: NodeId) -> Result<Box<dyn Transport>, Error> {
             Ok(Box::new(MemNetwork::named(rest).attach(id)?))
         }
         "udp" => Ok(Box::new(UdpTransport::bind(id, UdpConfig::parse(url)?)?)),
-        "sim" | "zenoh" => Err(Error::Unsupported { what: format!("the {scheme}:// transport (not yet supported)") }),
+        "zenoh" => Err(Error::Unsupported {
+            what: "the zenoh:// transport is not in this build: it lives in crates/ayllu-zenoh (`make zenoh`), \
+                   which registers it (ayllu_zenoh::register); see docs/zenoh.md"
+                .into(),
+        }),
+        "sim" => Err(Error::Unsupported { what: format!("the {scheme}:// transport (not yet supported)") }),
         _ => Err(Error::BadUrl { url: url.to_owned(), reason: format!("unknown transport `{scheme}`") }),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn fake(url: &str, id: NodeId) -> Result<Box<dyn Transport>, Error> {
+        // A registered scheme gets the whole URL: prove it by opening an in-process network
+        // named after it.
+        let name = url.split_once("://").map(|(_, rest)| rest).unwrap_or_default();
+        Ok(Box::new(MemNetwork::named(&format!("registered-{name}")).attach(id)?))
+    }
+
+    #[test]
+    fn a_registered_scheme_is_opened_by_its_factory() {
+        assert!(matches!(open("registrytest://x", NodeId(1)), Err(Error::BadUrl { .. })));
+        register_scheme("registrytest", fake);
+        let t = open("registrytest://x", NodeId(1)).expect("registered scheme opens");
+        assert_eq!(t.local(), NodeId(1));
+        // Built-in schemes stay built in.
+        register_scheme("mem", fake);
+        assert!(matches!(open("mem://", NodeId(1)), Err(Error::BadUrl { .. })));
+    }
+
+    #[test]
+    fn zenoh_without_the_crate_says_where_it_is() {
+        match open("zenoh://?team=1", NodeId(1)) {
+            Err(Error::Unsupported { what }) => assert!(what.contains("ayllu-zenoh"), "{what}"),
+            Err(other) => panic!("unexpected error: {other}"),
+            Ok(_) => panic!("zenoh:// opened without the crate"),
+        }
     }
 }
