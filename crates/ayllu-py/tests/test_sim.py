@@ -20,7 +20,8 @@ def test_a_run_is_deterministic_and_metrics_are_plain_data() -> None:
     assert a.trace_hash == b.trace_hash
     assert a.metrics == b.metrics
     assert isinstance(a.metrics["a_w"], float) and 0.0 <= a.metrics["a_w"] <= 1.0
-    assert set(a.radio) == {"sent", "delivered", "lost", "cut"}
+    assert set(a.radio) == {"sent", "delivered", "lost", "cut", "bytes"}
+    assert a.radio["bytes"] > 0, "BLE talks: its bytes on the radio are counted"
     assert len(a.coverage["t"]) == len(a.coverage["weighted"]) == 101, "a frame every 0.2 s, and t=0"
     assert sim.run(short(seed=2)).trace_hash != a.trace_hash
 

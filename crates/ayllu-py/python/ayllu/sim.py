@@ -217,7 +217,7 @@ class Trace:
 class Outcome:
     """A run's results as plain data: ``metrics`` (a_w, a, top_k, redundant, switches_per_min,
     recover_s, msgs_per_robot_s, ...: docs/cmommt.md), ``trace_hash`` (SHA-256 of every frame),
-    ``radio`` (sent, delivered, lost, cut), ``coverage`` (per frame: t, observed, weighted),
+    ``radio`` (sent, delivered, lost, cut, bytes), ``coverage`` (per frame: t, observed, weighted),
     ``recording`` (every frame, if the scenario's ``record`` is set), ``trace`` (if asked) and
     ``process_errors`` (Python controllers: exceptions their processes raised, counted)."""
 
