@@ -2,7 +2,7 @@
 # CI (.ci/run) runs `make lint` and `make test`.
 CARGO ?= cargo
 
-.PHONY: demo test lint test-python lint-python bench-python bench bench-c bench-net bench-peers bench-sim fuzz fuzz-long soak fmt docs
+.PHONY: demo test lint test-python lint-python bench-python bench bench-c bench-net bench-peers bench-sim zenoh test-zenoh fuzz fuzz-long soak fmt docs
 
 ## Run the main demo: W-CMOMMT in the simulator (the paper's setting, a sweep, a robot killed
 ## halfway) for BLE and every baseline; prints a short summary (BLE against each baseline, whether
@@ -68,6 +68,19 @@ bench-net:
 ## directory: the first build takes 5-10 min); then about 3 min (benches/peers/run).
 bench-peers:
 	CARGO=$(CARGO) benches/peers/run
+
+## The zenoh:// transport (crates/ayllu-zenoh, docs/zenoh.md): its own cargo project and target
+## directory (target/zenoh), never part of `make test`; the first build takes 5-10 min.
+ZENOH_CARGO = cd crates/ayllu-zenoh && CARGO_TARGET_DIR=$(abspath $(TARGET_DIR))/zenoh $(CARGO)
+zenoh:
+	$(ZENOH_CARGO) build --release
+
+## Its lints and tests (three nodes in one process over Zenoh peer mode on loopback, about a
+## second once built): the workspace's `make lint` does not see this project.
+test-zenoh:
+	$(ZENOH_CARGO) fmt -- --check
+	$(ZENOH_CARGO) clippy --release --all-targets -- -D warnings
+	$(ZENOH_CARGO) test --release
 
 ## Simulation speed against real time (10, 100, 1000 robots, BLE and Random), one thread.
 bench-sim:

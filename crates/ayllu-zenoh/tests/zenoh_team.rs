@@ -1,0 +1,222 @@
+//! Three nodes in one process over `zenoh://` in peer mode on loopback: a port message to one
+//! node, a group message to every member but the sender, control requests (LIST, WHY, CONNECT)
+//! and their replies, and a forged datagram counted. Run by `make test-zenoh`.
+//!
+//! Ports: each node listens on a loopback port the system chose (a TCP socket bound to port 0,
+//! read back and closed just before Zenoh binds it) and connects to the earlier nodes; Zenoh's
+//! multicast scouting is off, so nothing leaves the machine. Every wait is bounded in time and
+//! timing never decides a verdict: a wait only ends early.
+
+use std::time::{Duration as StdDuration, Instant as StdInstant};
+
+use ayllu::{
+    BehaviorClass, ConnectOptions, ConnectionKind, ControlBody, Endpoint, Node, NodeId, PortSpec, ReplyBody,
+    RequestStatus, Value,
+};
+use ayllu_wire::{encode_datagram, PortMessage, WireMessage};
+use zenoh::Wait;
+
+const TEAM: u32 = 12;
+const KEY: [u8; 32] = [0x5a; 32];
+/// The longest any condition is waited for (session setup and routes included).
+const PATIENCE: StdDuration = StdDuration::from_secs(20);
+
+/// A loopback port free a moment ago (the system chose it).
+fn free_port() -> u16 {
+    let l = std::net::TcpListener::bind("127.0.0.1:0").expect("bind port 0");
+    l.local_addr().expect("local address").port()
+}
+
+fn key_hex() -> String {
+    KEY.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// Nodes 1..=n, node k listening on its own loopback port and connecting to nodes 1..k-1;
+/// each with Relay behaviors SRC and DST (int ports In, Out), joined to group `team`.
+fn team(n: u32) -> (Vec<Node>, Vec<u16>) {
+    ayllu_zenoh::register();
+    let mut nodes = Vec::new();
+    let mut ports: Vec<u16> = Vec::new();
+    for id in 1..=n {
+        let port = free_port();
+        let connect: String = ports.iter().map(|p| format!("&connect=tcp/127.0.0.1:{p}")).collect();
+        let url = format!(
+            "zenoh://?mode=peer&scouting=0&listen=tcp/127.0.0.1:{port}{connect}&team={TEAM}&key={}&hello_ms=200&name=n{id}",
+            key_hex()
+        );
+        let mut node = Node::open(NodeId(id), &url).expect("open a zenoh:// node");
+        let mut relay = BehaviorClass::new("Relay");
+        relay.port(PortSpec::new("In", 0i64)).unwrap();
+        relay.port(PortSpec::new("Out", 0i64)).unwrap();
+        node.define(relay).unwrap();
+        node.create("Relay", "SRC").unwrap();
+        node.create("Relay", "DST").unwrap();
+        node.join("team");
+        nodes.push(node);
+        ports.push(port);
+    }
+    (nodes, ports)
+}
+
+/// Step every node until `done` holds or [`PATIENCE`] passes; whether it held.
+fn run_until(nodes: &mut [Node], mut done: impl FnMut(&mut [Node]) -> bool) -> bool {
+    let give_up = StdInstant::now() + PATIENCE;
+    while StdInstant::now() < give_up {
+        for n in nodes.iter_mut() {
+            n.run_for(StdDuration::from_millis(2));
+        }
+        if done(nodes) {
+            return true;
+        }
+    }
+    false
+}
+
+fn read(node: &Node, behavior: &str, port: &str) -> Value {
+    node.read(behavior, port).unwrap()
+}
+
+fn count(node: &Node, cause: &str) -> u64 {
+    node.transport_counters().iter().find(|(c, _)| c == cause).map_or(0, |(_, n)| *n)
+}
+
+fn everyone_greeted(nodes: &mut [Node]) -> bool {
+    let n = nodes.len();
+    nodes.iter().all(|node| node.peers().len() == n - 1)
+}
+
+/// Wait for the answer to a request `asker` (index) sent.
+fn answer(nodes: &mut [Node], asker: usize, id: ayllu::RequestId) -> ReplyBody {
+    let mut reply = None;
+    let answered = run_until(nodes, |nodes| match nodes[asker].core().request_status(id) {
+        Some(RequestStatus::Done(body)) => {
+            reply = Some(body);
+            true
+        }
+        Some(RequestStatus::Failed(text)) => panic!("request failed: {text}"),
+        _ => false,
+    });
+    assert!(answered, "no answer within {PATIENCE:?}");
+    reply.unwrap()
+}
+
+#[test]
+fn port_messages_groups_and_control_requests_cross_zenoh() {
+    let (mut nodes, _) = team(3);
+    assert!(run_until(&mut nodes, everyone_greeted), "N6: every node hears the others' HELLO over Zenoh");
+    for node in &nodes {
+        let names: Vec<String> = node.peers().iter().map(|p| p.name.clone()).collect();
+        assert!(node.peers().iter().all(|p| p.groups == ["team"]), "HELLO carries the groups: {names:?}");
+    }
+
+    // A port message to one node reaches it and no other.
+    nodes[0]
+        .connect(&Endpoint::local("SRC", "Out"), &Endpoint::node(NodeId(2), "DST", "In"), ConnectionKind::Normal)
+        .unwrap();
+    nodes[0].write("SRC", "Out", 7i64).unwrap();
+    assert!(run_until(&mut nodes, |n| read(&n[1], "DST", "In") == Value::Int(7)), "S10: node 2 gets the write");
+    assert_eq!(read(&nodes[2], "DST", "In"), Value::Int(0), "node 3 was not addressed");
+    let why = nodes[1].why("DST", "In").unwrap();
+    assert_eq!(why.supplier.map(|s| s.node), Some(NodeId(1)), "the supplier names the sending node");
+
+    // A group message reaches every member but the sender.
+    nodes[0]
+        .connect(&Endpoint::local("SRC", "In"), &Endpoint::group("team", "DST", "Out"), ConnectionKind::Normal)
+        .unwrap();
+    nodes[0].write("SRC", "In", 5i64).unwrap();
+    assert!(
+        run_until(&mut nodes, |n| read(&n[1], "DST", "Out") == Value::Int(5)
+            && read(&n[2], "DST", "Out") == Value::Int(5)),
+        "S10: every other member of the group gets the write"
+    );
+    assert_eq!(read(&nodes[0], "DST", "Out"), Value::Int(0), "the sender is excluded");
+
+    // Control requests and their replies: LIST, WHY, then CONNECT from node 3 on node 2.
+    let list = nodes[2].core_mut().request(NodeId(1), ControlBody::List).unwrap();
+    match answer(&mut nodes, 2, list) {
+        ReplyBody::Node(report) => {
+            assert_eq!(report.node, NodeId(1));
+            assert_eq!(report.groups, ["team"]);
+            assert!(report.behaviors.iter().any(|b| b.name == "SRC"), "LIST names node 1's behaviors");
+        }
+        other => panic!("LIST answered {other:?}"),
+    }
+    let why =
+        nodes[2].core_mut().request(NodeId(2), ControlBody::Why { behavior: "DST".into(), port: "In".into() }).unwrap();
+    match answer(&mut nodes, 2, why) {
+        ReplyBody::Port(report) => assert_eq!(report.value, Value::Int(7), "WHY reports node 2's value"),
+        other => panic!("WHY answered {other:?}"),
+    }
+    let connect = nodes[2]
+        .core_mut()
+        .request_connect(
+            &Endpoint::node(NodeId(2), "SRC", "Out"),
+            &Endpoint::local("SRC", "In"),
+            ConnectionKind::Normal,
+            ConnectOptions::default(),
+        )
+        .unwrap();
+    assert!(matches!(answer(&mut nodes, 2, connect), ReplyBody::Connection(_)), "CONNECT answers a connection");
+    nodes[1].write("SRC", "Out", 11i64).unwrap();
+    assert!(
+        run_until(&mut nodes, |n| read(&n[2], "SRC", "In") == Value::Int(11)),
+        "the connection node 3 asked for carries node 2's writes to it"
+    );
+    for node in &nodes {
+        assert_eq!(count(node, "bad_mac"), 0, "the team key verifies end to end");
+        assert_eq!(count(node, "own"), 0, "a node does not hear its own publications");
+    }
+}
+
+#[test]
+fn a_forged_datagram_is_counted_not_applied() {
+    let (mut nodes, ports) = team(2);
+    assert!(run_until(&mut nodes, everyone_greeted));
+    nodes[0]
+        .connect(&Endpoint::local("SRC", "Out"), &Endpoint::group("team", "DST", "In"), ConnectionKind::Normal)
+        .unwrap();
+    nodes[0].write("SRC", "Out", 1i64).unwrap();
+    assert!(run_until(&mut nodes, |n| read(&n[1], "DST", "In") == Value::Int(1)));
+
+    // An intruder on the Zenoh network, without the team key, publishes on the team's
+    // broadcast key as node 1 would.
+    let mut config = zenoh::Config::default();
+    config.insert_json5("mode", "\"peer\"").unwrap();
+    config.insert_json5("scouting/multicast/enabled", "false").unwrap();
+    config.insert_json5("listen/endpoints", "[]").unwrap();
+    config.insert_json5("connect/endpoints", &format!("[\"tcp/127.0.0.1:{}\"]", ports[1])).unwrap();
+    let intruder = zenoh::open(config).wait().expect("intruder session");
+    let forged = encode_datagram(
+        TEAM,
+        NodeId(1),
+        u64::MAX / 2,
+        Some([8; 32]),
+        &[WireMessage::Port(PortMessage {
+            conn: ayllu::ConnectionId(1),
+            seq: u64::MAX / 2,
+            behavior: "DST".into(),
+            port: "In".into(),
+            kind: ConnectionKind::Normal,
+            priority: 0,
+            value: Value::Int(66),
+        })],
+    )
+    .unwrap();
+    let from_node_1 = nodes[0].address().expect("node 1 has an address");
+    let from: std::net::SocketAddrV4 = from_node_1.parse().expect("an IPv4 address");
+    let mut attachment = from.ip().octets().to_vec();
+    attachment.extend(from.port().to_be_bytes());
+    let key = format!("ayllu/{TEAM}/b");
+    // Until the intruder's route to node 2's subscription exists its puts go nowhere: resend.
+    let mut last = StdInstant::now() - StdDuration::from_secs(1);
+    let counted = run_until(&mut nodes, |n| {
+        if last.elapsed() >= StdDuration::from_millis(100) {
+            last = StdInstant::now();
+            intruder.put(&key, forged.clone()).attachment(attachment.clone()).wait().expect("put");
+        }
+        count(&n[1], "bad_mac") > 0
+    });
+    assert!(counted, "N4/N5: the forged datagram is counted as bad_mac");
+    assert_eq!(read(&nodes[1], "DST", "In"), Value::Int(1), "and not applied");
+    intruder.close().wait().expect("close");
+}
