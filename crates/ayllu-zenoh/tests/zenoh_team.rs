@@ -220,3 +220,68 @@ fn a_forged_datagram_is_counted_not_applied() {
     assert_eq!(read(&nodes[1], "DST", "In"), Value::Int(1), "and not applied");
     intruder.close().wait().expect("close");
 }
+
+/// Round trip of a port write, Ayllu over `zenoh://` beside Ayllu over `udp://`, same run, two
+/// nodes in this process stepped in turn on one thread (so the figure includes both loops).
+/// A figure, not a verdict: `make test-zenoh` skips it; run it with
+/// `cargo test --release --test zenoh_team -- --ignored --nocapture`.
+#[test]
+#[ignore]
+fn round_trip_figures() {
+    fn relay_node(id: u32, url: &str) -> Node {
+        let mut node = Node::open(NodeId(id), url).expect("open");
+        let mut relay = BehaviorClass::new("Relay");
+        relay.port(PortSpec::new("In", 0i64)).unwrap();
+        relay.port(PortSpec::new("Out", 0i64)).unwrap();
+        node.define(relay).unwrap();
+        node.create("Relay", "SRC").unwrap();
+        node.create("Relay", "DST").unwrap();
+        node
+    }
+    fn echo_pair(a_url: &str, b_url: impl FnOnce(&Node) -> String) -> (Node, Node) {
+        let a = relay_node(1, a_url);
+        let b = relay_node(2, &b_url(&a));
+        (a, b)
+    }
+    fn measure(label: &str, a: Node, b: Node) {
+        let mut pair = [a, b];
+        assert!(run_until(&mut pair, everyone_greeted), "{label}: the pair greets");
+        let [mut a, mut b] = pair;
+        // A.SRC.Out -> B.DST.In, which B forwards back to A.DST.In (S5: a remote write propagates).
+        a.connect(&Endpoint::local("SRC", "Out"), &Endpoint::node(NodeId(2), "DST", "In"), ConnectionKind::Normal)
+            .unwrap();
+        b.connect(&Endpoint::local("DST", "In"), &Endpoint::node(NodeId(1), "DST", "In"), ConnectionKind::Normal)
+            .unwrap();
+        let mut rtts = Vec::new();
+        for k in 1..=500i64 {
+            let t0 = StdInstant::now();
+            a.write("SRC", "Out", k).unwrap();
+            while a.read("DST", "In").unwrap() != Value::Int(k) && t0.elapsed() < StdDuration::from_secs(2) {
+                a.step();
+                b.step();
+            }
+            if a.read("DST", "In").unwrap() == Value::Int(k) {
+                rtts.push(t0.elapsed().as_secs_f64() * 1e6);
+            }
+        }
+        rtts.sort_by(f64::total_cmp);
+        let q = |f: f64| rtts.get(((rtts.len() as f64 - 1.0) * f) as usize).copied().unwrap_or(f64::NAN);
+        println!(
+            "{label}: {} of 500 round trips, median {:.0} us, p90 {:.0} us, p99 {:.0} us",
+            rtts.len(),
+            q(0.5),
+            q(0.9),
+            q(0.99)
+        );
+    }
+    ayllu_zenoh::register();
+    let port = free_port();
+    let (a, b) = echo_pair(&format!("zenoh://?scouting=0&listen=tcp/127.0.0.1:{port}&hello_ms=200"), |_| {
+        format!("zenoh://?scouting=0&connect=tcp/127.0.0.1:{port}&listen=tcp/127.0.0.1:{}&hello_ms=200", free_port())
+    });
+    measure("zenoh:// (tcp link)", a, b);
+    let (a, b) = echo_pair("udp://127.0.0.1:0?hello_ms=200", |a| {
+        format!("udp://127.0.0.1:0?hello_ms=200&peer={}", a.address().unwrap())
+    });
+    measure("udp://", a, b);
+}
