@@ -1,6 +1,7 @@
 //! Three nodes in one process over `zenoh://` in peer mode on loopback: a port message to one
 //! node, a group message to every member but the sender, control requests (LIST, WHY, CONNECT)
-//! and their replies, and a forged datagram counted. Run by `make test-zenoh`.
+//! and their replies, and a forged datagram counted; then the same traffic between Zenoh
+//! clients of a router (a router-mode session in this process). Run by `make test-zenoh`.
 //!
 //! Ports: each node listens on a loopback port the system chose (a TCP socket bound to port 0,
 //! read back and closed just before Zenoh binds it) and connects to the earlier nodes; Zenoh's
@@ -56,6 +57,29 @@ fn team(n: u32) -> (Vec<Node>, Vec<u16>) {
         ports.push(port);
     }
     (nodes, ports)
+}
+
+/// Nodes 1..=n in Zenoh client mode, each connected only to `router` (no route between
+/// clients but through it), with the same behaviors as [`team`].
+fn client_team(n: u32, router: u16) -> Vec<Node> {
+    ayllu_zenoh::register();
+    (1..=n)
+        .map(|id| {
+            let url = format!(
+                "zenoh://?mode=client&scouting=0&connect=tcp/127.0.0.1:{router}&team={TEAM}&key={}&hello_ms=200",
+                key_hex()
+            );
+            let mut node = Node::open(NodeId(id), &url).expect("open a zenoh:// client node");
+            let mut relay = BehaviorClass::new("Relay");
+            relay.port(PortSpec::new("In", 0i64)).unwrap();
+            relay.port(PortSpec::new("Out", 0i64)).unwrap();
+            node.define(relay).unwrap();
+            node.create("Relay", "SRC").unwrap();
+            node.create("Relay", "DST").unwrap();
+            node.join("team");
+            node
+        })
+        .collect()
 }
 
 /// Step every node until `done` holds or [`PATIENCE`] passes; whether it held.
@@ -284,4 +308,42 @@ fn round_trip_figures() {
         format!("udp://127.0.0.1:0?hello_ms=200&peer={}", a.address().unwrap())
     });
     measure("udp://", a, b);
+}
+
+/// Clients of one Zenoh router (opened in this process, router mode) reach each other only
+/// through it: the team key's MAC verifies end to end, and port, group and LIST traffic cross.
+#[test]
+fn clients_talk_through_a_router() {
+    let port = free_port();
+    let mut config = zenoh::Config::default();
+    config.insert_json5("mode", "\"router\"").unwrap();
+    config.insert_json5("scouting/multicast/enabled", "false").unwrap();
+    config.insert_json5("listen/endpoints", &format!("[\"tcp/127.0.0.1:{port}\"]")).unwrap();
+    let router = zenoh::open(config).wait().expect("router session");
+    let mut nodes = client_team(3, port);
+    assert!(run_until(&mut nodes, everyone_greeted), "N6: HELLOs cross the router");
+    nodes[0]
+        .connect(&Endpoint::local("SRC", "Out"), &Endpoint::node(NodeId(2), "DST", "In"), ConnectionKind::Normal)
+        .unwrap();
+    nodes[0]
+        .connect(&Endpoint::local("SRC", "In"), &Endpoint::group("team", "DST", "Out"), ConnectionKind::Normal)
+        .unwrap();
+    nodes[0].write("SRC", "Out", 3i64).unwrap();
+    nodes[0].write("SRC", "In", 4i64).unwrap();
+    assert!(
+        run_until(&mut nodes, |n| read(&n[1], "DST", "In") == Value::Int(3)
+            && read(&n[1], "DST", "Out") == Value::Int(4)
+            && read(&n[2], "DST", "Out") == Value::Int(4)),
+        "a port message and a group message cross the router"
+    );
+    assert_eq!(read(&nodes[2], "DST", "In"), Value::Int(0), "node 3 was not addressed");
+    assert_eq!(read(&nodes[0], "DST", "Out"), Value::Int(0), "the sender is excluded from its group");
+    let list = nodes[2].core_mut().request(NodeId(1), ControlBody::List).unwrap();
+    assert!(matches!(answer(&mut nodes, 2, list), ReplyBody::Node(r) if r.node == NodeId(1)), "LIST crosses");
+    for node in &nodes {
+        assert_eq!(count(node, "bad_mac"), 0, "the MAC verifies through the router");
+        assert!(count(node, "datagrams_received") > 0, "{:?}", node.transport_counters());
+    }
+    drop(nodes);
+    router.close().wait().expect("close the router");
 }
