@@ -55,7 +55,34 @@ pub fn default_id() -> NodeId {
 impl Client {
     /// Join the network `net.udp` names. Waits give up after `--timeout`, else `default_timeout`.
     pub fn open(net: &Net, default_timeout: f64) -> Result<Client, Fail> {
+        if !net.udp.starts_with("udp://") {
+            return Client::open_registered(net, default_timeout);
+        }
         Client::open_with(net, default_timeout, |t| t)
+    }
+
+    /// [`Client::open`] on a transport another crate registered (`ayllu::register_scheme`):
+    /// `zenoh://` in the `ayllu-zenoh` binary (docs/zenoh.md). Without it, the transport's
+    /// own error says where the scheme lives.
+    fn open_registered(net: &Net, default_timeout: f64) -> Result<Client, Fail> {
+        let query = net.udp.split_once('?').map_or("", |(_, q)| q);
+        let mut url = net.udp.clone();
+        if !query.split('&').any(|p| p.starts_with("name=")) {
+            url.push(if net.udp.contains('?') { '&' } else { '?' });
+            url.push_str("name=ayllu-cli");
+        }
+        let team = query.split('&').find_map(|p| p.strip_prefix("team=")).and_then(|t| t.parse().ok()).unwrap_or(0);
+        let id = net.id.unwrap_or_else(default_id);
+        let node = Node::open(id, &url)?;
+        let timeout = net.timeout.unwrap_or(default_timeout);
+        Ok(Client {
+            node,
+            deadline: Some(StdInstant::now() + StdDuration::from_secs_f64(timeout)),
+            timeout,
+            honour_stop: true,
+            url: redact_key(&net.udp),
+            team,
+        })
     }
 
     /// [`Client::open`] with the transport wrapped by `wrap` (`record` and `hz` put a

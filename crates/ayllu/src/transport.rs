@@ -152,8 +152,8 @@ pub fn open(url: &str, id: NodeId) -> Result<Box<dyn Transport>, Error> {
         }
         "udp" => Ok(Box::new(UdpTransport::bind(id, UdpConfig::parse(url)?)?)),
         "zenoh" => Err(Error::Unsupported {
-            what: "the zenoh:// transport is not in this build: it lives in crates/ayllu-zenoh (`make zenoh`), \
-                   which registers it (ayllu_zenoh::register); see docs/zenoh.md"
+            what: "the zenoh:// transport is not in this build: use the `ayllu-zenoh` tool (`make zenoh`), or \
+                   call ayllu_zenoh::register() in a Rust program (crates/ayllu-zenoh); see docs/zenoh.md"
                 .into(),
         }),
         "sim" => Err(Error::Unsupported { what: format!("the {scheme}:// transport (not yet supported)") }),
