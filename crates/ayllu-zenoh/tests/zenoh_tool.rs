@@ -1,0 +1,69 @@
+//! The `ayllu-zenoh` tool against a node of this process over `zenoh://` (Zenoh peer mode on
+//! a loopback port the system chose): `list NODE`, `write` then `why` answer as the `ayllu`
+//! tool does over `udp://`. Every wait is bounded (the tool's own `--timeout`, and a deadline
+//! here); timing never decides a verdict.
+
+use std::process::{Command, Output, Stdio};
+use std::time::{Duration as StdDuration, Instant as StdInstant};
+
+use ayllu::{BehaviorClass, Node, NodeId, PortSpec, Value};
+
+const TEAM: u32 = 12;
+
+/// Run the tool while stepping `node`, so it can answer; the tool's output.
+fn tool(node: &mut Node, args: &[&str], url: &str) -> Output {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_ayllu-zenoh"))
+        .args(args)
+        .args(["--udp", url, "--timeout", "15"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("start ayllu-zenoh");
+    let give_up = StdInstant::now() + StdDuration::from_secs(30);
+    while child.try_wait().expect("poll the tool").is_none() && StdInstant::now() < give_up {
+        node.run_for(StdDuration::from_millis(5));
+    }
+    if child.try_wait().expect("poll the tool").is_none() {
+        let _ = child.kill();
+    }
+    let out = child.wait_with_output().expect("the tool's output");
+    // Shown with --nocapture, and in a failure's report.
+    println!(
+        "$ ayllu-zenoh {}\n{}{}",
+        args.join(" "),
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+#[test]
+fn the_tool_lists_writes_and_explains_over_zenoh() {
+    ayllu_zenoh::register();
+    let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+    let key: String = "5a".repeat(32);
+    let mut node = Node::open(
+        NodeId(1),
+        &format!("zenoh://?scouting=0&listen=tcp/127.0.0.1:{port}&team={TEAM}&key={key}&hello_ms=200&name=robot"),
+    )
+    .expect("open the node");
+    let mut relay = BehaviorClass::new("Relay");
+    relay.port(PortSpec::new("In", 0i64)).unwrap();
+    node.define(relay).unwrap();
+    node.create("Relay", "MOTOR").unwrap();
+    let url = format!("zenoh://?scouting=0&connect=tcp/127.0.0.1:{port}&team={TEAM}&key={key}");
+
+    let out = tool(&mut node, &["list", "1"], &url);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "list failed: {text}{}", String::from_utf8_lossy(&out.stderr));
+    assert!(text.contains("MOTOR"), "list names the behavior: {text}");
+
+    let out = tool(&mut node, &["write", "1", "MOTOR.In", "42"], &url);
+    assert!(out.status.success(), "write failed: {}", String::from_utf8_lossy(&out.stderr));
+    assert_eq!(node.read("MOTOR", "In").unwrap(), Value::Int(42), "the write reached the node");
+
+    let out = tool(&mut node, &["why", "1", "MOTOR.In"], &url);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "why failed: {}", String::from_utf8_lossy(&out.stderr));
+    assert!(text.contains("42"), "why reports the value: {text}");
+}
