@@ -55,7 +55,9 @@ pub fn default_id() -> NodeId {
 impl Client {
     /// Join the network `net.udp` names. Waits give up after `--timeout`, else `default_timeout`.
     pub fn open(net: &Net, default_timeout: f64) -> Result<Client, Fail> {
-        if !net.udp.starts_with("udp://") {
+        // mem:// is in-process only: a tool on it would reach nobody, so it gets open_with's
+        // usage error like a URL without a scheme.
+        if net.udp.split_once("://").is_some_and(|(scheme, _)| scheme != "udp" && scheme != "mem") {
             return Client::open_registered(net, default_timeout);
         }
         Client::open_with(net, default_timeout, |t| t)
