@@ -242,6 +242,42 @@ struct Request {
     status: RequestStatus,
 }
 
+/// The CONNECT that asks `source`'s node for a connection to `destination` (a local
+/// destination means `me`'s port), checked as [`NodeCore::request_connect`] documents: from
+/// outside a process and from inside one alike.
+pub(crate) fn connect_request(
+    me: NodeId,
+    source: &Endpoint,
+    destination: &Endpoint,
+    kind: ConnectionKind,
+    options: ConnectOptions,
+) -> Result<(NodeId, ControlBody), Error> {
+    if kind.period().is_some_and(|p| p.is_zero()) {
+        return Err(Error::ZeroPeriod { kind });
+    }
+    let Endpoint::Node { node, behavior, port } = source else {
+        return Err(if matches!(source, Endpoint::Group { .. }) {
+            Error::GroupSource
+        } else {
+            Error::NotLocal { what: "request_connect's source must be a (node, behavior, port)".into() }
+        });
+    };
+    let destination = match destination {
+        Endpoint::Local { behavior, port } => {
+            Endpoint::Node { node: me, behavior: behavior.clone(), port: port.clone() }
+        }
+        other => other.clone(),
+    };
+    let body = ControlBody::Connect {
+        source_behavior: behavior.clone(),
+        source_port: port.clone(),
+        destination,
+        kind,
+        priority: options.priority,
+    };
+    Ok((*node, body))
+}
+
 /// One node's behaviors, connections and scheduler. See the module docs.
 ///
 /// The runtime (`ayllu::Node`) wraps it with a clock and a transport; tests and simulators
@@ -861,32 +897,8 @@ impl NodeCore {
         kind: ConnectionKind,
         options: ConnectOptions,
     ) -> Result<RequestId, Error> {
-        if let Some(p) = kind.period() {
-            if p.is_zero() {
-                return Err(Error::ZeroPeriod { kind });
-            }
-        }
-        let Endpoint::Node { node, behavior, port } = source else {
-            return Err(if matches!(source, Endpoint::Group { .. }) {
-                Error::GroupSource
-            } else {
-                Error::NotLocal { what: "request_connect's source must be a (node, behavior, port)".into() }
-            });
-        };
-        let destination = match destination {
-            Endpoint::Local { behavior, port } => {
-                Endpoint::Node { node: self.id, behavior: behavior.clone(), port: port.clone() }
-            }
-            other => other.clone(),
-        };
-        let body = ControlBody::Connect {
-            source_behavior: behavior.clone(),
-            source_port: port.clone(),
-            destination,
-            kind,
-            priority: options.priority,
-        };
-        Ok(self.send_request(*node, body))
+        let (node, body) = connect_request(self.id, source, destination, kind, options)?;
+        Ok(self.send_request(node, body))
     }
 
     /// Ask `node` to remove its connection `conn`.

@@ -240,30 +240,8 @@ impl Ctx<'_> {
         kind: ConnectionKind,
         options: ConnectOptions,
     ) -> Result<RequestId, Error> {
-        if kind.period().is_some_and(|p| p.is_zero()) {
-            return Err(Error::ZeroPeriod { kind });
-        }
-        let Endpoint::Node { node, behavior, port } = source else {
-            return Err(if matches!(source, Endpoint::Group { .. }) {
-                Error::GroupSource
-            } else {
-                Error::NotLocal { what: "request_connect's source must be a (node, behavior, port)".into() }
-            });
-        };
-        let destination = match destination {
-            Endpoint::Local { behavior, port } => {
-                Endpoint::Node { node: self.core.id(), behavior: behavior.clone(), port: port.clone() }
-            }
-            other => other.clone(),
-        };
-        let body = ControlBody::Connect {
-            source_behavior: behavior.clone(),
-            source_port: port.clone(),
-            destination,
-            kind,
-            priority: options.priority,
-        };
-        self.request(*node, body)
+        let (node, body) = crate::node::connect_request(self.core.id(), source, destination, kind, options)?;
+        self.request(node, body)
     }
 
     /// Ask `node` to remove its connection `conn` (R6).
