@@ -317,7 +317,7 @@ impl TeamGraph {
                 Some(p) => p.id(),
                 None => {
                     let Reach::Broadcast(g) = &e.reach else { continue };
-                    let id = format!("group_{}", g.bytes().map(|b| format!("{b:02x}")).collect::<String>());
+                    let id = group_id(g);
                     let _ = writeln!(out, "  {id} [shape=ellipse, label=\"*{}\"];", q(g));
                     id
                 }
@@ -361,7 +361,7 @@ impl TeamGraph {
                 Some(p) => p.id(),
                 None => {
                     let Reach::Broadcast(g) = &e.reach else { continue };
-                    let id = format!("group_{}", g.bytes().map(|b| format!("{b:02x}")).collect::<String>());
+                    let id = group_id(g);
                     let _ = writeln!(out, "  {id}((\"*{}\"))", q(g));
                     id
                 }
@@ -613,6 +613,11 @@ impl TeamGraph {
     }
 }
 
+/// The DOT/Mermaid id of a broadcast group's node: the name in hex, since group names may hold
+/// characters neither format allows in an id.
+fn group_id(group: &str) -> String {
+    format!("group_{}", group.bytes().map(|b| format!("{b:02x}")).collect::<String>())
+}
 #[cfg(test)]
 mod tests {
     use super::*;
