@@ -1,17 +1,18 @@
 //! The tool's own node on the team's network, and the waiting it does: for a node's HELLO,
 //! for the answer to a request.
 //!
-//! The tool is an ordinary Ayllu node (real monotonic clock, `udp://` transport, an ephemeral
-//! port unless told otherwise), so the nodes it talks to need nothing special: they learn its
+//! The tool is an ordinary Ayllu node (real monotonic clock, the `--udp` URL's transport:
+//! `udp://` on an ephemeral port unless told otherwise, or a registered scheme such as `zenoh://`), so the nodes it talks to need nothing special: they learn its
 //! address from its first datagram and greet it at once. Every wait here ends by the
 //! deadline (from `--timeout`) or Ctrl-C, whichever comes first, with a message that says
 //! which step did not happen.
 
 use std::time::{Duration as StdDuration, Instant as StdInstant};
 
+use ayllu::transport;
 use ayllu::{
     ConnectOptions, ConnectionId, ConnectionKind, ControlBody, Endpoint, MonotonicClock, Node, NodeId, PeerInfo,
-    ReplyBody, RequestId, RequestStatus, UdpConfig, UdpTransport,
+    ReplyBody, RequestId, RequestStatus,
 };
 
 use crate::fail::Fail;
@@ -52,58 +53,37 @@ pub fn default_id() -> NodeId {
     NodeId(0x7fff_0000 + (std::process::id() & 0xffff))
 }
 
+/// Refuse a `--udp` URL no process outside this one could share: one without a scheme, or
+/// `mem://` (in-process only). Every other scheme goes to `ayllu::transport::open`, which
+/// knows `udp://` and the registered ones (`zenoh://` in `ayllu-zenoh`) and names the rest.
+pub fn network_url(url: &str) -> Result<(), Fail> {
+    if url.split_once("://").is_none_or(|(scheme, _)| scheme == "mem") {
+        return Err(Fail::usage(format!("--udp must be a udp:// URL, got `{url}`")));
+    }
+    Ok(())
+}
+
 impl Client {
     /// Join the network `net.udp` names. Waits give up after `--timeout`, else `default_timeout`.
     pub fn open(net: &Net, default_timeout: f64) -> Result<Client, Fail> {
-        // mem:// is in-process only: a tool on it would reach nobody, so it gets open_with's
-        // usage error like a URL without a scheme.
-        if net.udp.split_once("://").is_some_and(|(scheme, _)| scheme != "udp" && scheme != "mem") {
-            return Client::open_registered(net, default_timeout);
-        }
         Client::open_with(net, default_timeout, |t| t)
     }
 
-    /// [`Client::open`] on a transport another crate registered (`ayllu::register_scheme`):
-    /// `zenoh://` in the `ayllu-zenoh` binary (docs/zenoh.md). Without it, the transport's
-    /// own error says where the scheme lives.
-    fn open_registered(net: &Net, default_timeout: f64) -> Result<Client, Fail> {
-        let query = net.udp.split_once('?').map_or("", |(_, q)| q);
-        let mut url = net.udp.clone();
-        if !query.split('&').any(|p| p.starts_with("name=")) {
-            url.push(if net.udp.contains('?') { '&' } else { '?' });
-            url.push_str("name=ayllu-cli");
-        }
-        let team = query.split('&').find_map(|p| p.strip_prefix("team=")).and_then(|t| t.parse().ok()).unwrap_or(0);
-        let id = net.id.unwrap_or_else(default_id);
-        let node = Node::open(id, &url)?;
-        let timeout = net.timeout.unwrap_or(default_timeout);
-        Ok(Client {
-            node,
-            deadline: Some(StdInstant::now() + StdDuration::from_secs_f64(timeout)),
-            timeout,
-            honour_stop: true,
-            url: redact_key(&net.udp),
-            team,
-        })
-    }
-
     /// [`Client::open`] with the transport wrapped by `wrap` (`record` and `hz` put a
-    /// `team_recording::Tap` around it to see the port messages that arrive).
+    /// `team_recording::Tap` around it to see the port messages that arrive). Any scheme
+    /// `ayllu::transport::open` knows: `udp://`, and those another crate registered
+    /// (`zenoh://` in the `ayllu-zenoh` tool, docs/zenoh.md), whose own error says where a
+    /// missing scheme lives. `mem://` is in-process only: a tool on it would reach nobody, so
+    /// it is refused like a URL without a scheme.
     pub fn open_with<T: ayllu::Transport + 'static>(
         net: &Net,
         default_timeout: f64,
-        wrap: impl FnOnce(UdpTransport) -> T,
+        wrap: impl FnOnce(Box<dyn ayllu::Transport>) -> T,
     ) -> Result<Client, Fail> {
-        if !net.udp.starts_with("udp://") {
-            return Err(Fail::usage(format!("--udp must be a udp:// URL, got `{}`", net.udp)));
-        }
-        let mut config = UdpConfig::parse(&net.udp)?;
-        if config.name.is_empty() {
-            config.name = "ayllu-cli".to_owned();
-        }
+        network_url(&net.udp)?;
         let id = net.id.unwrap_or_else(default_id);
-        let team = config.team;
-        let transport = UdpTransport::bind(id, config)?;
+        let team = transport::url_setting(&net.udp, "team").and_then(|t| t.parse().ok()).unwrap_or(0);
+        let transport = transport::open_named(&net.udp, id, "ayllu-cli")?;
         let timeout = net.timeout.unwrap_or(default_timeout);
         Ok(Client {
             node: Node::new(MonotonicClock::new(), wrap(transport)),

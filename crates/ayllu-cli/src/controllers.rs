@@ -22,7 +22,7 @@ use std::time::{Duration as StdDuration, Instant as StdInstant};
 use ayllu::stdlib::{cross_subsumption, BASE, VISION, WANDER_TURN};
 use ayllu::{
     Access, Allow, BehaviorClass, ConnectionKind, Endpoint, Limits, MonotonicClock, Node, PortSpec, RecordOptions,
-    UdpConfig, UdpTransport, Value,
+    Value,
 };
 use serde_json::{json, Map, Value as Json};
 
@@ -130,15 +130,10 @@ pub fn run(args: &NodeArgs) -> Result<(), Fail> {
     if let Some(&(t, _)) = args.sight.0.iter().find(|(t, _)| *t > args.layers) {
         return Err(Fail::usage(format!("--sight names target {t}, but there are only {} layers", args.layers)));
     }
-    if !args.udp.starts_with("udp://") {
-        return Err(Fail::usage(format!("--udp must be a udp:// URL, got `{}`", args.udp)));
-    }
-    let mut config = UdpConfig::parse(&args.udp)?;
-    if config.name.is_empty() {
-        config.name = format!("node-{}", args.id.0);
-    }
-    let open = config.key.is_none();
-    let mut node = Node::new(MonotonicClock::new(), UdpTransport::bind(args.id, config)?);
+    crate::client::network_url(&args.udp)?;
+    let open = ayllu::transport::url_setting(&args.udp, "key").is_none();
+    let transport = ayllu::transport::open_named(&args.udp, args.id, &format!("node-{}", args.id.0))?;
+    let mut node = Node::new(MonotonicClock::new(), transport);
     if let Some(path) = &args.record {
         // Before anything is declared: the replay rebuilds the node from its first definition.
         let options =

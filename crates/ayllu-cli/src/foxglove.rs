@@ -21,7 +21,8 @@ use crate::{parse_node, positive_hz, positive_secs, signals};
 /// `ayllu foxglove`.
 #[derive(Args, Debug)]
 pub struct FoxgloveArgs {
-    /// The tool's own udp:// URL, as for the other commands (team, key, discovery=, peer=).
+    /// The tool's own udp:// URL, as for the other commands (team, key, discovery=, peer=);
+    /// or another scheme the tool knows (zenoh:// in ayllu-zenoh, docs/zenoh.md).
     #[arg(long, value_name = "URL", default_value_t = ayllu::default_url())]
     pub udp: String,
     /// The address the WebSocket server listens on (0.0.0.0: every interface).
@@ -64,9 +65,7 @@ fn emit(line: &serde_json::Value) -> Result<(), Fail> {
 /// `ayllu foxglove`.
 pub fn serve(args: &FoxgloveArgs) -> Result<(), Fail> {
     signals::install();
-    if !args.udp.starts_with("udp://") {
-        return Err(Fail::usage(format!("--udp must be a udp:// URL, got `{}`", args.udp)));
-    }
+    crate::client::network_url(&args.udp)?;
     let config = WatchConfig {
         url: args.udp.clone(),
         id: args.id.unwrap_or_else(crate::client::default_id),

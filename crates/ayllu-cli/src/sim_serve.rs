@@ -2,7 +2,8 @@
 //! one robot's controller as its own OS process. They talk real UDP, as a team of real robots
 //! and their drivers would; the controllers talk to each other (BLE group `Peers`) by the
 //! udp:// transport's group delivery (subnet broadcast, or unicast to the peers that announced
-//! the group).
+//! the group). Over `zenoh://` (the `ayllu-zenoh` tool, docs/zenoh.md) the same run crosses
+//! Zenoh instead: the URLs are the only difference.
 //!
 //! Node ids (docs/cli.md): controller of robot K = node K (1..=N, as in the in-process
 //! simulator); its body on the server = node [`BODY_BASE`] + K. The server connects each body's
@@ -44,7 +45,7 @@ use std::path::PathBuf;
 use std::time::{Duration as StdDuration, Instant as StdInstant};
 
 use ayllu::stdlib::{BASE, SONAR, VISION};
-use ayllu::{ConnectionKind, Endpoint, MonotonicClock, Node, NodeId, PortRef, UdpConfig, UdpTransport};
+use ayllu::{ConnectionKind, Endpoint, MonotonicClock, Node, NodeId, PortRef, UdpConfig};
 use ayllu_sim::body::Body;
 use ayllu_sim::controller::{build, Brain, Controller, ControllerConfig};
 use ayllu_sim::metrics::Meter;
@@ -94,8 +95,9 @@ pub struct ServeArgs {
     /// Seconds of world time to run (paced on the real clock).
     #[arg(long, value_name = "SECS", default_value_t = 300.0, value_parser = positive_secs)]
     pub duration: f64,
-    /// The bodies' udp:// URLs: one per robot in order, or a single one for all in which `{i}`
-    /// stands for the robot's number (a single URL without `{i}` must bind port 0). Each body
+    /// The bodies' udp:// URLs (or zenoh:// in ayllu-zenoh): one per robot in order, or a
+    /// single one for all in which `{i}` stands for the robot's number (a single URL without
+    /// `{i}` must bind, or listen on, port 0). Each body
     /// greets the addresses its URL names (peer=, broadcast=); its controller greets back.
     #[arg(long, value_name = "URL", required = true)]
     pub udp: Vec<String>,
@@ -132,7 +134,7 @@ pub struct RobotArgs {
     #[arg(long, value_name = "HZ", default_value_t = 1.0, value_parser = crate::positive_hz)]
     pub claim_hz: f64,
     /// The controller node's udp:// URL: its address, and how it finds its peers (peer=,
-    /// broadcast=, discovery=). Its body finds it (the server's URLs name it). Default:
+    /// broadcast=, discovery=); or a zenoh:// URL in ayllu-zenoh (docs/zenoh.md). Its body finds it (the server's URLs name it). Default:
     /// $AYLLU_URL, else discovery on this machine.
     #[arg(long, value_name = "URL", default_value_t = ayllu::default_url())]
     pub udp: String,
@@ -173,16 +175,11 @@ fn body_id(robot: u32) -> NodeId {
     ayllu_sim::served_robot::body_node(robot)
 }
 
-/// The udp:// config of node `id`, named `name` unless the URL names it.
-fn udp_config(url: &str, name: String) -> Result<UdpConfig, Fail> {
-    if !url.starts_with("udp://") {
-        return Err(Fail::usage(format!("--udp must be a udp:// URL, got `{url}`")));
-    }
-    let mut config = UdpConfig::parse(url)?;
-    if config.name.is_empty() {
-        config.name = name;
-    }
-    Ok(config)
+/// Node `id`'s transport on `url`, named `name` unless the URL names it: `udp://`, or any
+/// scheme the tool knows (`zenoh://` in `ayllu-zenoh`, docs/zenoh.md).
+fn open_transport(url: &str, id: NodeId, name: &str) -> Result<Box<dyn ayllu::Transport>, Fail> {
+    crate::client::network_url(url)?;
+    Ok(ayllu::transport::open_named(url, id, name)?)
 }
 
 /// The URL of robot `k`'s body (1-based) from the `--udp` list (see [`ServeArgs::udp`]).
@@ -190,8 +187,12 @@ fn body_url(urls: &[String], robots: usize, k: usize) -> Result<String, Fail> {
     match urls {
         [one] => {
             if robots > 1 && !one.contains("{i}") {
-                let port = UdpConfig::parse(one).map(|c| c.bind.port()).unwrap_or(0);
-                if port != 0 {
+                // zenoh:// (and other registered schemes) bind what `listen=` names.
+                let fixed = match UdpConfig::parse(one) {
+                    Ok(c) => c.bind.port() != 0,
+                    Err(_) => ayllu::transport::url_setting(one, "listen").is_some_and(|l| !l.ends_with(":0")),
+                };
+                if fixed {
                     return Err(Fail::usage(format!(
                         "one --udp URL for {robots} bodies must use `{{i}}` or bind port 0 (got `{one}`)"
                     )));
@@ -219,8 +220,7 @@ struct BodyNode {
 impl BodyNode {
     fn open(k: u32, url: &str, targets: usize, world: &WorldConfig) -> Result<BodyNode, Fail> {
         let id = body_id(k);
-        let config = udp_config(url, format!("body-{k}"))?;
-        let mut node = Node::new(MonotonicClock::new(), UdpTransport::bind(id, config)?);
+        let mut node = Node::new(MonotonicClock::new(), open_transport(url, id, &format!("body-{k}"))?);
         let body = Body::install(node.core_mut(), targets, world)?;
         let controller = NodeId(k);
         let mut sensors: Vec<(&str, String)> = (1..=targets)
@@ -469,8 +469,8 @@ pub fn robot(args: &RobotArgs) -> Result<(), Fail> {
     };
     let controller = distributed(controller).map_err(Fail::usage)?;
     let prios = priorities(targets);
-    let config = udp_config(&args.udp, format!("robot-{k}"))?;
-    let (transport, link) = RadioLink::new(UdpTransport::bind(args.id, config)?, &radio, seed);
+    let transport = open_transport(&args.udp, args.id, &format!("robot-{k}"))?;
+    let (transport, link) = RadioLink::new(transport, &radio, seed);
     let mut node = Node::new(MonotonicClock::new(), transport);
     // The body's ports, as local behaviors the server writes (sensors) and reads (motors), the
     // motors sent to the body on the server (as the C library's ayInitSimBody does).
@@ -593,6 +593,10 @@ mod tests {
         let many: Vec<String> = (1..=3).map(|k| format!("udp://127.0.0.1:{}", 7500 + k)).collect();
         assert_eq!(body_url(&many, 3, 3).unwrap(), "udp://127.0.0.1:7503");
         assert!(body_url(&many[..2], 3, 1).is_err());
+        let zenoh = ["zenoh://?listen=tcp/127.0.0.1:7447&team=1".to_owned()];
+        assert!(body_url(&zenoh, 2, 1).is_err(), "two bodies cannot listen on one fixed port");
+        let zenoh = ["zenoh://?listen=tcp/127.0.0.1:0&connect=tcp/127.0.0.1:7447".to_owned()];
+        assert!(body_url(&zenoh, 2, 1).is_ok());
     }
 
     #[test]

@@ -27,7 +27,7 @@
 use std::collections::{BTreeMap, BTreeSet};
 use std::time::{Duration as StdDuration, Instant as StdInstant, SystemTime, UNIX_EPOCH};
 
-use ayllu::{MonotonicClock, Node, UdpConfig, UdpTransport};
+use ayllu::{MonotonicClock, Node, Transport, UdpConfig, UdpTransport};
 use ayllu_core::{ConnectionKind, ControlBody, Endpoint, NodeId, NodeReport, ReplyBody, RequestId, RequestStatus};
 
 use crate::team_bridge::{is_ble_member, published_ports, LayerClaims, TeamBridge};
@@ -43,7 +43,8 @@ pub const NODE_REQUEST_LIMIT: f64 = 50.0;
 /// How a [`TeamWatch`] asks.
 #[derive(Clone, Debug)]
 pub struct WatchConfig {
-    /// The watcher's udp:// URL (bind address, team, key, discovery=, peer=, ...).
+    /// The watcher's udp:// URL (bind address, team, key, discovery=, peer=, ...), or a URL of
+    /// another scheme `ayllu::transport::open` knows (`zenoh://` once registered).
     pub url: String,
     /// The watcher's node id.
     pub id: NodeId,
@@ -129,13 +130,26 @@ pub struct WatchCounts {
 /// A watcher of a live team.
 pub struct TeamWatch {
     config: WatchConfig,
-    udp: UdpConfig,
+    /// The parsed URL when it is `udp://` (the only scheme whose peers have addresses to greet).
+    udp: Option<UdpConfig>,
     node: Node,
     nodes: BTreeMap<NodeId, Watched>,
     pending: Vec<Pending>,
     since_renewal: u64,
     next_cycle: StdInstant,
     counts: WatchCounts,
+}
+
+/// The watcher's node name unless its URL names it.
+const WATCHER_NAME: &str = "ayllu-foxglove";
+
+/// The watcher's transport: `udp` (parsed from the URL, perhaps with peers added) when the
+/// scheme is `udp://`, else whatever `ayllu::transport::open` makes of the URL.
+fn open_transport(config: &WatchConfig, udp: Option<&UdpConfig>) -> Result<Box<dyn Transport>, ayllu::RuntimeError> {
+    match udp {
+        Some(udp) => Ok(Box::new(UdpTransport::bind(config.id, udp.clone())?)),
+        None => ayllu::transport::open_named(&config.url, config.id, WATCHER_NAME),
+    }
 }
 
 fn unix_nanos() -> u64 {
@@ -145,11 +159,19 @@ fn unix_nanos() -> u64 {
 impl TeamWatch {
     /// Join the team's network as `config.url` says.
     pub fn open(config: WatchConfig) -> Result<TeamWatch, ayllu::RuntimeError> {
-        let mut udp = UdpConfig::parse(&config.url)?;
-        if udp.name.is_empty() {
-            udp.name = "ayllu-foxglove".to_owned();
-        }
-        let node = Node::new(MonotonicClock::new(), UdpTransport::bind(config.id, udp.clone())?);
+        // udp:// is parsed here, for the renewal's greeting of known addresses; any other
+        // scheme ayllu::transport::open knows (zenoh:// once registered) is reopened from its
+        // URL, its own discovery finding the team again.
+        let udp = if config.url.starts_with("udp://") {
+            let mut udp = UdpConfig::parse(&config.url)?;
+            if udp.name.is_empty() {
+                udp.name = WATCHER_NAME.to_owned();
+            }
+            Some(udp)
+        } else {
+            None
+        };
+        let node = Node::new(MonotonicClock::new(), open_transport(&config, udp.as_ref())?);
         Ok(TeamWatch {
             config,
             udp,
@@ -405,10 +427,12 @@ impl TeamWatch {
     /// Replace the watcher's node by a fresh one that greets the known nodes by address.
     fn renew(&mut self) {
         let mut udp = self.udp.clone();
-        for p in self.node.peers() {
-            if let Ok(addr) = p.addr.parse() {
-                if !udp.peers.contains(&addr) {
-                    udp.peers.push(addr);
+        if let Some(udp) = &mut udp {
+            for p in self.node.peers() {
+                if let Ok(addr) = p.addr.parse() {
+                    if !udp.peers.contains(&addr) {
+                        udp.peers.push(addr);
+                    }
                 }
             }
         }
@@ -416,11 +440,11 @@ impl TeamWatch {
         if let Ok(placeholder) = ayllu::MemNetwork::new().attach(self.config.id) {
             drop(std::mem::replace(&mut self.node, Node::new(MonotonicClock::new(), placeholder)));
         }
-        match UdpTransport::bind(self.config.id, udp) {
+        match open_transport(&self.config, udp.as_ref()) {
             Ok(t) => self.node = Node::new(MonotonicClock::new(), t),
             Err(_) => {
                 // Try again with the configured URL alone next period.
-                if let Ok(t) = UdpTransport::bind(self.config.id, self.udp.clone()) {
+                if let Ok(t) = open_transport(&self.config, self.udp.as_ref()) {
                     self.node = Node::new(MonotonicClock::new(), t);
                 }
             }

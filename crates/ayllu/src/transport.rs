@@ -81,6 +81,61 @@ pub trait Transport: Send {
     }
 }
 
+/// A boxed transport is a transport: commands that open whatever URL they are given
+/// ([`open`], [`open_named`]) can still wrap the result (a recording tap, the simulator's
+/// radio link) or hand it to `Node::new`. Every method forwards, the defaulted ones too, so
+/// the box changes nothing a node can observe.
+impl Transport for Box<dyn Transport> {
+    fn local(&self) -> NodeId {
+        (**self).local()
+    }
+    fn send(&mut self, out: Outgoing) -> Sent {
+        (**self).send(out)
+    }
+    fn recv(&mut self) -> Option<(NodeId, Message)> {
+        (**self).recv()
+    }
+    fn wait(&mut self, timeout: std::time::Duration) {
+        (**self).wait(timeout)
+    }
+    fn join(&mut self, group: &str) {
+        (**self).join(group)
+    }
+    fn leave(&mut self, group: &str) {
+        (**self).leave(group)
+    }
+    fn flush(&mut self) {
+        (**self).flush()
+    }
+    fn tick(&mut self, now: Instant) -> Option<Instant> {
+        (**self).tick(now)
+    }
+    fn counters(&self) -> Vec<(String, u64)> {
+        (**self).counters()
+    }
+    fn set_real_time(&mut self, real_time: bool) {
+        (**self).set_real_time(real_time)
+    }
+    fn counters_into(&self, out: &mut Vec<(String, u64)>) {
+        (**self).counters_into(out)
+    }
+    fn counters_generation(&self) -> u64 {
+        (**self).counters_generation()
+    }
+    fn peers(&self) -> Vec<PeerInfo> {
+        (**self).peers()
+    }
+    fn take_lost_peers(&mut self, out: &mut Vec<NodeId>) {
+        (**self).take_lost_peers(out)
+    }
+    fn take_warnings(&mut self, out: &mut Vec<String>) {
+        (**self).take_warnings(out)
+    }
+    fn address(&self) -> Option<String> {
+        (**self).address()
+    }
+}
+
 /// What became of a message handed to [`Transport::send`].
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub enum Sent {
@@ -161,6 +216,32 @@ pub fn open(url: &str, id: NodeId) -> Result<Box<dyn Transport>, Error> {
     }
 }
 
+/// The value of setting `key` in a URL's query (`team` in `udp://0.0.0.0:0?team=7`), as
+/// written (not decoded). The settings Ayllu reads (`team=`, `key=`, `name=`) mean the same in
+/// every scheme that has them, so a tool can learn them without knowing the scheme.
+pub fn url_setting<'a>(url: &'a str, key: &str) -> Option<&'a str> {
+    let (_, query) = url.split_once('?')?;
+    query.split('&').find_map(|part| part.strip_prefix(key)?.strip_prefix('='))
+}
+
+/// [`open`], with the node named `name` unless the URL names it (`name=`): what the tools do
+/// for every node they start (`node-3`, `body-2`, `ayllu-cli`), whatever the scheme. `mem://`
+/// has no names and ignores it.
+pub fn open_named(url: &str, id: NodeId, name: &str) -> Result<Box<dyn Transport>, Error> {
+    let scheme = url.split_once("://").map_or("", |(scheme, _)| scheme);
+    if scheme == "mem" || name.is_empty() || url_setting(url, "name").is_some() {
+        return open(url, id);
+    }
+    if scheme == "udp" {
+        // Parsed, not rewritten: the name needs no escaping this way.
+        let mut config = UdpConfig::parse(url)?;
+        config.name = name.to_owned();
+        return Ok(Box::new(UdpTransport::bind(id, config)?));
+    }
+    let separator = if url.contains('?') { '&' } else { '?' };
+    open(&format!("{url}{separator}name={name}"), id)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -181,6 +262,28 @@ mod tests {
         // Built-in schemes stay built in.
         register_scheme("mem", fake);
         assert!(matches!(open("mem://", NodeId(1)), Err(Error::BadUrl { .. })));
+    }
+
+    #[test]
+    fn settings_are_read_from_any_scheme_and_names_added_once() {
+        assert_eq!(url_setting("zenoh://?connect=tcp/h:1&team=7&key=ab", "team"), Some("7"));
+        assert_eq!(url_setting("udp://0.0.0.0:0?teamx=1&team=3", "team"), Some("3"));
+        assert_eq!(url_setting("udp://0.0.0.0:0", "team"), None);
+        static SEEN: std::sync::Mutex<Vec<String>> = std::sync::Mutex::new(Vec::new());
+        fn seen(url: &str, id: NodeId) -> Result<Box<dyn Transport>, Error> {
+            SEEN.lock().unwrap().push(url.to_owned());
+            fake(url, id)
+        }
+        register_scheme("namedtest", seen);
+        open_named("namedtest://x", NodeId(1), "robot-1").expect("opens");
+        open_named("namedtest://x?team=2", NodeId(1), "robot-1").expect("opens");
+        open_named("namedtest://x?name=mine", NodeId(1), "robot-1").expect("opens");
+        assert_eq!(
+            *SEEN.lock().unwrap(),
+            ["namedtest://x?name=robot-1", "namedtest://x?team=2&name=robot-1", "namedtest://x?name=mine"]
+        );
+        let t = open_named("udp://127.0.0.1:0", NodeId(1), "robot-1").expect("udp opens");
+        assert_eq!(t.local(), NodeId(1));
     }
 
     #[test]
