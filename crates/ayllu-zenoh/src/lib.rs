@@ -17,11 +17,13 @@
 
 #![warn(missing_docs)]
 
+pub mod router;
 pub mod zenoh_socket;
 pub mod zenoh_url;
 
 use ayllu::{NodeId, RuntimeError, Transport, UdpTransport};
 
+pub use router::{Router, RouterOptions};
 pub use zenoh_socket::ZenohSocket;
 pub use zenoh_url::ZenohUrl;
 
