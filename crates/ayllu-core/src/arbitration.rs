@@ -76,6 +76,12 @@ pub struct Windows {
 }
 
 impl Windows {
+    /// Whether no window was ever opened here (or every one was forgotten): expired windows
+    /// still count, since their slots are kept for reuse.
+    pub fn is_empty(&self) -> bool {
+        self.list.is_empty()
+    }
+
     /// Open or refresh the (kind, holder) window to last at least until `end`.
     pub fn refresh(&mut self, now: Instant, kind: WindowKind, holder: Source, end: Instant) {
         let mut free = None;

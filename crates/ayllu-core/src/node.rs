@@ -96,6 +96,9 @@ pub enum RequestStatus {
 /// lines, not the four or five the compiler's own order spread them over.
 #[repr(C)]
 pub(crate) struct PortState {
+    /// Whether a value accepted here needs none of the general path's checks (see
+    /// [`PortState::is_plain`]); kept up to date wherever the triggers or windows change.
+    pub(crate) plain: bool,
     pub(crate) visited: u64,
     pub(crate) accepted: u64,
     /// Outgoing connections, with what a hop needs copied in so that a local hop never
@@ -106,6 +109,21 @@ pub(crate) struct PortState {
     pub(crate) windows: Windows,
     pub(crate) cell: PortCell,
     pub(crate) counters: Counters,
+}
+
+impl PortState {
+    /// A Normal port with no triggered process and no window (none was ever opened, or every
+    /// one was forgotten): accepting a value is the merge and the marks, nothing to queue, and
+    /// nothing blocks the value on its way in or out. The hop's fast path takes such ports
+    /// (`NodeCore::write_plain`, `NodeCore::hop_plain`); the flag `plain` caches this.
+    fn is_plain(&self) -> bool {
+        self.cell.kind == crate::port::PortKind::Normal && self.triggers.is_empty() && self.windows.is_empty()
+    }
+
+    /// Recompute `plain` after the triggers or the windows changed.
+    pub(crate) fn refresh_plain(&mut self) {
+        self.plain = self.is_plain();
+    }
 }
 
 pub(crate) struct MonoState {
@@ -490,6 +508,7 @@ impl NodeCore {
             .ports
             .iter()
             .map(|spec| PortState {
+                plain: false,
                 cell: PortCell::new(spec),
                 windows: Windows::default(),
                 out: Vec::new(),
@@ -506,6 +525,7 @@ impl NodeCore {
             attach_trigger(&mut ports, &mut monos, spec.trigger, i as u16);
             processes.push(ProcState::new(spec.clone(), now));
         }
+        ports.iter_mut().for_each(PortState::refresh_plain);
         let behavior = Behavior {
             id,
             name: Arc::from(name),
@@ -771,6 +791,7 @@ impl NodeCore {
                 let port = &mut beh.ports[usize::from(p)];
                 let gone = Source::connection(me, id);
                 port.windows.forget_holder(gone);
+                port.refresh_plain();
                 // What the connection supplied to an aggregating port is no longer offered.
                 port.cell.release_from(|s| s == gone);
             }
@@ -1002,8 +1023,11 @@ impl NodeCore {
     #[inline]
     pub fn write(&mut self, now: Instant, port: PortRef, value: impl Into<Value>) -> Result<(), Error> {
         self.advance(now);
-        self.resolve(port)?;
         let value = value.into();
+        if self.journal.is_none() && self.write_plain(port, &value) {
+            return Ok(());
+        }
+        self.resolve(port)?;
         if self.journal.is_some() {
             self.journal_write(port, &value);
         }
@@ -1030,6 +1054,49 @@ impl NodeCore {
             DropCause::TypeMismatch => Error::TypeMismatch { what, expected: spec.ty(), found: value.ty() },
             _ => Error::Refused { what, cause },
         }
+    }
+
+    /// The fast path of [`NodeCore::write`] with the journal off: a plain port
+    /// ([`PortState::is_plain`]) and a value of its type. The handle is resolved once, the
+    /// merge is the Normal one, and nothing can refuse the value or block its propagation, so
+    /// this is exactly what `write_internal` does for such a port. Returns `false`, having
+    /// changed nothing, when the general path must take the write (a stale handle included,
+    /// so that its error is the general path's).
+    #[inline(always)]
+    fn write_plain(&mut self, port: PortRef, value: &Value) -> bool {
+        let Some(beh) = self.behaviors.get_mut(port.b as usize).and_then(Option::as_mut) else { return false };
+        let Some(ps) = beh.ports.get_mut(usize::from(port.port.0)) else { return false };
+        if beh.id != port.id || !ps.plain || value.ty() != ps.cell.value.ty() {
+            return false;
+        }
+        debug_assert!(ps.is_plain(), "a port's plain flag was not refreshed after a structure change");
+        self.wave += 1;
+        ps.cell.accept_normal(self.now, value, Source::internal(self.id));
+        ps.visited = self.wave;
+        ps.accepted += 1;
+        if !ps.out.is_empty() {
+            self.propagate_from(port.b, port.port.0);
+        }
+        true
+    }
+
+    /// One Normal hop into local port (b, p) by the fast path: a plain port
+    /// ([`PortState::is_plain`]) that passes nothing on, not yet written in this wave, taking a
+    /// value of its type, with the journal off. Then nothing can refuse the value and nothing
+    /// follows from it, so this is exactly what `deliver` does for it. Returns `false`,
+    /// having changed nothing, when `deliver` must take the hop.
+    #[inline(always)]
+    fn hop_plain(&mut self, b: u32, p: u16, from: Source, value: &Value) -> bool {
+        let Some(beh) = self.behaviors.get_mut(b as usize).and_then(Option::as_mut) else { return false };
+        let Some(ps) = beh.ports.get_mut(usize::from(p)) else { return false };
+        if !ps.plain || !ps.out.is_empty() || ps.visited == self.wave || value.ty() != ps.cell.value.ty() {
+            return false;
+        }
+        debug_assert!(ps.is_plain(), "a port's plain flag was not refreshed after a structure change");
+        ps.cell.accept_normal(self.now, value, from);
+        ps.visited = self.wave;
+        ps.accepted += 1;
+        true
     }
 
     /// A behavior's own write. `Ok` if the port stored the value (propagated or not);
@@ -1096,6 +1163,12 @@ impl NodeCore {
             let value = port.cell.value.clone();
             next += 1;
             let from = Source::connection(me, ConnectionId(edge.id));
+            if edge.kind == ConnectionKind::Normal && self.journal.is_none() && self.hop_plain(db, dp, from, &value) {
+                if last {
+                    return;
+                }
+                continue;
+            }
             if self.deliver(db, dp, edge.kind, from, edge.priority, &value) {
                 if !last {
                     self.stack.push(Frame { b, p, next });
@@ -1185,6 +1258,9 @@ impl NodeCore {
         }
         // A special connection's window always takes effect when its message arrives; only
         // the write of `m` itself is subject to the blocks in force (docs/semantics.md, D6.2).
+        if kind != ConnectionKind::Normal {
+            port.plain = false; // a window opens below
+        }
         match kind {
             ConnectionKind::Normal => {}
             ConnectionKind::Suppress(d) => {
@@ -1259,6 +1335,24 @@ impl NodeCore {
             Message::Port(m) => self.receive_port(from, m),
             Message::Control(c) => self.receive_control(from, c.clone()),
         }
+    }
+
+    /// A hint with no effect on the node: reads what [`NodeCore::receive`] of `message` from
+    /// `from` touches first (its sequence-table entry, the behavior and the port it resolved
+    /// to), so that a caller holding several messages for a node whose memory is cold (a
+    /// simulator stepping hundreds of nodes) fetches them side by side before applying them
+    /// in turn, instead of waiting for each fetch in turn. Does nothing for a connection not
+    /// heard before or a control message.
+    pub fn prefetch_receive(&self, from: NodeId, message: &Message) {
+        let Message::Port(m) = message else { return };
+        let Some(Incoming { newest, target: Some(r) }) = self.newest_seq.get(&incoming_key(from, m.conn)) else {
+            return;
+        };
+        let Some(beh) = self.behavior(r.b) else { return };
+        let Some(port) = beh.ports.get(usize::from(r.p)) else { return };
+        // Values, not references: black_box then needs each load done (a reference it could
+        // take without reading through it).
+        std::hint::black_box((*newest, beh.id, port.visited, port.cell.kind, port.cell.last_accepted));
     }
 
     fn receive_port(&mut self, from: NodeId, m: &PortMessage) {
@@ -1926,7 +2020,11 @@ fn queue(pending: &mut VecDeque<(u32, u64, u16)>, proc_: &mut ProcState, b: u32,
 
 fn attach_trigger(ports: &mut [PortState], monos: &mut [MonoState], trigger: Trigger, ix: u16) {
     match trigger {
-        Trigger::OnWrite(Port(p)) => ports[usize::from(p)].triggers.push(ix),
+        Trigger::OnWrite(Port(p)) => {
+            let port = &mut ports[usize::from(p)];
+            port.triggers.push(ix);
+            port.refresh_plain();
+        }
         Trigger::OnMonostable(Mono(m)) => monos[usize::from(m)].watchers.push(ix),
         Trigger::Periodic(_) => {}
     }

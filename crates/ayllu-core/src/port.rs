@@ -330,12 +330,19 @@ impl PortCell {
         // Fast path for the common case, inlined into the hop: a Normal port never expires,
         // so this is exactly the `PortKind::Normal` arm below.
         if self.kind == PortKind::Normal && m.ty() == self.ty() {
-            assign(&mut self.value, m);
-            self.supplier = Some(from);
-            self.last_accepted = Some(now);
+            self.accept_normal(now, m, from);
             return Ok(());
         }
         self.merge_any(now, m, from, priority)
+    }
+
+    /// The Normal merge of a value already known to be of the port's type (rule S3: `c := m`).
+    #[inline(always)]
+    pub(crate) fn accept_normal(&mut self, now: Instant, m: &Value, from: Source) {
+        debug_assert!(self.kind == PortKind::Normal && m.ty() == self.ty());
+        assign(&mut self.value, m);
+        self.supplier = Some(from);
+        self.last_accepted = Some(now);
     }
 
     #[inline(never)]
