@@ -527,7 +527,16 @@ fn callgrind_mode() {
     const ROUND_TRIPS: i64 = 10_000;
     let (mut a, mut b, p, s) = ping_pair();
     lockstep_round_trips(&mut a, &mut b, p, s, ROUND_TRIPS);
-    println!("callgrind mode: {ROUND_TRIPS} round trips ({} steps of A, {} of B)", a.stats().steps, b.stats().steps);
+    println!(
+        "callgrind mode: {ROUND_TRIPS} round trips ({} steps of A, {} of B; messages sent {} by A, {} by B; \
+         datagrams sent {} by A, {} by B)",
+        a.stats().steps,
+        b.stats().steps,
+        a.stats().sent,
+        b.stats().sent,
+        counter(&a, "datagrams_sent"),
+        counter(&b, "datagrams_sent")
+    );
     println!("instructions per round trip = Ir of lockstep_round_trips / {ROUND_TRIPS}");
     const TURNS: i64 = 2_000;
     let (mut tx, mut rx, handles) = batch_pair(BATCH_PORTS, DEFAULT_MTU);

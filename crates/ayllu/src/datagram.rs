@@ -19,6 +19,16 @@ use std::time::Duration as StdDuration;
 pub trait DatagramSocket: Send {
     /// Send one datagram to `to`. A full send buffer drops it silently (best effort, N1).
     fn send_to(&mut self, bytes: &[u8], to: SocketAddr) -> io::Result<()>;
+    /// Send `bytes` as datagrams of `segment` bytes each (the last may be shorter), in order,
+    /// to `to`: the same datagrams as one `send_to` each, which is what this default does
+    /// (stopping at the first error). [`OsSocket`] on Linux sends them in one system call (UDP
+    /// GSO). Never blocks; a full send buffer drops them silently (best effort, N1).
+    fn send_segments(&mut self, bytes: &[u8], segment: usize, to: SocketAddr) -> io::Result<()> {
+        for datagram in bytes.chunks(segment.max(1)) {
+            self.send_to(datagram, to)?;
+        }
+        Ok(())
+    }
     /// The next datagram, if one is waiting. Never blocks.
     fn recv_from(&mut self, buf: &mut [u8]) -> io::Result<Option<(usize, SocketAddr)>>;
     /// Block until a datagram may be waiting or `timeout` passes.
@@ -66,6 +76,11 @@ pub struct OsSocket {
     /// The main socket's receive timeout (`SO_RCVTIMEO`) as last set, for blocking waits.
     #[cfg(target_os = "linux")]
     receive_timeout: StdDuration,
+    /// Whether the kernel takes segmented sends (UDP GSO, Linux 4.18 and later, and a route
+    /// whose device can checksum them): false after the first refusal, and every train is
+    /// then sent one datagram per call.
+    #[cfg(target_os = "linux")]
+    segmented: bool,
 }
 
 /// How long a finding that the sockets are empty stands, for a node on a real-time clock: a
@@ -288,6 +303,8 @@ impl OsSocket {
             recheck: StdDuration::ZERO,
             #[cfg(target_os = "linux")]
             receive_timeout: StdDuration::ZERO,
+            #[cfg(target_os = "linux")]
+            segmented: true,
         })
     }
 
@@ -338,19 +355,145 @@ impl OsSocket {
     }
 }
 
+/// `to` as the C socket address the kernel reads, built on the stack (socket2's `SockAddr`
+/// zeroes and fills 128 bytes per call, on the path of every datagram sent).
+#[cfg(target_os = "linux")]
+enum CAddr {
+    V4(libc::sockaddr_in),
+    V6(libc::sockaddr_in6),
+}
+
+#[cfg(target_os = "linux")]
+impl CAddr {
+    fn new(to: SocketAddr) -> CAddr {
+        match to {
+            SocketAddr::V4(a) => CAddr::V4(libc::sockaddr_in {
+                sin_family: libc::AF_INET as libc::sa_family_t,
+                sin_port: a.port().to_be(),
+                sin_addr: libc::in_addr { s_addr: u32::from(*a.ip()).to_be() },
+                sin_zero: [0; 8],
+            }),
+            SocketAddr::V6(a) => CAddr::V6(libc::sockaddr_in6 {
+                sin6_family: libc::AF_INET6 as libc::sa_family_t,
+                sin6_port: a.port().to_be(),
+                sin6_flowinfo: a.flowinfo(),
+                sin6_addr: libc::in6_addr { s6_addr: a.ip().octets() },
+                sin6_scope_id: a.scope_id(),
+            }),
+        }
+    }
+    fn ptr(&self) -> *const libc::sockaddr {
+        match self {
+            CAddr::V4(a) => (a as *const libc::sockaddr_in).cast(),
+            CAddr::V6(a) => (a as *const libc::sockaddr_in6).cast(),
+        }
+    }
+    fn len(&self) -> libc::socklen_t {
+        let size = match self {
+            CAddr::V4(_) => std::mem::size_of::<libc::sockaddr_in>(),
+            CAddr::V6(_) => std::mem::size_of::<libc::sockaddr_in6>(),
+        };
+        size as libc::socklen_t
+    }
+}
+
+/// `SOL_UDP` option and control message: the segment size of a segmented send (linux/udp.h;
+/// not in the libc crate).
+#[cfg(target_os = "linux")]
+const UDP_SEGMENT: libc::c_int = 103;
+
+/// What a send's result means for the caller: a full send buffer loses the datagram, as the
+/// network would (best effort, N1), and is not an error.
+fn sent(result: io::Result<()>) -> io::Result<()> {
+    match result {
+        Err(e) if e.kind() == io::ErrorKind::WouldBlock => Ok(()),
+        other => other,
+    }
+}
+
+#[cfg(target_os = "linux")]
+impl OsSocket {
+    /// One `sendmsg` carrying `bytes` as datagrams of `segment` bytes (the `UDP_SEGMENT`
+    /// control message): the kernel cuts them, and passes them down its stack as one.
+    fn send_segmented(&self, bytes: &[u8], segment: u16, to: SocketAddr) -> io::Result<()> {
+        use std::os::fd::AsRawFd;
+        let addr = CAddr::new(to);
+        let mut iov = libc::iovec { iov_base: bytes.as_ptr() as *mut libc::c_void, iov_len: bytes.len() };
+        // Room for one control message holding a u16, aligned for a cmsghdr.
+        let mut control = [0u64; 4];
+        // SAFETY: all-zero is a valid msghdr; every pointer set below points at a live local
+        // (the address, the iovec over `bytes`, which the kernel only reads, and `control`,
+        // 32 bytes, more than CMSG_SPACE(2) = 24 on 64-bit Linux and 16 on 32-bit); the
+        // control message is written through CMSG_FIRSTHDR/CMSG_DATA inside that buffer.
+        unsafe {
+            let mut msg: libc::msghdr = std::mem::zeroed();
+            msg.msg_name = addr.ptr() as *mut libc::c_void;
+            msg.msg_namelen = addr.len();
+            msg.msg_iov = &mut iov;
+            msg.msg_iovlen = 1;
+            msg.msg_control = control.as_mut_ptr().cast();
+            msg.msg_controllen = libc::CMSG_SPACE(std::mem::size_of::<u16>() as libc::c_uint) as _;
+            let cmsg = libc::CMSG_FIRSTHDR(&msg);
+            (*cmsg).cmsg_level = libc::SOL_UDP;
+            (*cmsg).cmsg_type = UDP_SEGMENT;
+            (*cmsg).cmsg_len = libc::CMSG_LEN(std::mem::size_of::<u16>() as libc::c_uint) as _;
+            libc::CMSG_DATA(cmsg).cast::<u16>().write_unaligned(segment);
+            if libc::sendmsg(self.socket.as_raw_fd(), &msg, libc::MSG_DONTWAIT) < 0 {
+                return Err(io::Error::last_os_error());
+            }
+        }
+        Ok(())
+    }
+}
+
 impl DatagramSocket for OsSocket {
     fn send_to(&mut self, bytes: &[u8], to: SocketAddr) -> io::Result<()> {
         // The main socket blocks on Linux (see `bind`): this send must not.
         #[cfg(target_os = "linux")]
-        let sent = socket2::SockRef::from(&self.socket).send_to_with_flags(bytes, &to.into(), libc::MSG_DONTWAIT);
-        #[cfg(not(target_os = "linux"))]
-        let sent = self.socket.send_to(bytes, to);
-        match sent {
-            Ok(_) => Ok(()),
-            // A full send buffer loses this datagram, as the network would: best effort (N1).
-            Err(e) if e.kind() == io::ErrorKind::WouldBlock => Ok(()),
-            Err(e) => Err(e),
+        {
+            use std::os::fd::AsRawFd;
+            let addr = CAddr::new(to);
+            // SAFETY: `bytes` and `addr` are live for the call and their lengths are theirs;
+            // the kernel only reads them.
+            let n = unsafe {
+                libc::sendto(
+                    self.socket.as_raw_fd(),
+                    bytes.as_ptr().cast(),
+                    bytes.len(),
+                    libc::MSG_DONTWAIT,
+                    addr.ptr(),
+                    addr.len(),
+                )
+            };
+            sent(if n < 0 { Err(io::Error::last_os_error()) } else { Ok(()) })
         }
+        #[cfg(not(target_os = "linux"))]
+        sent(self.socket.send_to(bytes, to).map(|_| ()))
+    }
+    fn send_segments(&mut self, bytes: &[u8], segment: usize, to: SocketAddr) -> io::Result<()> {
+        #[cfg(target_os = "linux")]
+        if self.segmented && bytes.len() > segment {
+            if let Ok(size) = u16::try_from(segment) {
+                match self.send_segmented(bytes, size, to) {
+                    Ok(()) => return Ok(()),
+                    Err(e) if e.kind() == io::ErrorKind::WouldBlock => return Ok(()),
+                    // Refused as a segmented send (no GSO in this kernel, a device that cannot
+                    // checksum it, segments larger than the route's MTU): never again on this
+                    // socket. Any other error may be this train's alone. Either way these go
+                    // one by one, which reports any error of their own.
+                    Err(e) => {
+                        let refused = [libc::EIO, libc::EINVAL, libc::EMSGSIZE, libc::ENOPROTOOPT, libc::EOPNOTSUPP];
+                        if e.raw_os_error().is_some_and(|code| refused.contains(&code)) {
+                            self.segmented = false;
+                        }
+                    }
+                }
+            }
+        }
+        for datagram in bytes.chunks(segment.max(1)) {
+            self.send_to(datagram, to)?;
+        }
+        Ok(())
     }
     fn recv_from(&mut self, buf: &mut [u8]) -> io::Result<Option<(usize, SocketAddr)>> {
         if let Some(got) = self.ahead.pop(buf) {
@@ -590,6 +733,39 @@ mod tests {
         let t = std::time::Instant::now();
         rx.wait(StdDuration::from_millis(20));
         assert!(t.elapsed() >= StdDuration::from_millis(15), "wait returned early with nothing to read");
+    }
+
+    /// A train sent in one call arrives as the very datagrams it holds, in order, with the
+    /// sender's address: the kernel's segmented send (Linux) and the trait's default (one
+    /// `send_to` each, here on the in-memory bus) alike.
+    #[test]
+    fn segments_arrive_as_the_datagrams_they_hold() {
+        let sizes = [1430usize, 1430, 1430, 208];
+        let mut train = Vec::new();
+        for (i, &n) in sizes.iter().enumerate() {
+            train.extend((0..n).map(|j| (i * 31 + j) as u8));
+        }
+        let loopback: SocketAddr = "127.0.0.1:0".parse().unwrap();
+        let (mut rx, mut tx) = (OsSocket::bind(loopback).unwrap(), OsSocket::bind(loopback).unwrap());
+        let bus = DatagramBus::new();
+        let (mut brx, mut btx) =
+            (bus.bind("10.0.0.1:1".parse().unwrap()).unwrap(), bus.bind("10.0.0.2:1".parse().unwrap()).unwrap());
+        tx.send_segments(&train, 1430, rx.local_addr().unwrap()).unwrap();
+        btx.send_segments(&train, 1430, brx.local_addr().unwrap()).unwrap();
+        let receivers: [(&mut dyn DatagramSocket, SocketAddr); 2] =
+            [(&mut rx, tx.local_addr().unwrap()), (&mut brx, btx.local_addr().unwrap())];
+        for (socket, from) in receivers {
+            let mut buf = vec![0u8; SLOT];
+            let mut at = 0;
+            for (i, &n) in sizes.iter().enumerate() {
+                socket.wait(StdDuration::from_secs(1));
+                let (len, sender) = socket.recv_from(&mut buf).unwrap().expect("datagram waiting");
+                assert_eq!((len, sender), (n, from), "datagram {i}");
+                assert_eq!(&buf[..len], &train[at..at + n], "datagram {i} content");
+                at += n;
+            }
+            assert_eq!(socket.recv_from(&mut buf).unwrap(), None, "nothing more");
+        }
     }
 
     /// A receive that found nothing may stand for a while (a real-time node's RECHECK), but a

@@ -3,7 +3,8 @@
 //! What it does, by rule of `docs/semantics.md` and `spec/protocol.md`:
 //! * N1: port messages are sent once, never retransmitted; the core drops stale sequence numbers.
 //! * N3: messages for the same address leaving in one loop turn share datagrams up to the MTU;
-//!   [`Transport::flush`] ends the turn.
+//!   [`Transport::flush`] ends the turn, and sends a turn's datagrams for one address in one
+//!   system call when they allow it (UDP GSO on Linux, D-N3.3).
 //! * N4: every datagram that is malformed, oversized, of another version or team,
 //!   unauthenticated, forged or replayed is dropped and counted by cause; memory for peers,
 //!   replay windows and reply reassembly is bounded, so a flood cannot grow it.
@@ -64,6 +65,33 @@ const MAX_HELD: usize = 256;
 /// greet (a peer greets as soon as it hears our HELLO, so one round trip is the usual wait).
 const HOLD_PERIODS: u64 = 3;
 
+/// Datagrams sent as one train at most (the kernel's limit on UDP GSO segments was 64 before
+/// Linux 6.6), and bytes in one train at most (one IPv4 UDP payload, with room to spare).
+const TRAIN_DATAGRAMS: usize = 64;
+const TRAIN_BYTES: usize = 65_000;
+
+/// A turn's finished datagrams for one address, back to back, that leave together at the end
+/// of the turn ([`Transport::flush`]) in one system call (`DatagramSocket::send_segments`:
+/// UDP GSO on Linux): each is `segment` bytes long but the last, which may be shorter, so the
+/// kernel cuts the train into the very same datagrams. A datagram that does not fit this shape
+/// sends the train before it at once and starts the next. The bytes on the wire are those of
+/// separate sends; only the number of system calls changes (docs/performance.md).
+struct Train {
+    to: SocketAddr,
+    bytes: Vec<u8>,
+    segment: usize,
+    count: usize,
+    /// A shorter datagram ended it: nothing more may follow.
+    closed: bool,
+}
+
+impl Train {
+    /// Whether a datagram of `len` bytes may follow in this train.
+    fn takes(&self, len: usize) -> bool {
+        !self.closed && len <= self.segment && self.count < TRAIN_DATAGRAMS && self.bytes.len() + len <= TRAIN_BYTES
+    }
+}
+
 /// A message waiting for its destination node to be heard from.
 struct Held {
     to: NodeId,
@@ -73,16 +101,40 @@ struct Held {
 
 /// Counters by cause, in name order. There are a dozen causes, and the traffic ones are
 /// counted for every datagram and message: a short vector searched by pointer first (callers
-/// pass the same `&'static str`) is cheaper than a map keyed by string comparison.
-#[derive(Default)]
-struct Tally(Vec<(&'static str, u64)>, Names);
+/// pass the same `&'static str`) is cheaper than a map keyed by string comparison, and the
+/// three counted on every turn with traffic ([`Hot`]) are found by an index kept up to date.
+struct Tally(Vec<(&'static str, u64)>, Names, [usize; HOT_NAMES.len()]);
 
 /// How many times a cause was added to a [`Tally`]: its list of names changes only then.
 type Names = u64;
 
+/// The causes counted for every datagram or turn of traffic.
+#[derive(Clone, Copy)]
+enum Hot {
+    DatagramsSent,
+    DatagramsReceived,
+    MessagesSent,
+}
+
+/// The names of [`Hot`]'s causes, in its order.
+const HOT_NAMES: [&str; 3] = ["datagrams_sent", "datagrams_received", "messages_sent"];
+
+impl Default for Tally {
+    fn default() -> Tally {
+        Tally(Vec::new(), 0, [usize::MAX; HOT_NAMES.len()])
+    }
+}
+
 impl Tally {
     fn add(&mut self, cause: &'static str) {
         self.add_n(cause, 1);
+    }
+    /// Count a hot cause: an index, not a search (its position once it is in the list).
+    fn add_hot(&mut self, cause: Hot, n: u64) {
+        match self.0.get_mut(self.2[cause as usize]) {
+            Some(entry) => entry.1 += n,
+            None => self.add_n(HOT_NAMES[cause as usize], n),
+        }
     }
     fn add_n(&mut self, cause: &'static str, n: u64) {
         if let Some(entry) = self.0.iter_mut().find(|(name, _)| std::ptr::eq(*name, cause)) {
@@ -94,6 +146,11 @@ impl Tally {
             Err(i) => {
                 self.0.insert(i, (cause, n));
                 self.1 += 1;
+                // The insertion moved the names after it: find the hot ones again (rare: once
+                // per cause over the transport's life).
+                for (slot, name) in self.2.iter_mut().zip(HOT_NAMES) {
+                    *slot = self.0.binary_search_by(|(have, _)| (*have).cmp(name)).unwrap_or(usize::MAX);
+                }
             }
         }
     }
@@ -226,6 +283,8 @@ pub struct UdpTransport<S: DatagramSocket = OsSocket> {
     state_warned: bool,
     joined: Vec<String>,
     batches: Vec<(SocketAddr, DatagramWriter)>,
+    /// This turn's finished datagrams, by address, waiting for the turn's end ([`Train`]).
+    trains: Vec<Train>,
     inbox: VecDeque<(NodeId, Message)>,
     assemblies: VecDeque<((NodeId, u64), ReplyAssembler)>,
     /// New peers to greet at the end of the turn (HELLO, and a CHALLENGE unless proven).
@@ -337,6 +396,7 @@ impl<S: DatagramSocket> UdpTransport<S> {
             state_warned: false,
             joined: Vec::new(),
             batches: Vec::new(),
+            trains: Vec::new(),
             inbox: VecDeque::new(),
             assemblies: VecDeque::new(),
             greet: Vec::new(),
@@ -366,6 +426,11 @@ impl<S: DatagramSocket> UdpTransport<S> {
 
     fn count(&mut self, cause: &'static str) {
         self.counters.add(cause);
+        self.generation += 1;
+    }
+
+    fn count_hot(&mut self, cause: Hot, n: u64) {
+        self.counters.add_hot(cause, n);
         self.generation += 1;
     }
 
@@ -458,7 +523,8 @@ impl<S: DatagramSocket> UdpTransport<S> {
         w
     }
 
-    /// Append a message to the open datagram for `addr`, sending the datagram when full.
+    /// Append a message to the open datagram for `addr`; a full datagram is finished and queued
+    /// for the end of the turn.
     fn push(&mut self, addr: SocketAddr, message: &WireMessage) {
         let i = match self.batches.iter().position(|(a, _)| *a == addr) {
             Some(i) => i,
@@ -483,22 +549,52 @@ impl<S: DatagramSocket> UdpTransport<S> {
         }
     }
 
+    /// Finish `w` and queue it to leave at the end of the turn with the turn's other datagrams
+    /// for `addr`, in one system call when their sizes allow (see [`Train`]).
     fn transmit(&mut self, addr: SocketAddr, w: DatagramWriter) {
         if w.is_empty() {
             return;
         }
         let bytes = w.finish();
-        match self.socket.send_to(&bytes, addr) {
-            Ok(()) => self.count("datagrams_sent"),
+        let len = bytes.len();
+        if let Some(i) = self.trains.iter().position(|t| t.to == addr) {
+            if self.trains[i].takes(len) {
+                let train = &mut self.trains[i];
+                train.bytes.extend_from_slice(&bytes);
+                train.count += 1;
+                train.closed = len < train.segment;
+                self.keep_buffer(bytes);
+                return;
+            }
+            // Sizes or room do not allow: what is queued leaves now, in order, and a new train
+            // starts with this datagram.
+            let full = self.trains.swap_remove(i);
+            self.send_train(full);
+        }
+        self.trains.push(Train { to: addr, bytes, segment: len, count: 1, closed: false });
+    }
+
+    /// Send a train's datagrams: one `send_to`, or one `send_segments` for several.
+    fn send_train(&mut self, train: Train) {
+        let Train { to, bytes, segment, count, .. } = train;
+        let sent =
+            if count == 1 { self.socket.send_to(&bytes, to) } else { self.socket.send_segments(&bytes, segment, to) };
+        match sent {
+            Ok(()) => self.count_hot(Hot::DatagramsSent, count as u64),
             Err(e) => {
                 self.count("send_error");
-                if Some(addr) == self.config.discovery && !self.discovery_failed {
+                if Some(to) == self.config.discovery && !self.discovery_failed {
                     self.discovery_failed = true;
                     self.warnings.push(discovery_warning(&self.config, &e.to_string()));
                 }
             }
         }
-        // Kept for the next datagram: a loop turn then allocates nothing to send.
+        self.keep_buffer(bytes);
+    }
+
+    /// Keep a sent datagram's buffer for the next ones: a loop turn then allocates nothing to
+    /// send.
+    fn keep_buffer(&mut self, bytes: Vec<u8>) {
         if self.spare.len() < SPARE_BUFFERS {
             self.spare.push(bytes);
         }
@@ -590,7 +686,7 @@ impl<S: DatagramSocket> UdpTransport<S> {
         peer.budget.received = peer.budget.received.saturating_add(len as u64);
         // Forging an authenticated datagram needs the team key (and a fresh number).
         peer.budget.proven |= datagram.authenticated;
-        self.count("datagrams_received");
+        self.count_hot(Hot::DatagramsReceived, 1);
         let sender = datagram.sender;
         let mut hello = false;
         let mut messages = datagram.messages;
@@ -884,7 +980,7 @@ impl<S: DatagramSocket> Transport for UdpTransport<S> {
     }
     fn flush(&mut self) {
         if self.unflushed > 0 {
-            self.counters.add_n("messages_sent", std::mem::take(&mut self.unflushed));
+            self.counters.add_hot(Hot::MessagesSent, std::mem::take(&mut self.unflushed));
             self.generation += 1;
         }
         let greet = std::mem::take(&mut self.greet);
@@ -899,12 +995,17 @@ impl<S: DatagramSocket> Transport for UdpTransport<S> {
                 }
             }
         }
-        // Drained and put back, so the list keeps its allocation from turn to turn.
+        // Drained and put back, so the lists keep their allocations from turn to turn.
         let mut batches = std::mem::take(&mut self.batches);
         for (addr, w) in batches.drain(..) {
             self.transmit(addr, w);
         }
         self.batches = batches;
+        let mut trains = std::mem::take(&mut self.trains);
+        for train in trains.drain(..) {
+            self.send_train(train);
+        }
+        self.trains = trains;
     }
     fn recv(&mut self) -> Option<(NodeId, Message)> {
         if self.inbox.is_empty() {
