@@ -19,16 +19,15 @@
 
 pub mod router;
 pub mod zenoh_socket;
+pub mod zenoh_transport;
 pub mod zenoh_url;
 
 use ayllu::{NodeId, RuntimeError, Transport, UdpTransport};
 
 pub use router::{Router, RouterOptions};
 pub use zenoh_socket::ZenohSocket;
+pub use zenoh_transport::ZenohTransport;
 pub use zenoh_url::ZenohUrl;
-
-/// The `zenoh://` transport: the UDP transport's protocol over a Zenoh session.
-pub type ZenohTransport = UdpTransport<ZenohSocket>;
 
 /// Open a `zenoh://` URL (see [`zenoh_url`]) for node `id`.
 pub fn open(url: &str, id: NodeId) -> Result<ZenohTransport, RuntimeError> {
@@ -36,7 +35,7 @@ pub fn open(url: &str, id: NodeId) -> Result<ZenohTransport, RuntimeError> {
     let socket = ZenohSocket::open(id, &parsed)?;
     let mut config = parsed.config;
     config.broadcast = Some(zenoh_socket::BROADCAST);
-    UdpTransport::with_socket(id, config, socket)
+    Ok(ZenohTransport::new(UdpTransport::with_socket(id, config, socket)?))
 }
 
 fn open_boxed(url: &str, id: NodeId) -> Result<Box<dyn Transport>, RuntimeError> {

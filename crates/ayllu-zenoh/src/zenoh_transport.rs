@@ -1,0 +1,114 @@
+//! [`ZenohTransport`]: the `udp://` transport's protocol engine on a [`ZenohSocket`], with the
+//! socket's own drops in its counters.
+//!
+//! Promises: every [`Transport`] method is the UDP transport's, unchanged, except the counters,
+//! which add what the Zenoh socket dropped before the engine saw it (N4: nothing is dropped
+//! uncounted), so `ayllu list` shows them beside the engine's:
+//! * `zenoh_overflowed`: datagrams dropped because the socket's inbox was full
+//!   ([`ZenohSocket::overflowed`]);
+//! * `zenoh_unattributed`: samples without a valid sender attachment, so not from an Ayllu
+//!   node ([`ZenohSocket::unattributed`]).
+//!
+//! Like the engine's causes, each appears once it is not zero.
+
+use ayllu::{Instant, Message, NodeId, Outgoing, PeerInfo, Sent, Transport, UdpTransport};
+
+use crate::zenoh_socket::ZenohSocket;
+
+/// The socket's counter names, in the order they are reported.
+pub const SOCKET_COUNTERS: [&str; 2] = ["zenoh_overflowed", "zenoh_unattributed"];
+
+/// The `zenoh://` transport (module docs).
+pub struct ZenohTransport {
+    inner: UdpTransport<ZenohSocket>,
+}
+
+impl ZenohTransport {
+    /// The UDP protocol engine `inner`, counted with its socket's drops.
+    pub fn new(inner: UdpTransport<ZenohSocket>) -> ZenohTransport {
+        ZenohTransport { inner }
+    }
+
+    /// The protocol engine (peer list, local address, ...).
+    pub fn engine(&self) -> &UdpTransport<ZenohSocket> {
+        &self.inner
+    }
+
+    /// The Zenoh socket under the engine.
+    pub fn socket(&self) -> &ZenohSocket {
+        self.inner.socket()
+    }
+
+    fn socket_counts(&self) -> [u64; 2] {
+        [self.socket().overflowed(), self.socket().unattributed()]
+    }
+}
+
+impl Transport for ZenohTransport {
+    fn local(&self) -> NodeId {
+        self.inner.local()
+    }
+    fn send(&mut self, out: Outgoing) -> Sent {
+        self.inner.send(out)
+    }
+    fn recv(&mut self) -> Option<(NodeId, Message)> {
+        self.inner.recv()
+    }
+    fn wait(&mut self, timeout: std::time::Duration) {
+        self.inner.wait(timeout)
+    }
+    fn join(&mut self, group: &str) {
+        self.inner.join(group)
+    }
+    fn leave(&mut self, group: &str) {
+        self.inner.leave(group)
+    }
+    fn flush(&mut self) {
+        self.inner.flush()
+    }
+    fn tick(&mut self, now: Instant) -> Option<Instant> {
+        self.inner.tick(now)
+    }
+    fn counters(&self) -> Vec<(String, u64)> {
+        let mut out = self.inner.counters();
+        for (name, n) in SOCKET_COUNTERS.iter().zip(self.socket_counts()) {
+            if n > 0 {
+                out.push(((*name).to_owned(), n));
+            }
+        }
+        out
+    }
+    fn counters_into(&self, out: &mut Vec<(String, u64)>) {
+        // The engine's part first, on the list as the engine last wrote it (its fast path
+        // copies numbers only when the list is the one it wrote), then the socket's.
+        while out.last().is_some_and(|(name, _)| SOCKET_COUNTERS.contains(&name.as_str())) {
+            out.pop();
+        }
+        self.inner.counters_into(out);
+        for (name, n) in SOCKET_COUNTERS.iter().zip(self.socket_counts()) {
+            if n > 0 {
+                out.push(((*name).to_owned(), n));
+            }
+        }
+    }
+    fn counters_generation(&self) -> u64 {
+        // Every part only grows, so the sum changes whenever any of them does.
+        let [a, b] = self.socket_counts();
+        self.inner.counters_generation().wrapping_add(a).wrapping_add(b)
+    }
+    fn set_real_time(&mut self, real_time: bool) {
+        self.inner.set_real_time(real_time)
+    }
+    fn peers(&self) -> Vec<PeerInfo> {
+        self.inner.peers()
+    }
+    fn take_lost_peers(&mut self, out: &mut Vec<NodeId>) {
+        self.inner.take_lost_peers(out)
+    }
+    fn take_warnings(&mut self, out: &mut Vec<String>) {
+        self.inner.take_warnings(out)
+    }
+    fn address(&self) -> Option<String> {
+        self.inner.address()
+    }
+}

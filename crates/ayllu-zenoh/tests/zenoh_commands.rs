@@ -1,0 +1,327 @@
+//! The `ayllu-zenoh` tool's commands that run nodes, over `zenoh://` (issue 12: every command
+//! takes a `zenoh://` URL):
+//! * two `ayllu-zenoh node` processes (the paper's cross-subsumption) in Zenoh peer mode on
+//!   loopback greet each other, claim one target each, are seen by `list`, `why` and `echo`,
+//!   and the survivor takes over a killed node's target;
+//! * `ayllu-zenoh sim serve` and two `ayllu-zenoh sim robot` processes, all Zenoh clients of a
+//!   router in this process: every body hears its controller, the robots hear each other (BLE
+//!   over the team's group key) and drive their bodies;
+//! * the Zenoh socket's drops reach the node's transport counters (`zenoh_unattributed`).
+//!
+//! Ports: peer-mode nodes listen on loopback ports the system chose a moment before (as in
+//! zenoh_team.rs); the router listens on port 0 and says which port it got. Multicast scouting
+//! is off, so nothing leaves the machine. Every wait is bounded and only ends early; timing
+//! never decides a verdict.
+
+use std::io::{BufRead, BufReader, Read};
+use std::process::{Child, Command, Output, Stdio};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use ayllu::{Node, NodeId};
+use serde_json::Value as Json;
+use zenoh::Wait;
+
+const TEAM: u32 = 12;
+const BIN: &str = env!("CARGO_BIN_EXE_ayllu-zenoh");
+/// The longest any condition is waited for.
+const PATIENCE: Duration = Duration::from_secs(60);
+
+fn key_hex() -> String {
+    "5a".repeat(32)
+}
+
+/// A loopback port free a moment ago (the system chose it).
+fn free_port() -> u16 {
+    let l = std::net::TcpListener::bind("127.0.0.1:0").expect("bind port 0");
+    l.local_addr().expect("local address").port()
+}
+
+/// A child process whose stdout JSON lines and stderr are collected; killed when dropped.
+struct Proc {
+    name: String,
+    child: Child,
+    lines: Arc<Mutex<Vec<Json>>>,
+    stderr: Arc<Mutex<String>>,
+}
+
+impl Proc {
+    fn start(name: &str, args: &[String]) -> Proc {
+        let mut child = Command::new(BIN)
+            .args(args)
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap_or_else(|e| panic!("start {name}: {e}"));
+        let lines = Arc::new(Mutex::new(Vec::new()));
+        let stderr = Arc::new(Mutex::new(String::new()));
+        let (out, err) = (child.stdout.take().unwrap(), child.stderr.take().unwrap());
+        let sink = lines.clone();
+        std::thread::spawn(move || {
+            for line in BufReader::new(out).lines().map_while(Result::ok) {
+                if let Ok(j) = serde_json::from_str(&line) {
+                    sink.lock().unwrap().push(j);
+                }
+            }
+        });
+        let sink = stderr.clone();
+        std::thread::spawn(move || {
+            let mut text = String::new();
+            let mut err = err;
+            let mut buf = [0u8; 4096];
+            while let Ok(n) = err.read(&mut buf) {
+                if n == 0 {
+                    break;
+                }
+                text.push_str(&String::from_utf8_lossy(&buf[..n]));
+                *sink.lock().unwrap() = text.clone();
+            }
+        });
+        Proc { name: name.to_owned(), child, lines, stderr }
+    }
+
+    fn lines(&self) -> Vec<Json> {
+        self.lines.lock().unwrap().clone()
+    }
+
+    /// The first line (from the start) for which `pick` holds, waited for at most [`PATIENCE`].
+    fn wait_line(&self, mut pick: impl FnMut(&Json) -> bool) -> Option<Json> {
+        let give_up = Instant::now() + PATIENCE;
+        while Instant::now() < give_up {
+            if let Some(j) = self.lines().into_iter().find(&mut pick) {
+                return Some(j);
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        None
+    }
+
+    fn report(&self) -> String {
+        let lines = self.lines();
+        let tail: Vec<String> = lines.iter().rev().take(3).map(Json::to_string).collect();
+        format!("--- {}: last lines {tail:#?}\nstderr: {}", self.name, self.stderr.lock().unwrap())
+    }
+}
+
+impl Drop for Proc {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn strings(args: &[&str]) -> Vec<String> {
+    args.iter().map(|s| s.to_string()).collect()
+}
+
+/// Run the tool to the end (killed after [`PATIENCE`]); its output, printed for --nocapture.
+fn tool(args: &[&str], url: &str) -> Output {
+    let mut child = Command::new(BIN)
+        .args(args)
+        .args(["--udp", url, "--timeout", "15"])
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("start ayllu-zenoh");
+    let give_up = Instant::now() + PATIENCE;
+    while child.try_wait().expect("poll the tool").is_none() && Instant::now() < give_up {
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    if child.try_wait().expect("poll the tool").is_none() {
+        let _ = child.kill();
+    }
+    let out = child.wait_with_output().expect("the tool's output");
+    println!(
+        "$ ayllu-zenoh {}\n{}{}",
+        args.join(" "),
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+fn claims(j: &Json) -> Vec<u64> {
+    j["claims"].as_array().map(|a| a.iter().filter_map(Json::as_u64).collect()).unwrap_or_default()
+}
+
+fn peers(j: &Json) -> Vec<u64> {
+    j["peers"].as_array().map(|a| a.iter().filter_map(Json::as_u64).collect()).unwrap_or_default()
+}
+
+/// The latest status line of `p` (with a `t`), if any.
+fn latest(p: &Proc) -> Option<Json> {
+    p.lines().into_iter().rev().find(|j| j.get("t").is_some())
+}
+
+#[test]
+fn node_processes_over_zenoh_are_listed_explained_echoed_and_take_over() {
+    let base = format!("zenoh://?scouting=0&team={TEAM}&key={}&hello_ms=200", key_hex());
+    let (p1, p2) = (free_port(), free_port());
+    let node = |id: &str, url: String, sight: &str| {
+        strings(&["node", "--id", id, "--udp", &url, "--sight", sight, "--status-ms", "300", "--for", "120"])
+    };
+    let n1 = Proc::start("n1", &node("1", format!("{base}&listen=tcp/127.0.0.1:{p1}"), "1:0.9,2:0.5"));
+    let first = n1.wait_line(|j| j.get("listening").is_some()).unwrap_or_else(|| panic!("{}", n1.report()));
+    assert_eq!(first["node"], 1);
+    let n2 = Proc::start(
+        "n2",
+        &node("2", format!("{base}&listen=tcp/127.0.0.1:{p2}&connect=tcp/127.0.0.1:{p1}"), "1:0.6,2:0.8"),
+    );
+
+    // HELLOs both ways, then one claimer per target: n1 sees target 1 best, n2 target 2.
+    let give_up = Instant::now() + PATIENCE;
+    let mut settled = false;
+    while !settled && Instant::now() < give_up {
+        std::thread::sleep(Duration::from_millis(100));
+        if let (Some(a), Some(b)) = (latest(&n1), latest(&n2)) {
+            settled = peers(&a) == [2] && peers(&b) == [1] && claims(&a) == [1] && claims(&b) == [2];
+        }
+    }
+    assert!(settled, "the two nodes never settled on one claimer per target\n{}\n{}", n1.report(), n2.report());
+
+    let tool_url = format!("{base}&connect=tcp/127.0.0.1:{p1}&connect=tcp/127.0.0.1:{p2}");
+    // `list`: both nodes heard, under the names the command gave them.
+    let out = tool(&["list", "--json"], &tool_url);
+    assert!(out.status.success(), "list failed");
+    let heard: Json = serde_json::from_slice(&out.stdout).expect("list --json prints JSON");
+    let names: Vec<(u64, String)> = heard
+        .as_array()
+        .expect("a list of nodes")
+        .iter()
+        .map(|n| (n["node"].as_u64().unwrap(), n["name"].as_str().unwrap_or("").to_owned()))
+        .collect();
+    assert!(names.contains(&(1, "node-1".to_owned())) && names.contains(&(2, "node-2".to_owned())), "{names:?}");
+
+    // `list NODE`: the node's report, its observers there.
+    let out = tool(&["list", "2"], &tool_url);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success() && text.contains("OBS1 (Observer)"), "list 2: {text}");
+
+    // `why`: n1's claim on target 1 write-inhibits n2's OBS1.Rotate.
+    let out = tool(&["why", "2", "OBS1.Rotate"], &tool_url);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success() && text.contains("n2:OBS1.Rotate"), "why: {text}");
+    assert!(text.contains("write-inhibit held by n1"), "n1's claim shows on n2: {text}");
+
+    // `echo`: a connection made on n1 by CONNECT over Zenoh, three values, then DISCONNECT.
+    let out = tool(&["echo", "1", "BASE.Rotate", "--count", "3", "--json"], &tool_url);
+    assert!(out.status.success(), "echo failed");
+    let values: Vec<Json> =
+        String::from_utf8_lossy(&out.stdout).lines().map(|l| serde_json::from_str(l).expect("a JSON line")).collect();
+    assert_eq!(values.len(), 3);
+    assert!(values.iter().all(|v| v["node"] == 1 && v["port"] == "BASE.Rotate"), "{values:?}");
+
+    // Kill n1: n2 takes target 1 over once n1's lease lapses (the paper's cross-subsumption).
+    drop(n1);
+    let took_over = n2.wait_line(|j| j.get("t").is_some() && claims(j).contains(&1) && !peers(j).contains(&1));
+    assert!(took_over.is_some(), "n2 never took target 1 over\n{}", n2.report());
+}
+
+#[test]
+fn the_distributed_simulator_runs_over_a_zenoh_router() {
+    let router = ayllu_zenoh::Router::open(&ayllu_zenoh::RouterOptions {
+        listen: vec!["tcp/127.0.0.1:0".into()],
+        scouting: Some(false),
+        ..Default::default()
+    })
+    .expect("start a router");
+    let locators = router.locators().expect("the router's locators");
+    let at = locators.iter().find(|l| l.starts_with("tcp/127.0.0.1:")).expect("a loopback locator").clone();
+    let url = format!("zenoh://?mode=client&scouting=0&connect={at}&team={TEAM}&key={}&hello_ms=200", key_hex());
+
+    let serve = Proc::start(
+        "serve",
+        &strings(&[
+            "sim",
+            "serve",
+            "--robots",
+            "2",
+            "--targets",
+            "2",
+            "--seed",
+            "7",
+            "--duration",
+            "10",
+            "--wait",
+            "30",
+            "--status-ms",
+            "1000",
+            "--udp",
+            &url,
+        ]),
+    );
+    let robots: Vec<Proc> = (1..=2)
+        .map(|k| {
+            Proc::start(
+                &format!("robot-{k}"),
+                &strings(&[
+                    "sim",
+                    "robot",
+                    "--id",
+                    &k.to_string(),
+                    "--controller",
+                    "ble",
+                    "--targets",
+                    "2",
+                    "--seed",
+                    "7",
+                    "--udp",
+                    &url,
+                    "--status-ms",
+                    "500",
+                    "--duration",
+                    "90",
+                ]),
+            )
+        })
+        .collect();
+    let report = || format!("{}\n{}\n{}", serve.report(), robots[0].report(), robots[1].report());
+
+    let start = serve.wait_line(|j| j["start"] == true).unwrap_or_else(|| panic!("no start line\n{}", report()));
+    assert_eq!(start["missing"], serde_json::json!([]), "every body heard its controller over Zenoh\n{}", report());
+    let done = serve.wait_line(|j| j["done"] == true).unwrap_or_else(|| panic!("the run did not end\n{}", report()));
+    assert_eq!(done["stopped"], false, "{done}");
+    assert!(done["radio"]["sent"].as_u64().unwrap_or(0) > 0, "the robots reported their traffic: {done}");
+    let linked = serve
+        .lines()
+        .iter()
+        .any(|j| j["robots"].as_array().is_some_and(|r| r.len() == 2 && r.iter().all(|r| r["linked"] == true)));
+    assert!(linked, "a status line with both bodies linked\n{}", report());
+    for (k, robot) in robots.iter().enumerate() {
+        let other = 2 - k as u64;
+        let line = robot.lines().into_iter().find(|j| j["body"] == true && peers(j).contains(&other));
+        assert!(line.is_some(), "robot {} heard its body and robot {other}\n{}", k + 1, report());
+    }
+    let claimed = robots.iter().flat_map(Proc::lines).any(|j| !claims(&j).is_empty());
+    assert!(claimed, "BLE claims crossed Zenoh\n{}", report());
+    drop(robots);
+    router.close().expect("close the router");
+}
+
+#[test]
+fn the_sockets_drops_are_in_the_transport_counters() {
+    ayllu_zenoh::register();
+    let port = free_port();
+    let mut node = Node::open(
+        NodeId(1),
+        &format!("zenoh://?scouting=0&listen=tcp/127.0.0.1:{port}&team={TEAM}&key={}&hello_ms=200", key_hex()),
+    )
+    .expect("open the node");
+    let mut config = zenoh::Config::default();
+    config.insert_json5("scouting/multicast/enabled", "false").unwrap();
+    config.insert_json5("listen/endpoints", "[]").unwrap();
+    config.insert_json5("connect/endpoints", &format!("[\"tcp/127.0.0.1:{port}\"]")).unwrap();
+    let intruder = zenoh::open(config).wait().expect("a session that is not an Ayllu node");
+    let count =
+        |node: &Node| node.transport_counters().iter().find(|(c, _)| c == "zenoh_unattributed").map_or(0, |(_, n)| *n);
+    let give_up = Instant::now() + PATIENCE;
+    while count(&node) == 0 && Instant::now() < give_up {
+        // Without the sender attachment every Ayllu node puts on its samples.
+        intruder.put(format!("ayllu/{TEAM}/b"), vec![0u8; 16]).wait().expect("publish");
+        node.run_for(Duration::from_millis(50));
+    }
+    assert!(count(&node) > 0, "counted: {:?}", node.transport_counters());
+    intruder.close().wait().unwrap();
+}
