@@ -5,7 +5,8 @@
 //! Promises: `send_to` and `recv_from` never block; `wait` blocks at most for its timeout.
 //! On Linux, [`OsSocket`]'s wait of `BLOCKING_WAIT_MIN` (20 ms) or more *is* the receive (one
 //! `recvmmsg` that waits), and for a node on a real-time clock a receive that found the socket
-//! empty stands for [`RECHECK`] (20 µs):
+//! empty stands for [`RECHECK`] (20 µs, counted in the node's turn time, so a receive reads no
+//! clock), and a turn's datagrams for one address leave in one `sendmsg` (UDP GSO):
 //! see docs/performance.md for the system calls this saves.
 //! Errors from the OS are returned, never turned into panics.
 
@@ -14,6 +15,8 @@ use std::io;
 use std::net::{IpAddr, Ipv4Addr, SocketAddr, UdpSocket};
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::Duration as StdDuration;
+
+use ayllu_core::Instant;
 
 /// A non-blocking datagram socket.
 pub trait DatagramSocket: Send {
@@ -39,6 +42,13 @@ pub trait DatagramSocket: Send {
     /// teams, simulated time) every step must hear what has arrived.
     fn set_recheck(&mut self, interval: StdDuration) {
         let _ = interval;
+    }
+    /// The time of the node's turn now beginning (its clock; the UDP transport passes it on
+    /// every turn): what [`DatagramSocket::set_recheck`]'s interval is counted against, so
+    /// that a receive need not read the clock. A socket that never hears it counts from zero;
+    /// a wrapper that passes `set_recheck` on to another socket must pass this on too.
+    fn set_turn_time(&mut self, now: Instant) {
+        let _ = now;
     }
     /// The address the socket is bound to.
     fn local_addr(&self) -> io::Result<SocketAddr>;
@@ -68,11 +78,15 @@ pub struct OsSocket {
     extra: Vec<UdpSocket>,
     /// Datagrams read from the main socket ahead of `recv_from`.
     ahead: ReadAhead,
-    /// Until when the sockets count as empty: they were found empty `recheck` before, and
+    /// Until when (turn time) the sockets count as empty: they were found empty `recheck` before, and
     /// until then `recv_from` answers "nothing waiting" without asking the kernel again.
-    empty_until: Option<std::time::Instant>,
+    empty_until: Option<Instant>,
     /// See [`DatagramSocket::set_recheck`].
     recheck: StdDuration,
+    /// The current turn's time ([`DatagramSocket::set_turn_time`]).
+    turn_time: Instant,
+    /// A wait read the socket empty: the next turn counts it empty from its own time.
+    waited_empty: bool,
     /// The main socket's receive timeout (`SO_RCVTIMEO`) as last set, for blocking waits.
     #[cfg(target_os = "linux")]
     receive_timeout: StdDuration,
@@ -301,11 +315,21 @@ impl OsSocket {
             ahead: ReadAhead::new(),
             empty_until: None,
             recheck: StdDuration::ZERO,
+            turn_time: Instant::ZERO,
+            waited_empty: false,
             #[cfg(target_os = "linux")]
             receive_timeout: StdDuration::ZERO,
             #[cfg(target_os = "linux")]
             segmented: true,
         })
+    }
+
+    /// The sockets were found empty now: the finding stands for `recheck` of turn time (not at
+    /// all when it is zero).
+    fn found_empty(&mut self) {
+        if !self.recheck.is_zero() {
+            self.empty_until = Some(self.turn_time + ayllu_core::Duration::from_nanos(self.recheck.as_nanos() as u64));
+        }
     }
 
     /// Wait for the main socket's first datagram for at most `timeout` (at least
@@ -330,9 +354,12 @@ impl OsSocket {
         }
         match self.ahead.fill_with(&self.socket, libc::MSG_WAITFORONE) {
             Ok(()) if !self.ahead.drained => self.empty_until = None,
-            // A datagram arriving after the read is read by the next wait or, after RECHECK,
-            // by the next turn.
-            Ok(()) => self.empty_until = Some(std::time::Instant::now() + self.recheck),
+            // A datagram arriving after the read is read by the next wait or, RECHECK after
+            // the next turn's start, by a turn.
+            Ok(()) => {
+                self.empty_until = None;
+                self.waited_empty = true;
+            }
             Err(e) if e.kind() == io::ErrorKind::WouldBlock => return false,
             // Interrupted, or an error the next receive reports.
             Err(_) => self.empty_until = None,
@@ -500,17 +527,19 @@ impl DatagramSocket for OsSocket {
             return Ok(Some(got));
         }
         // Found empty a moment ago (by a read that emptied the socket, or by the wait): the
-        // answer stands for RECHECK.
+        // answer stands for RECHECK of turn time.
         if let Some(until) = self.empty_until {
-            if std::time::Instant::now() < until {
+            if self.turn_time < until {
                 return Ok(None);
             }
             self.empty_until = None;
         }
+        // Asking now: what a wait found before no longer counts.
+        self.waited_empty = false;
         match self.ahead.fill(&self.socket) {
             Ok(()) => {
                 if self.ahead.drained && self.extra.is_empty() {
-                    self.empty_until = Some(std::time::Instant::now() + self.recheck);
+                    self.found_empty();
                 }
                 if let Some(got) = self.ahead.pop(buf) {
                     return Ok(Some(got));
@@ -526,7 +555,7 @@ impl DatagramSocket for OsSocket {
                 Err(e) => return Err(e),
             }
         }
-        self.empty_until = Some(std::time::Instant::now() + self.recheck);
+        self.found_empty();
         Ok(None)
     }
     fn wait(&mut self, timeout: StdDuration) {
@@ -547,6 +576,7 @@ impl DatagramSocket for OsSocket {
         };
         // Whatever ppoll finds, the next receive asks the kernel.
         self.empty_until = None;
+        self.waited_empty = false;
         let pollfd = |s: &UdpSocket| libc::pollfd { fd: s.as_raw_fd(), events: libc::POLLIN, revents: 0 };
         // On the stack for the usual single socket: this runs every loop turn.
         let mut one = [pollfd(&self.socket)];
@@ -580,6 +610,13 @@ impl DatagramSocket for OsSocket {
     fn set_recheck(&mut self, interval: StdDuration) {
         self.recheck = interval;
         self.empty_until = None;
+        self.waited_empty = false;
+    }
+    fn set_turn_time(&mut self, now: Instant) {
+        self.turn_time = now;
+        if std::mem::take(&mut self.waited_empty) {
+            self.found_empty();
+        }
     }
     fn set_multicast_ttl(&mut self, ttl: u32) -> io::Result<()> {
         self.socket.set_multicast_ttl_v4(ttl)
@@ -733,6 +770,40 @@ mod tests {
         let t = std::time::Instant::now();
         rx.wait(StdDuration::from_millis(20));
         assert!(t.elapsed() >= StdDuration::from_millis(15), "wait returned early with nothing to read");
+    }
+
+    /// RECHECK is counted in turn time: an empty finding stands within a turn and for turns
+    /// less than RECHECK later, and no longer; a wait that emptied the socket counts from the
+    /// next turn, and a later wait that heard something undoes that.
+    #[test]
+    fn an_empty_finding_stands_for_recheck_of_turn_time() {
+        let loopback: SocketAddr = "127.0.0.1:0".parse().unwrap();
+        let (mut rx, mut tx) = (OsSocket::bind(loopback).unwrap(), OsSocket::bind(loopback).unwrap());
+        let to = rx.local_addr().unwrap();
+        let mut buf = vec![0u8; SLOT];
+        let t = |us: u64| Instant::ZERO + ayllu_core::Duration::from_micros(us);
+        rx.set_recheck(RECHECK);
+        rx.set_turn_time(t(1_000));
+        assert_eq!(rx.recv_from(&mut buf).unwrap(), None, "nothing sent yet");
+        tx.send_to(b"a", to).unwrap();
+        // The datagram is in the socket (loopback delivers within the send), but the finding
+        // stands for the rest of the turn and the next turn 19 us later.
+        assert_eq!(rx.recv_from(&mut buf).unwrap(), None, "same turn");
+        rx.set_turn_time(t(1_019));
+        assert_eq!(rx.recv_from(&mut buf).unwrap(), None, "19 us later");
+        rx.set_turn_time(t(1_020));
+        assert_eq!(rx.recv_from(&mut buf).unwrap().map(|(n, _)| n), Some(1), "20 us later: asked again");
+        // A blocking wait (>= 20 ms) that reads the socket empty: the next turn's later
+        // receives do not ask again within RECHECK...
+        tx.send_to(b"b", to).unwrap();
+        rx.wait(StdDuration::from_secs(1));
+        rx.set_turn_time(t(5_000));
+        assert_eq!(rx.recv_from(&mut buf).unwrap().map(|(n, _)| n), Some(1), "what the wait read");
+        tx.send_to(b"c", to).unwrap();
+        assert_eq!(rx.recv_from(&mut buf).unwrap(), None, "the wait's finding stands");
+        // ...but a short wait (ppoll) that finds something makes the next receive ask.
+        rx.wait(StdDuration::from_millis(5));
+        assert_eq!(rx.recv_from(&mut buf).unwrap().map(|(n, _)| n), Some(1), "after the short wait");
     }
 
     /// A train sent in one call arrives as the very datagrams it holds, in order, with the

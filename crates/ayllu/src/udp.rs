@@ -476,11 +476,12 @@ impl<S: DatagramSocket> UdpTransport<S> {
     /// Write the newest accepted number of every sender to `config.state`, atomically (a
     /// temporary file renamed over the old one), if they changed and a second has passed.
     fn save_marks(&mut self, now: Instant) {
-        let Some(path) = self.config.state.clone() else { return };
+        // Checked before the path is copied: this runs every turn.
         let signed_dirty = self.operator.as_ref().is_some_and(|g| g.dirty);
         if !(self.replay_dirty || signed_dirty) || now < self.next_save {
             return;
         }
+        let Some(path) = self.config.state.clone() else { return };
         self.replay_dirty = false;
         self.next_save = now + Duration::from_secs(1);
         let mut text: String =
@@ -652,7 +653,8 @@ impl<S: DatagramSocket> UdpTransport<S> {
         if datagram.authenticated && !self.accept_sequence(datagram.sender, datagram.seq) {
             return self.count("replayed");
         }
-        if !self.peers.contains_key(&datagram.sender) && self.peers.len() >= MAX_PEERS {
+        let is_new = !self.peers.contains_key(&datagram.sender);
+        if is_new && self.peers.len() >= MAX_PEERS {
             // Make room by forgetting the unproven peer heard from longest ago; proven peers
             // are never evicted for a newcomer (a flood of forged ids cannot push real peers out).
             let oldest = self.peers.iter().filter(|(_, p)| !p.proven()).min_by_key(|(_, p)| p.last_heard);
@@ -664,7 +666,6 @@ impl<S: DatagramSocket> UdpTransport<S> {
                 None => return self.count("peer_table_full"),
             }
         }
-        let is_new = !self.peers.contains_key(&datagram.sender);
         let peer = self.peers.entry(datagram.sender).or_insert_with(|| Peer {
             addr: from,
             name: String::new(),
@@ -979,6 +980,10 @@ impl<S: DatagramSocket> Transport for UdpTransport<S> {
         self.send_message(&out.to, out.message)
     }
     fn flush(&mut self) {
+        // Most calls (a node flushes twice a turn) have nothing to send.
+        if self.unflushed == 0 && self.greet.is_empty() && self.batches.is_empty() && self.trains.is_empty() {
+            return;
+        }
         if self.unflushed > 0 {
             self.counters.add_hot(Hot::MessagesSent, std::mem::take(&mut self.unflushed));
             self.generation += 1;
@@ -1049,6 +1054,7 @@ impl<S: DatagramSocket> Transport for UdpTransport<S> {
     }
     fn tick(&mut self, now: Instant) -> Option<Instant> {
         self.now = self.now.max(now);
+        self.socket.set_turn_time(self.now);
         // The peer table is walked only when a peer may have expired, not every loop turn.
         if now >= self.next_expiry {
             let before = self.peers.len();
