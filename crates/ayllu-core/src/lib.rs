@@ -53,6 +53,7 @@ pub mod introspect;
 pub mod journal;
 pub mod message;
 pub mod node;
+mod plain;
 pub mod port;
 pub mod process;
 pub mod time;

@@ -111,21 +111,6 @@ pub(crate) struct PortState {
     pub(crate) counters: Counters,
 }
 
-impl PortState {
-    /// A Normal port with no triggered process and no window (none was ever opened, or every
-    /// one was forgotten): accepting a value is the merge and the marks, nothing to queue, and
-    /// nothing blocks the value on its way in or out. The hop's fast path takes such ports
-    /// (`NodeCore::write_plain`, `NodeCore::hop_plain`); the flag `plain` caches this.
-    fn is_plain(&self) -> bool {
-        self.cell.kind == crate::port::PortKind::Normal && self.triggers.is_empty() && self.windows.is_empty()
-    }
-
-    /// Recompute `plain` after the triggers or the windows changed.
-    pub(crate) fn refresh_plain(&mut self) {
-        self.plain = self.is_plain();
-    }
-}
-
 pub(crate) struct MonoState {
     pub(crate) end: Instant,
     pub(crate) high: bool,
@@ -339,7 +324,7 @@ pub(crate) fn connect_request(
 /// # Ok::<(), Error>(())
 /// ```
 pub struct NodeCore {
-    id: NodeId,
+    pub(crate) id: NodeId,
     pub(crate) now: Instant,
     classes: HashMap<String, Arc<BehaviorClass>>,
     pub(crate) behaviors: Vec<Option<Behavior>>,
@@ -352,7 +337,7 @@ pub struct NodeCore {
     next_conn_id: u64,
     groups: Vec<Arc<str>>,
     groups_generation: u64,
-    wave: u64,
+    pub(crate) wave: u64,
     stack: Vec<Frame>,
     pending: VecDeque<(u32, u64, u16)>,
     deferred: Vec<(u32, u64, u16)>,
@@ -1056,49 +1041,6 @@ impl NodeCore {
         }
     }
 
-    /// The fast path of [`NodeCore::write`] with the journal off: a plain port
-    /// ([`PortState::is_plain`]) and a value of its type. The handle is resolved once, the
-    /// merge is the Normal one, and nothing can refuse the value or block its propagation, so
-    /// this is exactly what `write_internal` does for such a port. Returns `false`, having
-    /// changed nothing, when the general path must take the write (a stale handle included,
-    /// so that its error is the general path's).
-    #[inline(always)]
-    fn write_plain(&mut self, port: PortRef, value: &Value) -> bool {
-        let Some(beh) = self.behaviors.get_mut(port.b as usize).and_then(Option::as_mut) else { return false };
-        let Some(ps) = beh.ports.get_mut(usize::from(port.port.0)) else { return false };
-        if beh.id != port.id || !ps.plain || value.ty() != ps.cell.value.ty() {
-            return false;
-        }
-        debug_assert!(ps.is_plain(), "a port's plain flag was not refreshed after a structure change");
-        self.wave += 1;
-        ps.cell.accept_normal(self.now, value, Source::internal(self.id));
-        ps.visited = self.wave;
-        ps.accepted += 1;
-        if !ps.out.is_empty() {
-            self.propagate_from(port.b, port.port.0);
-        }
-        true
-    }
-
-    /// One Normal hop into local port (b, p) by the fast path: a plain port
-    /// ([`PortState::is_plain`]) that passes nothing on, not yet written in this wave, taking a
-    /// value of its type, with the journal off. Then nothing can refuse the value and nothing
-    /// follows from it, so this is exactly what `deliver` does for it. Returns `false`,
-    /// having changed nothing, when `deliver` must take the hop.
-    #[inline(always)]
-    fn hop_plain(&mut self, b: u32, p: u16, from: Source, value: &Value) -> bool {
-        let Some(beh) = self.behaviors.get_mut(b as usize).and_then(Option::as_mut) else { return false };
-        let Some(ps) = beh.ports.get_mut(usize::from(p)) else { return false };
-        if !ps.plain || !ps.out.is_empty() || ps.visited == self.wave || value.ty() != ps.cell.value.ty() {
-            return false;
-        }
-        debug_assert!(ps.is_plain(), "a port's plain flag was not refreshed after a structure change");
-        ps.cell.accept_normal(self.now, value, from);
-        ps.visited = self.wave;
-        ps.accepted += 1;
-        true
-    }
-
     /// A behavior's own write. `Ok` if the port stored the value (propagated or not);
     /// `Err(cause)` for a type mismatch or NaN (refused). `Absorbed` is reported as `Ok`.
     pub(crate) fn write_internal(&mut self, b: u32, p: u16, value: &Value) -> Result<(), DropCause> {
@@ -1147,9 +1089,13 @@ impl NodeCore {
     /// exactly that point, so the depth-first order, and every check `deliver` makes, are
     /// those of the general path.
     #[inline]
-    fn propagate_from(&mut self, b: u32, p: u16) {
+    pub(crate) fn propagate_from(&mut self, b: u32, p: u16) {
+        self.propagate_from_edge(b, p, 0);
+    }
+
+    /// [`NodeCore::propagate_from`] from the port's edge `next` on (the ones before it taken).
+    pub(crate) fn propagate_from_edge(&mut self, b: u32, p: u16, mut next: u32) {
         let me = self.id;
-        let mut next = 0u32;
         loop {
             let Some(beh) = self.behaviors.get(b as usize).and_then(Option::as_ref) else { return };
             let port = &beh.ports[usize::from(p)];
