@@ -1,0 +1,438 @@
+//! Issue 12's proof: nodes on two networks with no route between them, joined only by a Zenoh
+//! router on a third, run the paper's cross-subsumption.
+//!
+//! Three network namespaces: A and B hold the robots, R the router (`ayllu-zenoh router`). A
+//! veth joins A to R (10.S.1.0/24), another B to R (10.S.2.0/24); R does not forward IP
+//! (`net.ipv4.ip_forward=0`) and A and B have no route to each other's subnet, which the test
+//! checks with the kernel's own routing decision (`ip route get`) before anything starts. The
+//! robots are `ayllu-zenoh node` processes, the paper's team as in
+//! crates/ayllu-cli/tests/cross_subsumption_processes.rs (stdlib controller, 4 layers, BLE at
+//! 1 Hz, the paper's sight table): n1 and n3 in A, n2 in B, each a Zenoh client of the router
+//! (`mode=client`, connected to R's address on its own subnet), with a team key. So every claim,
+//! HELLO and CLI request between n1 and n2 crossed the router, MACed end to end.
+//!
+//! Checks (from the nodes' JSON status lines; limits derived from the BLE periods as in the
+//! udp:// test, never from this machine's speed; every wait bounded):
+//! * settled: n1 driven by layer 1, n2 by 2, n3 by 3; one claimer per target (T1 n1, T2 n2,
+//!   T3 n3, T4 n3), held for a cycle and a half;
+//! * `ayllu-zenoh why` from B, through the router, sees n1's claim write-inhibiting n2;
+//! * n1 SIGKILLed: n2 (in B) is driven by layer 1 within the inhibit period plus a cycle (plus
+//!   the same margin as the udp:// test), not before n1's lease ran out; then n2 claims T1 and
+//!   T2, n3 keeps T3 and T4.
+//!
+//! Needs root and `ip`; without them it prints `SKIPPED: ...` and passes. Namespaces and links
+//! are removed when the guard drops (also when the test panics), names unique per run.
+
+use std::io::{BufRead, BufReader, Read};
+use std::process::{Child, Command, Stdio};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use serde_json::Value as Json;
+
+const BIN: &str = env!("CARGO_BIN_EXE_ayllu-zenoh");
+const SIGHT: [&str; 3] = ["1:0.9,2:0.5", "1:0.6,2:0.8,3:0.4", "3:0.7,4:0.5"];
+const CLAIM_HZ: f64 = 1.0;
+const STATUS: Duration = Duration::from_millis(100);
+const TEAM: u32 = 7;
+/// How long a process may take to start and say so (a loaded 2-core machine).
+const START_LIMIT: Duration = Duration::from_secs(30);
+
+fn ip(args: &[&str]) -> Result<String, String> {
+    let out = Command::new("ip").args(args).output().map_err(|e| format!("running ip: {e}"))?;
+    if out.status.success() {
+        Ok(String::from_utf8_lossy(&out.stdout).into_owned())
+    } else {
+        Err(format!("ip {}: {}", args.join(" "), String::from_utf8_lossy(&out.stderr).trim()))
+    }
+}
+
+/// Namespaces A, R, B (indices 0, 1, 2) and veths A-R, B-R; removed on drop.
+struct Net {
+    subnet: u8,
+    namespaces: Vec<String>,
+    links: Vec<String>,
+}
+
+const A: usize = 0;
+const R: usize = 1;
+const B: usize = 2;
+
+impl Net {
+    /// A in 10.subnet.1.0/24 (A .2, R .1), B in 10.subnet.2.0/24 (B .2, R .1); R forwards
+    /// nothing.
+    fn create(subnet: u8) -> Result<Net, String> {
+        // Unique per test process (interface names stay within 15 bytes).
+        let tag = format!("zr{}", std::process::id() % 100_000);
+        let mut net = Net { subnet, namespaces: Vec::new(), links: Vec::new() };
+        for name in ["a", "r", "b"] {
+            let ns = format!("{tag}{name}");
+            ip(&["netns", "add", &ns])?;
+            net.namespaces.push(ns.clone());
+            ip(&["-n", &ns, "link", "set", "lo", "up"])?;
+        }
+        for (side, k) in [(A, 1u8), (B, 2u8)] {
+            let (outer, inner) = (format!("{tag}v{k}r"), format!("{tag}v{k}s"));
+            ip(&["link", "add", &outer, "type", "veth", "peer", "name", &inner])?;
+            net.links.push(outer.clone());
+            ip(&["link", "set", &outer, "netns", &net.namespaces[R]])?;
+            ip(&["link", "set", &inner, "netns", &net.namespaces[side]])?;
+            let (r_ns, s_ns) = (net.namespaces[R].clone(), net.namespaces[side].clone());
+            ip(&["-n", &r_ns, "addr", "add", &format!("10.{subnet}.{k}.1/24"), "dev", &outer])?;
+            ip(&["-n", &r_ns, "link", "set", &outer, "up"])?;
+            ip(&["-n", &s_ns, "addr", "add", &format!("10.{subnet}.{k}.2/24"), "dev", &inner])?;
+            ip(&["-n", &s_ns, "link", "set", &inner, "up"])?;
+        }
+        // No forwarding in R, whatever the host's default for new namespaces.
+        let sysctl = net.command(R, "sysctl").args(["-qw", "net.ipv4.ip_forward=0"]).output();
+        match sysctl {
+            Ok(o) if o.status.success() => Ok(net),
+            Ok(o) => Err(format!("sysctl in R: {}", String::from_utf8_lossy(&o.stderr).trim())),
+            Err(e) => Err(format!("running sysctl: {e}")),
+        }
+    }
+
+    fn ns(&self, i: usize) -> &str {
+        &self.namespaces[i]
+    }
+
+    /// R's address on side `side`'s subnet (A: 10.S.1.1, B: 10.S.2.1).
+    fn router_addr(&self, side: usize) -> String {
+        format!("10.{}.{}.1", self.subnet, if side == A { 1 } else { 2 })
+    }
+
+    /// Side `side`'s own address.
+    fn addr(&self, side: usize) -> String {
+        format!("10.{}.{}.2", self.subnet, if side == A { 1 } else { 2 })
+    }
+
+    /// `program` run inside namespace `i` (`ip netns exec` execs it: same pid).
+    fn command(&self, i: usize, program: &str) -> Command {
+        let mut cmd = Command::new("ip");
+        cmd.args(["netns", "exec", self.ns(i), program]);
+        cmd
+    }
+}
+
+impl Drop for Net {
+    fn drop(&mut self) {
+        // Deleting one end of a veth deletes the other.
+        for l in &self.links {
+            let _ = ip(&["-n", &self.namespaces[R], "link", "del", l]);
+            let _ = ip(&["link", "del", l]);
+        }
+        for ns in &self.namespaces {
+            let _ = ip(&["netns", "del", ns]);
+        }
+    }
+}
+
+/// A child whose stdout JSON lines are collected with the time they were read; killed and
+/// reaped when dropped.
+struct Proc {
+    name: String,
+    child: Child,
+    lines: Arc<Mutex<Vec<(Instant, Json)>>>,
+    stderr: Arc<Mutex<String>>,
+    killed: bool,
+}
+
+fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+impl Proc {
+    fn spawn(name: &str, mut cmd: Command) -> Proc {
+        let mut child = cmd
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap_or_else(|e| panic!("starting {name}: {e}"));
+        let lines: Arc<Mutex<Vec<(Instant, Json)>>> = Arc::default();
+        let stderr: Arc<Mutex<String>> = Arc::default();
+        let (out, mut err) = (child.stdout.take().unwrap(), child.stderr.take().unwrap());
+        let sink = lines.clone();
+        std::thread::spawn(move || {
+            for line in BufReader::new(out).lines().map_while(Result::ok) {
+                if let Ok(j) = serde_json::from_str::<Json>(&line) {
+                    lock(&sink).push((Instant::now(), j));
+                }
+            }
+        });
+        let sink = stderr.clone();
+        std::thread::spawn(move || {
+            let mut buf = [0u8; 4096];
+            while let Ok(n) = err.read(&mut buf) {
+                if n == 0 {
+                    break;
+                }
+                lock(&sink).push_str(&String::from_utf8_lossy(&buf[..n]));
+            }
+        });
+        Proc { name: name.to_owned(), child, lines, stderr, killed: false }
+    }
+
+    fn lines(&self) -> Vec<(Instant, Json)> {
+        lock(&self.lines).clone()
+    }
+
+    /// The latest status line (one with a `t`).
+    fn latest(&self) -> Option<Json> {
+        lock(&self.lines).iter().rev().find(|(_, j)| j.get("t").is_some()).map(|(_, j)| j.clone())
+    }
+
+    /// The first line for which `pick` holds, waited for at most `limit` (panics if the
+    /// process exits first).
+    fn wait_line(&mut self, limit: Duration, pick: impl Fn(&Json) -> bool) -> Json {
+        let end = Instant::now() + limit;
+        loop {
+            if let Some((_, j)) = self.lines().into_iter().find(|(_, j)| pick(j)) {
+                return j;
+            }
+            if let Ok(Some(status)) = self.child.try_wait() {
+                panic!("{} exited ({status}): {}", self.name, lock(&self.stderr));
+            }
+            assert!(Instant::now() < end, "{}: no such line within {limit:?}\n{}", self.name, self.report());
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+
+    fn report(&self) -> String {
+        let tail: Vec<String> = self.lines().iter().rev().take(3).map(|(_, j)| j.to_string()).collect();
+        format!("--- {}: last lines {tail:#?}\nstderr: {}", self.name, lock(&self.stderr))
+    }
+
+    fn kill(&mut self) {
+        if !self.killed {
+            self.killed = true;
+            let _ = self.child.kill();
+            let _ = self.child.wait();
+        }
+    }
+}
+
+impl Drop for Proc {
+    fn drop(&mut self) {
+        self.kill();
+    }
+}
+
+/// Poll `check` every `every` until it returns `Some`, or `None` after `limit`.
+fn wait_for<T>(limit: Duration, every: Duration, mut check: impl FnMut() -> Option<T>) -> Option<T> {
+    let end = Instant::now() + limit;
+    loop {
+        if let Some(t) = check() {
+            return Some(t);
+        }
+        if Instant::now() >= end {
+            return None;
+        }
+        std::thread::sleep(every);
+    }
+}
+
+/// The limits, from the claim rate and the inhibit period BLE derives from it (as in
+/// crates/ayllu-cli/tests/cross_subsumption_processes.rs, whose reasoning they share).
+struct Bounds {
+    cycle: Duration,
+    /// The dead node's last lease plus the cycle in which the next claimer claims.
+    takeover: Duration,
+    /// The dead node renewed at most two cycles before it died; its lease lasts the inhibit
+    /// period.
+    lease_floor: Duration,
+    /// Room for scheduling and reading status lines: one whole bound more plus a status period.
+    margin: Duration,
+    /// Starting from nothing (Zenoh links to the router, HELLOs, each layer claimed in turn).
+    settle: Duration,
+}
+
+impl Bounds {
+    fn new() -> Bounds {
+        let inhibit = ayllu::BleConfig::new("Peers", "Rotate", CLAIM_HZ).unwrap().inhibit_period;
+        let cycle = Duration::from_nanos(ayllu::Duration::try_from_hz(CLAIM_HZ).unwrap().as_nanos());
+        let inhibit = Duration::from_nanos(inhibit.as_nanos());
+        let takeover = inhibit + cycle;
+        Bounds { cycle, takeover, lease_floor: inhibit - cycle * 2, margin: takeover + STATUS, settle: cycle * 30 }
+    }
+}
+
+fn drive(j: &Json) -> u64 {
+    j["drive"].as_u64().unwrap_or(u64::MAX)
+}
+
+fn claims(j: &Json) -> Vec<u64> {
+    j["claims"].as_array().map(|a| a.iter().filter_map(Json::as_u64).collect()).unwrap_or_default()
+}
+
+/// Whether the latest status of `nodes` shows `drives` (node, layer) and exactly the claimers
+/// `claimers[target-1]`; `Err` says what differs.
+fn state_is(nodes: &[&Proc], drives: &[(u64, u64)], claimers: &[u64; 4]) -> Result<(), String> {
+    let latest: Vec<Json> = nodes
+        .iter()
+        .map(|p| p.latest().ok_or_else(|| format!("{} printed no status yet", p.name)))
+        .collect::<Result<_, _>>()?;
+    for &(id, layer) in drives {
+        let j = latest.iter().find(|j| j["node"].as_u64() == Some(id)).ok_or(format!("no status from n{id}"))?;
+        if drive(j) != layer {
+            return Err(format!("n{id} driven by layer {}, expected {layer}", drive(j)));
+        }
+    }
+    for (t, &want) in claimers.iter().enumerate() {
+        let target = t as u64 + 1;
+        let by: Vec<u64> =
+            latest.iter().filter(|j| claims(j).contains(&target)).filter_map(|j| j["node"].as_u64()).collect();
+        if by != [want] {
+            return Err(format!("T{target} claimed by {by:?}, expected [{want}]"));
+        }
+    }
+    Ok(())
+}
+
+fn diagnostics(procs: &[&Proc]) -> String {
+    procs.iter().map(|p| p.report()).collect::<Vec<_>>().join("\n")
+}
+
+#[test]
+fn cross_subsumption_across_namespaces_joined_only_by_a_zenoh_router() {
+    let is_root = Command::new("id").arg("-u").output().map(|o| o.stdout.starts_with(b"0\n")).unwrap_or(false);
+    if !is_root {
+        eprintln!("SKIPPED: network namespaces need root");
+        return;
+    }
+    let net = match Net::create(91) {
+        Ok(net) => net,
+        Err(reason) => {
+            eprintln!("SKIPPED: network namespaces unavailable: {reason}");
+            return;
+        }
+    };
+    // No route between A and B: the kernel itself says it cannot send there, either way.
+    for (from, to) in [(A, B), (B, A)] {
+        let decision = ip(&["-n", net.ns(from), "route", "get", &net.addr(to)]);
+        assert!(decision.is_err(), "{} has a route to {}: {decision:?}", net.ns(from), net.addr(to));
+        let to_router = ip(&["-n", net.ns(from), "route", "get", &net.router_addr(from)]);
+        assert!(to_router.is_ok(), "{} reaches the router: {to_router:?}", net.ns(from));
+    }
+
+    // The router in R, on every address of R, a port the system chooses.
+    let mut router_cmd = net.command(R, BIN);
+    router_cmd.args(["router", "--listen", "tcp/0.0.0.0:0", "--scouting", "0"]);
+    let mut router = Proc::spawn("router", router_cmd);
+    let located = router.wait_line(START_LIMIT, |j| j.get("locators").is_some());
+    let locators: Vec<String> =
+        located["locators"].as_array().unwrap().iter().filter_map(|l| l.as_str()).map(str::to_owned).collect();
+    let endpoint = |side: usize| {
+        let prefix = format!("tcp/{}:", net.router_addr(side));
+        locators.iter().find(|l| l.starts_with(&prefix)).unwrap_or_else(|| panic!("{prefix}* in {locators:?}")).clone()
+    };
+    let key = "a7".repeat(32);
+    let url = |side: usize| format!("zenoh://?mode=client&scouting=0&connect={}&team={TEAM}&key={key}", endpoint(side));
+
+    let bounds = Bounds::new();
+    let secs = "90";
+    let start_node = |id: u32, side: usize| {
+        let mut cmd = net.command(side, BIN);
+        cmd.args([
+            "node",
+            "--id",
+            &id.to_string(),
+            "--udp",
+            &url(side),
+            "--controller",
+            "cross-subsumption",
+            "--layers",
+            "4",
+            "--claim-hz",
+            &CLAIM_HZ.to_string(),
+            "--sight",
+            SIGHT[id as usize - 1],
+            "--status-ms",
+            &STATUS.as_millis().to_string(),
+            "--for",
+            secs,
+        ]);
+        let mut p = Proc::spawn(&format!("n{id}"), cmd);
+        p.wait_line(START_LIMIT, |j| j.get("listening").is_some());
+        p
+    };
+    // Declared after `net` and `router`: dropped (killed) first.
+    let mut nodes = vec![start_node(1, A), start_node(2, B), start_node(3, A)];
+    let started = Instant::now();
+
+    let settled_drives = [(1, 1), (2, 2), (3, 3)];
+    let settled_claims = [1, 2, 3, 3];
+    let mut last = String::new();
+    let ok = wait_for(bounds.settle, Duration::from_millis(50), || {
+        match state_is(&nodes.iter().collect::<Vec<_>>(), &settled_drives, &settled_claims) {
+            Ok(()) => Some(()),
+            Err(e) => {
+                last = e;
+                None
+            }
+        }
+    });
+    let everyone: Vec<&Proc> = nodes.iter().chain([&router]).collect();
+    assert!(ok.is_some(), "never settled within {:?}: {last}\n{}", bounds.settle, diagnostics(&everyone));
+    let settle_time = started.elapsed();
+    let hold_until = Instant::now() + bounds.cycle * 3 / 2;
+    while Instant::now() < hold_until {
+        std::thread::sleep(STATUS);
+        if let Err(e) = state_is(&nodes.iter().collect::<Vec<_>>(), &settled_drives, &settled_claims) {
+            panic!("the settled state did not hold: {e}\n{}", diagnostics(&everyone));
+        }
+    }
+
+    // The tool, from B, through the router: n1's claim write-inhibits n2's OBS1.Rotate.
+    let mut why = net.command(B, BIN);
+    why.args(["why", "2", "OBS1.Rotate", "--json", "--timeout", "15", "--udp", &url(B)]);
+    let out = why.output().expect("run ayllu-zenoh why");
+    assert!(out.status.success(), "why: {}", String::from_utf8_lossy(&out.stderr));
+    let why: Json = serde_json::from_slice(&out.stdout).expect("why --json prints JSON");
+    assert_eq!(why["internal_output_blocked"], "WriteInhibited", "{why}");
+    let windows = why["windows"].as_array().cloned().unwrap_or_default();
+    assert!(
+        windows.iter().any(|w| w["kind"] == "WriteInhibit" && w["holder"]["node"] == 1),
+        "n2's OBS1.Rotate should be write-inhibited by n1 (in the other namespace): {why}"
+    );
+
+    // Kill n1 (in A): its claims are leases; n2 (in B) sees target 1 lapse and takes over.
+    let killed_at = Instant::now();
+    nodes[0].kill();
+    let took = wait_for(bounds.takeover + bounds.margin * 2, Duration::from_millis(20), || {
+        nodes[1].lines().into_iter().find(|(t, j)| *t > killed_at && drive(j) == 1).map(|(t, _)| t - killed_at)
+    });
+    let everyone: Vec<&Proc> = nodes.iter().chain([&router]).collect();
+    let took = took.unwrap_or_else(|| panic!("n2 never took over target 1\n{}", diagnostics(&everyone)));
+    eprintln!(
+        "netns + zenoh router: settled {:.2}s after start; n2 (B) driven by layer 1 {:.3}s after n1 (A) was killed \
+         (protocol bound {:?}, lease floor {:?}, asserted with {:?} margin)",
+        settle_time.as_secs_f64(),
+        took.as_secs_f64(),
+        bounds.takeover,
+        bounds.lease_floor,
+        bounds.margin
+    );
+    assert!(
+        took <= bounds.takeover + bounds.margin,
+        "took {took:?}, bound {:?} + margin {:?}",
+        bounds.takeover,
+        bounds.margin
+    );
+    assert!(took >= bounds.lease_floor, "took over after only {took:?}: n1's lease did not hold");
+
+    // Settled again without n1: n2 claims T1 and T2 and is driven by layer 1; n3 unchanged.
+    let mut last = String::new();
+    let ok = wait_for(bounds.takeover + bounds.margin, Duration::from_millis(50), || {
+        match state_is(&[&nodes[1], &nodes[2]], &[(2, 1), (3, 3)], &[2, 2, 3, 3]) {
+            Ok(()) => Some(()),
+            Err(e) => {
+                last = e;
+                None
+            }
+        }
+    });
+    assert!(ok.is_some(), "did not settle without n1: {last}\n{}", diagnostics(&everyone));
+    drop(nodes);
+    drop(router);
+}
