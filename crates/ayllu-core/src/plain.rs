@@ -257,7 +257,7 @@ mod tests {
             }
             Op::Poll => format!("{:?}", node.poll(*now)),
             Op::Advance(ms) => {
-                *now = *now + Duration::from_millis(ms);
+                *now += Duration::from_millis(ms);
                 String::new()
             }
         }
