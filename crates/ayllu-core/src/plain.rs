@@ -2,8 +2,8 @@
 //!
 //! Most ports of a running team are Normal, trigger no process and never see a window. For
 //! such a *plain* port ([`PortState::is_plain`]) the general path (`write_internal`,
-//! `deliver`) reduces to the merge and the wave marks, so [`NodeCore::write`] and the
-//! propagation loop take it here: the handle is resolved once, a hop into a plain port that
+//! `deliver`) reduces to the merge and the wave marks, so [`NodeCore::write`], a process's
+//! [`Ctx::write`](crate::Ctx::write) and the propagation loop take it here: the handle is resolved once, a hop into a plain port that
 //! passes nothing on is the merge and the marks, and the first edge that needs more hands the
 //! rest of the wave to the general loop at exactly that edge.
 //!
@@ -44,9 +44,16 @@ impl NodeCore {
     /// so that its error is the general path's).
     #[inline(always)]
     pub(crate) fn write_plain(&mut self, port: PortRef, value: &Value) -> bool {
-        let Some(beh) = self.behaviors.get_mut(port.b as usize).and_then(Option::as_mut) else { return false };
-        let Some(ps) = beh.ports.get_mut(usize::from(port.port.0)) else { return false };
-        if beh.id != port.id || !ps.plain || value.ty() != ps.cell.value.ty() {
+        self.write_plain_at(port.b, port.port.0, Some(port.id), value)
+    }
+
+    /// [`NodeCore::write_plain`] into port `p` of the behavior in slot `b`, if its id is `id`
+    /// (`None`: whichever lives there, as for a process writing its own behavior's port).
+    #[inline(always)]
+    pub(crate) fn write_plain_at(&mut self, b: u32, p: u16, id: Option<u64>, value: &Value) -> bool {
+        let Some(beh) = self.behaviors.get_mut(b as usize).and_then(Option::as_mut) else { return false };
+        let Some(ps) = beh.ports.get_mut(usize::from(p)) else { return false };
+        if id.is_some_and(|id| id != beh.id) || !ps.plain || value.ty() != ps.cell.value.ty() {
             return false;
         }
         debug_assert!(ps.is_plain(), "a port's plain flag was not refreshed after a structure change");
@@ -57,7 +64,6 @@ impl NodeCore {
         // The port now holds `value` itself, so its edges carry the argument: no copy of it.
         // Leaf hops are taken here; the first edge that needs more hands the rest of the wave
         // to the general loop at exactly that edge (same order, same checks).
-        let (b, p) = (port.b, port.port.0);
         let me = self.id;
         let mut next = 0u32;
         loop {
@@ -114,7 +120,7 @@ mod tests {
 
     const BEHAVIORS: [&str; 4] = ["X0", "X1", "X2", "X3"];
     /// (behavior, port): ints, then one text port (its value an `Arc`, assigned by clone).
-    const PORTS: [(&str, &str); 9] = [
+    const PORTS: [(&str, &str); 10] = [
         ("X0", "A"),
         ("X0", "B"),
         ("X1", "A"),
@@ -124,6 +130,7 @@ mod tests {
         ("X3", "A"),
         ("X3", "B"),
         ("X0", "T"),
+        ("X2", "C"),
     ];
 
     #[derive(Clone, Debug)]
@@ -183,15 +190,19 @@ mod tests {
         plain.port(PortSpec::new("A", 0i64)).unwrap();
         plain.port(PortSpec::new("B", 0i64)).unwrap();
         plain.port(PortSpec::new("T", "")).unwrap();
+        plain.port(PortSpec::new("C", 0i64)).unwrap();
         node.define(plain).unwrap();
-        // A port with a triggered process (B follows A plus one) and a Max port.
+        // A port with a triggered process (B, a Max port, follows A plus one; C, a plain port
+        // unless a process is added to it, A minus one).
         let mut busy = BehaviorClass::new("Busy");
         let a = busy.port(PortSpec::new("A", 0i64)).unwrap();
         let b = busy.port(PortSpec::new("B", 0i64).max()).unwrap();
         busy.port(PortSpec::new("T", "")).unwrap();
+        let c = busy.port(PortSpec::new("C", 0i64)).unwrap();
         busy.on_write("Follow", a, move |ctx| {
             let v = ctx.int(a).unwrap_or(0);
             let _ = ctx.write(b, v + 1);
+            let _ = ctx.write(c, v - 1);
         })
         .unwrap();
         node.define(busy).unwrap();
