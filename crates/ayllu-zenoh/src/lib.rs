@@ -17,6 +17,7 @@
 
 #![warn(missing_docs)]
 
+pub mod bridge;
 pub mod router;
 pub mod zenoh_socket;
 pub mod zenoh_transport;
@@ -24,6 +25,7 @@ pub mod zenoh_url;
 
 use ayllu::{NodeId, RuntimeError, Transport, UdpTransport};
 
+pub use bridge::Bridge;
 pub use router::{Router, RouterOptions};
 pub use zenoh_socket::ZenohSocket;
 pub use zenoh_transport::ZenohTransport;

@@ -81,7 +81,8 @@ fn io_error(e: impl std::fmt::Display) -> io::Error {
     io::Error::other(e.to_string())
 }
 
-fn zenoh_config(url: &ZenohUrl) -> Result<Config, String> {
+/// The Zenoh configuration a URL asks for (also the bridge's, `crate::bridge`).
+pub(crate) fn zenoh_config(url: &ZenohUrl) -> Result<Config, String> {
     let mut c = match &url.config_file {
         Some(path) => Config::from_file(path).map_err(|e| format!("reading Zenoh configuration {path}: {e}"))?,
         None => Config::default(),
@@ -112,8 +113,7 @@ impl ZenohSocket {
         let session = zenoh::open(config).wait().map_err(|e| fail("opening the Zenoh session", e.to_string()))?;
         // The nonce comes from the session's random id: two processes started with the same
         // node id get different addresses.
-        let zid = session.zid().to_string();
-        let nonce = zid.bytes().fold(0u16, |h, b| h.rotate_left(5) ^ u16::from(b)).max(1);
+        let nonce = nonce_of(&session);
         let addr = SocketAddr::V4(SocketAddrV4::new(Ipv4Addr::from(id.0), nonce));
         let mut attachment = [0u8; 6];
         attachment[..4].copy_from_slice(&id.0.to_be_bytes());
@@ -176,8 +176,13 @@ impl ZenohSocket {
     }
 }
 
+/// A session's address nonce (1 to 65535), from its random Zenoh id.
+pub(crate) fn nonce_of(session: &Session) -> u16 {
+    session.zid().to_string().bytes().fold(0u16, |h, b| h.rotate_left(5) ^ u16::from(b)).max(1)
+}
+
 /// The sender address an attachment carries.
-fn sender(a: &[u8]) -> Option<SocketAddr> {
+pub(crate) fn sender(a: &[u8]) -> Option<SocketAddr> {
     let a: [u8; 6] = a.try_into().ok()?;
     let ip = Ipv4Addr::new(a[0], a[1], a[2], a[3]);
     Some(SocketAddr::V4(SocketAddrV4::new(ip, u16::from_be_bytes([a[4], a[5]]))))

@@ -1,0 +1,381 @@
+//! A mixed team: `udp://` nodes and `zenoh://` nodes joined by `ayllu_zenoh::Bridge` (docs/zenoh.md,
+//! "A mixed team").
+//! * In this process: UDP nodes 1 and 2 on loopback (each given the bridge as `peer=`), Zenoh
+//!   nodes 3 and 4 in peer mode, the bridge stepped with them. Every node greets the three
+//!   others; port messages, group messages, LIST/WHY/CONNECT cross both ways; a write-inhibit
+//!   window opened across the bridge blocks the remote port's own writes; the team key's MACs
+//!   verify end to end through the bridge, which does not hold the key; nothing loops.
+//! * As processes: `ayllu-zenoh bridge` joining an `ayllu-zenoh node` on `udp://` and one on
+//!   `zenoh://` that run the paper's cross-subsumption: one claimer per target, `list` and
+//!   `why` from the UDP side see the Zenoh node, and the survivor takes a killed node's target
+//!   over.
+//!
+//! Ports: the UDP sockets bind port 0 (the bridge and nodes say what they got); Zenoh peers
+//! listen on loopback ports the system chose a moment before. Every wait is bounded and only
+//! ends early; timing never decides a verdict.
+
+use std::io::{BufRead, BufReader};
+use std::process::{Child, Command, Stdio};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use ayllu::{
+    BehaviorClass, ConnectOptions, ConnectionKind, ControlBody, Endpoint, Node, NodeId, PortSpec, ReplyBody,
+    RequestStatus, Value, WindowKind,
+};
+use ayllu_zenoh::Bridge;
+use serde_json::Value as Json;
+
+const TEAM: u32 = 12;
+const PATIENCE: Duration = Duration::from_secs(30);
+const BIN: &str = env!("CARGO_BIN_EXE_ayllu-zenoh");
+
+fn key_hex() -> String {
+    "5a".repeat(32)
+}
+
+fn free_port() -> u16 {
+    let l = std::net::TcpListener::bind("127.0.0.1:0").expect("bind port 0");
+    l.local_addr().expect("local address").port()
+}
+
+fn relay_node(id: u32, url: &str) -> Node {
+    let mut node = Node::open(NodeId(id), url).unwrap_or_else(|e| panic!("open node {id} on {url}: {e}"));
+    let mut relay = BehaviorClass::new("Relay");
+    relay.port(PortSpec::new("In", 0i64)).unwrap();
+    relay.port(PortSpec::new("Out", 0i64)).unwrap();
+    node.define(relay).unwrap();
+    node.create("Relay", "SRC").unwrap();
+    node.create("Relay", "DST").unwrap();
+    node.join("team");
+    node
+}
+
+/// Nodes 1, 2 (udp://), 3, 4 (zenoh://) and the bridge between them.
+fn mixed_team() -> (Vec<Node>, Bridge) {
+    ayllu_zenoh::register();
+    let zenoh_port = free_port();
+    let bridge = Bridge::open(
+        &format!("udp://127.0.0.1:0?team={TEAM}"),
+        &format!("zenoh://?scouting=0&listen=tcp/127.0.0.1:{zenoh_port}&team={TEAM}"),
+    )
+    .expect("open the bridge");
+    let at = bridge.udp_address();
+    let udp = |extra: &str| format!("udp://127.0.0.1:0?team={TEAM}&key={}&hello_ms=200&peer={at}{extra}", key_hex());
+    let n1 = relay_node(1, &udp(""));
+    let n1_at = n1.address().expect("node 1's address");
+    let n2 = relay_node(2, &udp(&format!("&peer={n1_at}")));
+    let p3 = free_port();
+    let zenoh = |extra: String| {
+        format!(
+            "zenoh://?scouting=0&connect=tcp/127.0.0.1:{zenoh_port}{extra}&team={TEAM}&key={}&hello_ms=200",
+            key_hex()
+        )
+    };
+    let n3 = relay_node(3, &zenoh(format!("&listen=tcp/127.0.0.1:{p3}")));
+    let n4 = relay_node(4, &zenoh(format!("&connect=tcp/127.0.0.1:{p3}")));
+    (vec![n1, n2, n3, n4], bridge)
+}
+
+/// Step every node and the bridge until `done` holds or [`PATIENCE`] passes; whether it held.
+fn run_until(nodes: &mut [Node], bridge: &mut Bridge, mut done: impl FnMut(&mut [Node]) -> bool) -> bool {
+    let give_up = Instant::now() + PATIENCE;
+    while Instant::now() < give_up {
+        for n in nodes.iter_mut() {
+            n.run_for(Duration::from_millis(1));
+            bridge.step(Duration::ZERO);
+        }
+        if done(nodes) {
+            return true;
+        }
+    }
+    false
+}
+
+fn read(node: &Node, behavior: &str, port: &str) -> Value {
+    node.read(behavior, port).unwrap()
+}
+
+fn count(node: &Node, cause: &str) -> u64 {
+    node.transport_counters().iter().find(|(c, _)| c == cause).map_or(0, |(_, n)| *n)
+}
+
+fn answer(nodes: &mut [Node], bridge: &mut Bridge, asker: usize, id: ayllu::RequestId) -> ReplyBody {
+    let mut reply = None;
+    let answered = run_until(nodes, bridge, |nodes| match nodes[asker].core().request_status(id) {
+        Some(RequestStatus::Done(body)) => {
+            reply = Some(body);
+            true
+        }
+        Some(RequestStatus::Failed(text)) => panic!("request failed: {text}"),
+        _ => false,
+    });
+    assert!(answered, "no answer within {PATIENCE:?}");
+    reply.unwrap()
+}
+
+#[test]
+fn udp_and_zenoh_nodes_are_one_team_through_the_bridge() {
+    let (mut nodes, mut bridge) = mixed_team();
+    let everyone = |nodes: &mut [Node]| {
+        nodes.iter().all(|n| {
+            let mut heard: Vec<u32> = n.peers().iter().map(|p| p.node.0).collect();
+            heard.sort();
+            heard == (1..=4).filter(|&k| k != n.id().0).collect::<Vec<_>>()
+        })
+    };
+    assert!(run_until(&mut nodes, &mut bridge, everyone), "every node hears the three others (HELLO both ways)");
+    assert_eq!(bridge.udp_nodes(), [NodeId(1), NodeId(2)]);
+    assert_eq!(bridge.zenoh_nodes(), [NodeId(3), NodeId(4)]);
+    // The UDP nodes reach a Zenoh node at its proxy, an ordinary UDP address.
+    let proxy = bridge.proxy_address(NodeId(3)).expect("node 3's proxy").to_string();
+    let seen = nodes[0].peers().into_iter().find(|p| p.node == NodeId(3)).expect("node 1 knows node 3").addr;
+    assert_eq!(seen, proxy, "node 1 sends to node 3 through its proxy");
+    for n in &nodes {
+        assert!(n.peers().iter().all(|p| p.groups == ["team"]), "HELLOs carry the groups across");
+    }
+
+    // Port messages both ways: 1 (udp) -> 3 (zenoh), 4 (zenoh) -> 2 (udp).
+    let normal = ConnectionKind::Normal;
+    nodes[0].connect(&Endpoint::local("SRC", "Out"), &Endpoint::node(NodeId(3), "DST", "In"), normal).unwrap();
+    nodes[0].write("SRC", "Out", 7i64).unwrap();
+    nodes[3].connect(&Endpoint::local("SRC", "Out"), &Endpoint::node(NodeId(2), "DST", "In"), normal).unwrap();
+    nodes[3].write("SRC", "Out", 9i64).unwrap();
+    assert!(
+        run_until(&mut nodes, &mut bridge, |n| read(&n[2], "DST", "In") == Value::Int(7)
+            && read(&n[1], "DST", "In") == Value::Int(9)),
+        "port messages cross the bridge both ways"
+    );
+    assert_eq!(read(&nodes[3], "DST", "In"), Value::Int(0), "node 4 was not addressed");
+    assert_eq!(nodes[2].why("DST", "In").unwrap().supplier.map(|s| s.node), Some(NodeId(1)));
+
+    // Group messages both ways reach every member but the sender.
+    let group = |k: usize, nodes: &mut [Node], v: i64| {
+        nodes[k].connect(&Endpoint::local("SRC", "In"), &Endpoint::group("team", "DST", "Out"), normal).unwrap();
+        nodes[k].write("SRC", "In", v).unwrap();
+    };
+    group(0, &mut nodes, 5);
+    assert!(
+        run_until(&mut nodes, &mut bridge, |n| (1..4).all(|k| read(&n[k], "DST", "Out") == Value::Int(5))),
+        "a UDP node's group message reaches the Zenoh members"
+    );
+    assert_eq!(read(&nodes[0], "DST", "Out"), Value::Int(0), "the sender is excluded");
+    group(2, &mut nodes, 6);
+    assert!(
+        run_until(&mut nodes, &mut bridge, |n| [0, 1, 3].iter().all(|&k| read(&n[k], "DST", "Out") == Value::Int(6))),
+        "a Zenoh node's group message reaches the UDP members"
+    );
+
+    // Control requests across: LIST and WHY from UDP node 2 to Zenoh node 4, CONNECT from
+    // Zenoh node 4 on UDP node 1.
+    let list = nodes[1].core_mut().request(NodeId(4), ControlBody::List).unwrap();
+    match answer(&mut nodes, &mut bridge, 1, list) {
+        ReplyBody::Node(report) => {
+            assert_eq!(report.node, NodeId(4));
+            assert!(report.behaviors.iter().any(|b| b.name == "SRC"), "LIST names node 4's behaviors");
+        }
+        other => panic!("LIST answered {other:?}"),
+    }
+    let why =
+        nodes[1].core_mut().request(NodeId(3), ControlBody::Why { behavior: "DST".into(), port: "In".into() }).unwrap();
+    match answer(&mut nodes, &mut bridge, 1, why) {
+        ReplyBody::Port(report) => assert_eq!(report.value, Value::Int(7), "WHY reports node 3's value"),
+        other => panic!("WHY answered {other:?}"),
+    }
+    let connect = nodes[3]
+        .core_mut()
+        .request_connect(
+            &Endpoint::node(NodeId(1), "DST", "Out"),
+            &Endpoint::local("DST", "In"),
+            normal,
+            ConnectOptions::default(),
+        )
+        .unwrap();
+    assert!(matches!(answer(&mut nodes, &mut bridge, 3, connect), ReplyBody::Connection(_)));
+    nodes[0].write("DST", "Out", 11i64).unwrap();
+    assert!(
+        run_until(&mut nodes, &mut bridge, |n| read(&n[3], "DST", "In") == Value::Int(11)),
+        "the connection node 4 asked for carries node 1's writes to it"
+    );
+
+    // A cross-subsumption-style window across the bridge: UDP node 2 write-inhibits Zenoh
+    // node 3's SRC.In (as a BLE claim does); node 3's own writes then stay in the port.
+    let inhibit = ConnectionKind::WriteInhibit(ayllu::Duration::from_secs(30));
+    nodes[1].connect(&Endpoint::local("SRC", "In"), &Endpoint::node(NodeId(3), "SRC", "In"), inhibit).unwrap();
+    nodes[1].write("SRC", "In", 1i64).unwrap();
+    let held = run_until(&mut nodes, &mut bridge, |n| {
+        n[2].why("SRC", "In")
+            .unwrap()
+            .windows
+            .iter()
+            .any(|w| w.kind == WindowKind::WriteInhibit && w.holder.node == NodeId(2))
+    });
+    assert!(held, "node 2's write-inhibit window is open on node 3");
+
+    for n in &nodes {
+        assert_eq!(count(n, "bad_mac"), 0, "node {}: the team key verifies end to end", n.id());
+        assert_eq!(count(n, "duplicate_id"), 0, "node {}: nothing looped back to its sender", n.id());
+        assert_eq!(count(n, "own"), 0, "node {}: no own datagram heard back", n.id());
+    }
+    let counts = bridge.counts();
+    let get = |c: &str| counts.iter().find(|(k, _)| k == c).map_or(0, |(_, n)| *n);
+    assert!(get("to_zenoh") > 0 && get("to_udp") > 0, "{counts:?}");
+    assert_eq!(get("malformed") + get("wrong_team") + get("no_route"), 0, "{counts:?}");
+}
+
+#[test]
+fn a_keyed_bridge_relays_only_the_teams_datagrams() {
+    let zenoh_port = free_port();
+    let key = key_hex();
+    let mut bridge = Bridge::open(
+        &format!("udp://127.0.0.1:0?team={TEAM}&key={key}"),
+        &format!("zenoh://?scouting=0&listen=tcp/127.0.0.1:{zenoh_port}&team={TEAM}"),
+    )
+    .expect("open the bridge");
+    let socket = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    let hello = ayllu_wire::WireMessage::Hello { interval_ms: 200, name: "x".into(), groups: vec![] };
+    let forged =
+        ayllu_wire::encode_datagram(TEAM, NodeId(9), 1, Some([0x11; 32]), std::slice::from_ref(&hello)).unwrap();
+    let good = ayllu_wire::encode_datagram(TEAM, NodeId(8), 1, Some([0x5a; 32]), std::slice::from_ref(&hello)).unwrap();
+    let other_team = ayllu_wire::encode_datagram(TEAM + 1, NodeId(7), 1, Some([0x5a; 32]), &[hello]).unwrap();
+    for d in [&forged, &good, &other_team] {
+        socket.send_to(d, bridge.udp_address()).unwrap();
+    }
+    let give_up = Instant::now() + PATIENCE;
+    let mut handled = 0;
+    while handled < 3 && Instant::now() < give_up {
+        handled += bridge.step(Duration::from_millis(100));
+    }
+    let counts = bridge.counts();
+    let get = |c: &str| counts.iter().find(|(k, _)| k == c).map_or(0, |(_, n)| *n);
+    assert_eq!((get("bad_mac"), get("wrong_team"), get("to_zenoh")), (1, 1, 1), "{counts:?}");
+    assert_eq!(bridge.udp_nodes(), [NodeId(8)], "only the authenticated sender became a route");
+}
+
+/// A child process whose stdout JSON lines are collected; killed when dropped.
+struct Proc {
+    child: Child,
+    lines: Arc<Mutex<Vec<Json>>>,
+}
+
+impl Proc {
+    fn start(args: &[String]) -> Proc {
+        let mut child = Command::new(BIN)
+            .args(args)
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .expect("start ayllu-zenoh");
+        let lines = Arc::new(Mutex::new(Vec::new()));
+        let (out, sink) = (child.stdout.take().unwrap(), lines.clone());
+        std::thread::spawn(move || {
+            for line in BufReader::new(out).lines().map_while(Result::ok) {
+                if let Ok(j) = serde_json::from_str(&line) {
+                    sink.lock().unwrap().push(j);
+                }
+            }
+        });
+        Proc { child, lines }
+    }
+
+    fn wait_line(&self, limit: Duration, mut pick: impl FnMut(&Json) -> bool) -> Option<Json> {
+        let give_up = Instant::now() + limit;
+        while Instant::now() < give_up {
+            if let Some(j) = self.lines.lock().unwrap().iter().find(|j| pick(j)) {
+                return Some(j.clone());
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        None
+    }
+
+    fn latest(&self) -> Option<Json> {
+        self.lines.lock().unwrap().iter().rev().find(|j| j.get("t").is_some()).cloned()
+    }
+}
+
+impl Drop for Proc {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn ints(j: &Json, field: &str) -> Vec<u64> {
+    j[field].as_array().map(|a| a.iter().filter_map(Json::as_u64).collect()).unwrap_or_default()
+}
+
+fn strings(args: &[&str]) -> Vec<String> {
+    args.iter().map(|s| s.to_string()).collect()
+}
+
+#[test]
+fn the_papers_team_runs_across_the_bridge_command() {
+    let key = key_hex();
+    let zenoh_port = free_port();
+    let bridge = Proc::start(&strings(&[
+        "bridge",
+        "--udp",
+        &format!("udp://127.0.0.1:0?team={TEAM}"),
+        "--zenoh",
+        &format!("zenoh://?scouting=0&listen=tcp/127.0.0.1:{zenoh_port}&team={TEAM}"),
+        "--status-ms",
+        "500",
+        "--for",
+        "120",
+    ]));
+    let first = bridge.wait_line(PATIENCE, |j| j.get("udp").is_some()).expect("the bridge's first line");
+    let at = first["udp"].as_str().unwrap().to_owned();
+    let udp_url = format!("udp://127.0.0.1:0?team={TEAM}&key={key}&hello_ms=200&peer={at}");
+    let zenoh_url =
+        format!("zenoh://?scouting=0&connect=tcp/127.0.0.1:{zenoh_port}&team={TEAM}&key={key}&hello_ms=200");
+    let node = |id: &str, url: &str, sight: &str| {
+        Proc::start(&strings(&[
+            "node",
+            "--id",
+            id,
+            "--udp",
+            url,
+            "--sight",
+            sight,
+            "--status-ms",
+            "300",
+            "--for",
+            "120",
+        ]))
+    };
+    let n1 = node("1", &udp_url, "1:0.9,2:0.5");
+    let n2 = node("2", &zenoh_url, "1:0.6,2:0.8");
+
+    let give_up = Instant::now() + Duration::from_secs(60);
+    let mut settled = false;
+    while !settled && Instant::now() < give_up {
+        std::thread::sleep(Duration::from_millis(100));
+        if let (Some(a), Some(b)) = (n1.latest(), n2.latest()) {
+            settled = ints(&a, "peers") == [2]
+                && ints(&b, "peers") == [1]
+                && ints(&a, "claims") == [1]
+                && ints(&b, "claims") == [2];
+        }
+    }
+    assert!(settled, "one claimer per target across the bridge: n1 {:?}, n2 {:?}", n1.latest(), n2.latest());
+    let status = bridge.latest().expect("a status line");
+    assert_eq!((ints(&status, "udp_nodes"), ints(&status, "zenoh_nodes")), (vec![1], vec![2]), "{status}");
+
+    // The UDP side's tool sees the Zenoh node and asks it why (through the bridge, on udp://).
+    let tool = Command::new(BIN)
+        .args(["why", "2", "OBS1.Rotate", "--udp", &udp_url, "--timeout", "15"])
+        .output()
+        .expect("run the tool");
+    let text = String::from_utf8_lossy(&tool.stdout);
+    assert!(tool.status.success(), "why across the bridge: {text}{}", String::from_utf8_lossy(&tool.stderr));
+    assert!(text.contains("write-inhibit held by n1"), "n1's claim (udp://) holds n2's port (zenoh://): {text}");
+
+    // Kill the UDP node: the Zenoh node takes target 1 over.
+    drop(n1);
+    let took_over = n2.wait_line(Duration::from_secs(60), |j| {
+        j.get("t").is_some() && ints(j, "claims").contains(&1) && !ints(j, "peers").contains(&1)
+    });
+    assert!(took_over.is_some(), "n2 took target 1 over: {:?}", n2.latest());
+}
