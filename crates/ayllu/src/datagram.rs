@@ -90,6 +90,13 @@ pub struct OsSocket {
     /// The main socket's receive timeout (`SO_RCVTIMEO`) as last set, for blocking waits.
     #[cfg(target_os = "linux")]
     receive_timeout: StdDuration,
+    /// Reads have been finding several datagrams waiting: a blocking wait reads with
+    /// `recvmmsg` (see `receive_waiting`).
+    #[cfg(target_os = "linux")]
+    dense: bool,
+    /// Blocking waits read with a plain `recvfrom` since the last `recvmmsg`.
+    #[cfg(target_os = "linux")]
+    sparse_waits: u8,
     /// Whether the kernel takes segmented sends (UDP GSO, Linux 4.18 and later, and a route
     /// whose device can checksum them): false after the first refusal, and every train is
     /// then sent one datagram per call.
@@ -111,6 +118,10 @@ pub const RECHECK: StdDuration = StdDuration::from_micros(20);
 /// scheduler ticks (1-10 ms) and the kernel's timer wheel may fire it up to an eighth late.
 #[cfg(target_os = "linux")]
 const BLOCKING_WAIT_MIN: StdDuration = StdDuration::from_millis(20);
+/// While traffic is sparse, one blocking wait in this many reads with `recvmmsg` all the same,
+/// so that traffic that became dense is noticed (the others read one datagram each).
+#[cfg(target_os = "linux")]
+const PROBE_EVERY: u8 = 16;
 /// The most a receive timeout may overrun, in ticks: one tick at HZ = 100.
 #[cfg(target_os = "linux")]
 const TICK_MARGIN: StdDuration = StdDuration::from_millis(10);
@@ -244,6 +255,40 @@ impl ReadAhead {
         Ok(())
     }
 
+    /// Wait for one datagram (the main socket blocks, for at most its receive timeout) and
+    /// read it with a plain `recvfrom`; the socket then counts as drained (unlike
+    /// [`ReadAhead::fill_with`], this does not ask whether more is waiting).
+    #[cfg(target_os = "linux")]
+    fn fill_one(&mut self, socket: &UdpSocket) -> io::Result<()> {
+        use std::os::fd::AsRawFd;
+        self.got.clear();
+        self.next = 0;
+        // SAFETY: all-zero is a valid sockaddr_storage; the kernel writes at most `len` bytes
+        // into it and at most SLOT bytes into the first slot of `data`, which holds
+        // READ_AHEAD * SLOT bytes.
+        let (n, name) = unsafe {
+            let mut name: libc::sockaddr_storage = std::mem::zeroed();
+            let mut len = std::mem::size_of::<libc::sockaddr_storage>() as libc::socklen_t;
+            let n = libc::recvfrom(
+                socket.as_raw_fd(),
+                self.data.as_mut_ptr().cast(),
+                SLOT,
+                0,
+                (&mut name as *mut libc::sockaddr_storage).cast(),
+                &mut len,
+            );
+            (n, name)
+        };
+        if n < 0 {
+            return Err(io::Error::last_os_error());
+        }
+        if let Some(from) = socket_addr(&name) {
+            self.got.push((n as usize, from));
+        }
+        self.drained = true;
+        Ok(())
+    }
+
     /// Elsewhere: one `recvfrom` per call, and no claim that the socket is empty.
     #[cfg(not(target_os = "linux"))]
     fn fill(&mut self, socket: &UdpSocket) -> io::Result<()> {
@@ -321,6 +366,10 @@ impl OsSocket {
             receive_timeout: StdDuration::ZERO,
             #[cfg(target_os = "linux")]
             segmented: true,
+            #[cfg(target_os = "linux")]
+            dense: false,
+            #[cfg(target_os = "linux")]
+            sparse_waits: 0,
         })
     }
 
@@ -352,7 +401,24 @@ impl OsSocket {
             }
             self.receive_timeout = set;
         }
-        match self.ahead.fill_with(&self.socket, libc::MSG_WAITFORONE) {
+        // Sparse traffic (each read found one datagram): a plain blocking `recvfrom`, raw UDP's
+        // call, cheaper than `recvmmsg` by the second receive attempt it makes to tell whether
+        // more is waiting (0.2 us a wait here); the socket then counts as emptied by it. Every
+        // PROBE_EVERY-th such wait, and every wait once reads find several datagrams, reads
+        // with `recvmmsg`, up to READ_AHEAD at once.
+        let single = !self.dense && self.sparse_waits < PROBE_EVERY;
+        let read = if single {
+            self.sparse_waits += 1;
+            self.ahead.fill_one(&self.socket)
+        } else {
+            self.sparse_waits = 0;
+            let read = self.ahead.fill_with(&self.socket, libc::MSG_WAITFORONE);
+            if read.is_ok() {
+                self.dense = self.ahead.got.len() > 1;
+            }
+            read
+        };
+        match read {
             Ok(()) if !self.ahead.drained => self.empty_until = None,
             // A datagram arriving after the read is read by the next wait or, RECHECK after
             // the next turn's start, by a turn.
@@ -538,6 +604,10 @@ impl DatagramSocket for OsSocket {
         self.waited_empty = false;
         match self.ahead.fill(&self.socket) {
             Ok(()) => {
+                #[cfg(target_os = "linux")]
+                if self.ahead.got.len() > 1 {
+                    self.dense = true;
+                }
                 if self.ahead.drained && self.extra.is_empty() {
                     self.found_empty();
                 }
