@@ -1,8 +1,8 @@
 //! The `ayllu-zenoh` tool's commands that run nodes, over `zenoh://` (issue 12: every command
 //! takes a `zenoh://` URL):
 //! * two `ayllu-zenoh node` processes (the paper's cross-subsumption) in Zenoh peer mode on
-//!   loopback greet each other, claim one target each, are seen by `list`, `why` and `echo`,
-//!   and the survivor takes over a killed node's target;
+//!   loopback greet each other, claim one target each, are seen by `list`, `why`, `echo`, `hz`
+//!   and `record`, and the survivor takes over a killed node's target;
 //! * `ayllu-zenoh sim serve` and two `ayllu-zenoh sim robot` processes, all Zenoh clients of a
 //!   router in this process: every body hears its controller, the robots hear each other (BLE
 //!   over the team's group key) and drive their bodies;
@@ -212,6 +212,19 @@ fn node_processes_over_zenoh_are_listed_explained_echoed_and_take_over() {
         String::from_utf8_lossy(&out.stdout).lines().map(|l| serde_json::from_str(l).expect("a JSON line")).collect();
     assert_eq!(values.len(), 3);
     assert!(values.iter().all(|v| v["node"] == 1 && v["port"] == "BASE.Rotate"), "{values:?}");
+
+    // `hz` and `record` put a tap around whatever transport the URL opens.
+    let out = tool(&["hz", "1", "BASE.Rotate", "--count", "5", "--json"], &tool_url);
+    assert!(out.status.success(), "hz failed");
+    let rate: Json = serde_json::from_slice(&out.stdout).expect("hz --json prints JSON");
+    assert!(rate["messages"].as_u64().unwrap_or(0) >= 5, "{rate}");
+    let file = std::env::temp_dir().join(format!("ayllu-zenoh-record-{}.mcap", std::process::id()));
+    let out =
+        tool(&["record", "-o", file.to_str().unwrap(), "--for", "2", "--copy", "n1:BASE.Rotate", "--json"], &tool_url);
+    let _ = std::fs::remove_file(&file);
+    assert!(out.status.success(), "record failed");
+    let summary: Json = serde_json::from_slice(&out.stdout).expect("record --json prints JSON");
+    assert!(summary["channels"]["/n1/BASE/Rotate"].as_u64().unwrap_or(0) > 0, "{summary}");
 
     // Kill n1: n2 takes target 1 over once n1's lease lapses (the paper's cross-subsumption).
     drop(n1);
