@@ -1283,24 +1283,6 @@ impl NodeCore {
         }
     }
 
-    /// A hint with no effect on the node: reads what [`NodeCore::receive`] of `message` from
-    /// `from` touches first (its sequence-table entry, the behavior and the port it resolved
-    /// to), so that a caller holding several messages for a node whose memory is cold (a
-    /// simulator stepping hundreds of nodes) fetches them side by side before applying them
-    /// in turn, instead of waiting for each fetch in turn. Does nothing for a connection not
-    /// heard before or a control message.
-    pub fn prefetch_receive(&self, from: NodeId, message: &Message) {
-        let Message::Port(m) = message else { return };
-        let Some(Incoming { newest, target: Some(r) }) = self.newest_seq.get(&incoming_key(from, m.conn)) else {
-            return;
-        };
-        let Some(beh) = self.behavior(r.b) else { return };
-        let Some(port) = beh.ports.get(usize::from(r.p)) else { return };
-        // Values, not references: black_box then needs each load done (a reference it could
-        // take without reading through it).
-        std::hint::black_box((*newest, beh.id, port.visited, port.cell.kind, port.cell.last_accepted));
-    }
-
     fn receive_port(&mut self, from: NodeId, m: &PortMessage) {
         if !self.access.ports.admits(from) {
             self.counters.add(DropCause::NotAllowed);

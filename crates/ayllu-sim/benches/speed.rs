@@ -18,11 +18,17 @@
 //! 5 s warm-up) steps the timed stretch inside `callgrind_ticks`, for instruction counts (and,
 //! with `--cache-sim=yes`, cache misses) that a loaded machine cannot move:
 //! `valgrind --tool=callgrind --toggle-collect='*callgrind_ticks*' BINARY callgrind 100 10`.
+//!
+//! `speed hashes` prints the trace hash, radio totals and metrics of a fixed set of runs
+//! (every controller with loss, jitter, range, a partition and a kill; BLE teams of 100 and
+//! 1000): two builds that print the same lines run the model bit for bit alike, which is
+//! what a change made for speed must keep.
 
 use std::time::Instant as WallClock;
 
 use ayllu_sim::controller::Controller;
-use ayllu_sim::scenario::{Scenario, Sim};
+use ayllu_sim::radio::Partition;
+use ayllu_sim::scenario::{run, Kill, Scenario, Sim};
 
 const SEED: u64 = 1;
 const TARGETS: usize = 5;
@@ -84,9 +90,34 @@ fn callgrind_ticks(sim: &mut Sim) {
     }
 }
 
+/// The runs `speed hashes` prints (see the module docs).
+fn hashes() {
+    let mut runs = Vec::new();
+    for c in Controller::ALL {
+        for seed in [1, 7] {
+            let mut s = Scenario::sized(c, 5, 4, seed).loss(0.2).duration(60.0);
+            s.radio.range = Some(9.0);
+            s.radio.partitions.push(Partition { start: 10.0, end: 20.0, island: vec![1, 2] });
+            s.kills.push(Kill { at: 30.0, robot: None });
+            runs.push((format!("{} busy seed {seed}", c.name()), s));
+        }
+        runs.push((format!("{} 30 robots", c.name()), Scenario::sized(c, 30, 5, 3).duration(60.0)));
+    }
+    runs.push(("BLE 100 robots".to_owned(), Scenario::sized(Controller::Ble, 100, TARGETS, SEED).duration(120.0)));
+    runs.push(("BLE 1000 robots".to_owned(), Scenario::sized(Controller::Ble, 1000, TARGETS, SEED).duration(10.0)));
+    for (name, s) in runs {
+        let out = run(&s).expect("the scenario runs");
+        println!("{name}: {} {:?} {:?}", out.trace_hash, out.radio, out.metrics);
+    }
+}
+
 fn main() {
     // `cargo bench` passes `--bench`; the filters are the other arguments.
     let args: Vec<String> = std::env::args().skip(1).filter(|a| !a.starts_with("--")).collect();
+    if args.first().map(String::as_str) == Some("hashes") {
+        hashes();
+        return;
+    }
     if args.first().map(String::as_str) == Some("callgrind") {
         let robots = args.get(1).and_then(|a| a.parse().ok()).unwrap_or(100);
         let timed: f64 = args.get(2).and_then(|a| a.parse().ok()).unwrap_or(10.0);

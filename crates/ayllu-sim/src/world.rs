@@ -179,8 +179,8 @@ pub struct World {
     view: Vec<(usize, f64, f64)>,
     /// (sin, cos) of each sonar beam's offset from the heading.
     beams: Vec<(f64, f64)>,
-    /// Scratch of `sonar`: circles (x, y, radius) within its reach.
-    circles: Vec<(f64, f64, f64)>,
+    /// Scratch of `sonar`: circles within its reach, as [`Echo`]s from the sweeping robot.
+    circles: Vec<Echo>,
     /// Scratch of `resolve_contacts`: robots near the one being resolved.
     near: Vec<usize>,
 }
@@ -209,7 +209,18 @@ fn dist(dx: f64, dy: f64) -> f64 {
 
 /// Wrap an angle into (-π, π].
 pub fn wrap(a: f64) -> f64 {
-    let a = a.rem_euclid(TAU);
+    // `rem_euclid` is `a % TAU`, plus TAU if negative; for |a| < TAU the remainder is `a`
+    // itself, exactly, so the common case skips the division's library call and gives the
+    // same bits.
+    let a = if a.abs() < TAU {
+        if a < 0.0 {
+            a + TAU
+        } else {
+            a
+        }
+    } else {
+        a.rem_euclid(TAU)
+    };
     if a > PI {
         a - TAU
     } else {
@@ -217,18 +228,34 @@ pub fn wrap(a: f64) -> f64 {
     }
 }
 
-/// Distance along a ray from (ox, oy) in direction (dx, dy) (unit) to a circle, if it hits
-/// ahead of the origin.
-fn ray_circle(ox: f64, oy: f64, dx: f64, dy: f64, cx: f64, cy: f64, r: f64) -> Option<f64> {
-    let (fx, fy) = (ox - cx, oy - cy);
-    let b = fx * dx + fy * dy;
-    let c = fx * fx + fy * fy - r * r;
-    let disc = b * b - c;
-    if disc < 0.0 {
-        return None;
+/// A circle as seen from a ray's origin, with what does not depend on the ray's direction
+/// computed once: a sonar sweep tests every circle within reach against each of its beams.
+#[derive(Clone, Copy)]
+struct Echo {
+    /// Origin minus the circle's centre.
+    fx: f64,
+    fy: f64,
+    /// `fx² + fy² - r²`: the origin's power with respect to the circle.
+    c: f64,
+}
+
+impl Echo {
+    fn new(ox: f64, oy: f64, cx: f64, cy: f64, r: f64) -> Echo {
+        let (fx, fy) = (ox - cx, oy - cy);
+        Echo { fx, fy, c: fx * fx + fy * fy - r * r }
     }
-    let t = -b - disc.sqrt();
-    (t >= 0.0).then_some(t)
+
+    /// Distance along the ray in direction (dx, dy) (unit) to the circle, if it hits ahead
+    /// of the origin.
+    fn hit(&self, dx: f64, dy: f64) -> Option<f64> {
+        let b = self.fx * dx + self.fy * dy;
+        let disc = b * b - self.c;
+        if disc < 0.0 {
+            return None;
+        }
+        let t = -b - disc.sqrt();
+        (t >= 0.0).then_some(t)
+    }
 }
 
 impl World {
@@ -453,7 +480,7 @@ impl World {
         let mut consider = |x: f64, y: f64, r: f64| {
             let (dx, dy) = (x - p.x, y - p.y);
             if dx * dx + dy * dy <= (reach + r) * (reach + r) {
-                circles.push((x, y, r));
+                circles.push(Echo::new(p.x, p.y, x, y, r));
             }
         };
         self.grid.near(p.x, p.y, |j| {
@@ -483,8 +510,8 @@ impl World {
             } else if dy < -1e-12 {
                 best = best.min(-p.y / dy);
             }
-            for &(x, y, r) in &circles {
-                if let Some(t) = ray_circle(p.x, p.y, dx, dy, x, y, r) {
+            for e in &circles {
+                if let Some(t) = e.hit(dx, dy) {
                     best = best.min(t);
                 }
             }
@@ -550,5 +577,42 @@ impl Grid {
                 }
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `wrap` as it was written before its fast path: the same bits are owed.
+    fn wrap_by_remainder(a: f64) -> f64 {
+        let a = a.rem_euclid(TAU);
+        if a > PI {
+            a - TAU
+        } else {
+            a
+        }
+    }
+
+    #[test]
+    fn wrap_gives_the_bits_of_the_remainder() {
+        let mut rng = fastrand::Rng::with_seed(11);
+        let edges = [0.0, -0.0, PI, -PI, TAU, -TAU, 1e-300, -1e-300, f64::EPSILON, -f64::EPSILON, 100.0, -100.0];
+        let near =
+            edges.iter().flat_map(|&e| [e, f64::from_bits(e.to_bits() + 1), f64::from_bits(e.to_bits().max(1) - 1)]);
+        let random = (0..100_000).map(|_| (rng.f64() - 0.5) * 8.0 * TAU);
+        for a in near.chain(random) {
+            assert_eq!(wrap(a).to_bits(), wrap_by_remainder(a).to_bits(), "{a:e}");
+        }
+        assert!(wrap(f64::NAN).is_nan());
+    }
+
+    #[test]
+    fn an_echo_is_the_ray_circle_hit() {
+        // Straight ahead at 2 m, radius 0.5: hit at 1.5; behind: no hit; beside: no hit.
+        let e = Echo::new(0.0, 0.0, 2.0, 0.0, 0.5);
+        assert_eq!(e.hit(1.0, 0.0), Some(1.5));
+        assert_eq!(e.hit(-1.0, 0.0), None);
+        assert_eq!(e.hit(0.0, 1.0), None);
     }
 }
