@@ -78,10 +78,12 @@ fn connect(node: &mut NodeCore, from: (&str, &str), to: (&str, &str), kind: Conn
 /// (`H_<t>.Out -> HD_<t>.In`) and a fan-out of 4 (`F_<t>.Out -> FD_<t>_{0..3}.In`); the
 /// subsumption chain L1 -> ... -> L5 (OverrideOut, 200 ms) on int ports; and a port
 /// `P.In` whose OnWrite process copies it to `P.Out`, which feeds `Q.In` (Normal), and
-/// whose float and bool ports also trigger processes.
+/// whose float and bool ports also trigger processes; and a wave that the plain path hands to
+/// the general one midway (`M.Out -> MA.In`, a leaf, then `M.Out -> MB.In -> MC.In`).
 struct Rig {
     node: NodeCore,
     hop: [PortRef; 4],
+    mixed: PortRef,
     fan: [PortRef; 4],
     chain_top: PortRef,
     chain_bottom: PortRef,
@@ -113,6 +115,13 @@ fn rig() -> Rig {
             connect(&mut node, (&format!("F_{t}"), "Out"), (&d, "In"), ConnectionKind::Normal);
         }
     }
+    node.create("Src_int", "M").unwrap();
+    for d in ["MA", "MB", "MC"] {
+        node.create("Dst_int", d).unwrap();
+    }
+    connect(&mut node, ("M", "Out"), ("MA", "In"), ConnectionKind::Normal);
+    connect(&mut node, ("M", "Out"), ("MB", "In"), ConnectionKind::Normal);
+    connect(&mut node, ("MB", "In"), ("MC", "In"), ConnectionKind::Normal);
     let mut layer = BehaviorClass::new("Layer");
     layer.port(PortSpec::new("Rotate", 0i64)).unwrap();
     node.define(layer).unwrap();
@@ -164,6 +173,7 @@ fn rig() -> Rig {
     let port = |n: &NodeCore, b: &str, p: &str| n.port(b, p).unwrap();
     Rig {
         hop: ["int", "float", "bool", "text"].map(|t| port(&node, &format!("H_{t}"), "Out")),
+        mixed: port(&node, "M", "Out"),
         fan: ["int", "float", "bool", "text"].map(|t| port(&node, &format!("F_{t}"), "Out")),
         chain_top: port(&node, "L1", "Rotate"),
         chain_bottom: port(&node, "L5", "Rotate"),
@@ -190,6 +200,7 @@ fn round(rig: &mut Rig, i: u64) {
     node.write(now, rig.fan[1], x).unwrap();
     node.write(now, rig.fan[2], b).unwrap();
     node.write(now, rig.chain_top, n).unwrap();
+    node.write(now, rig.mixed, n).unwrap();
     node.write(now, rig.proc_in, n).unwrap();
     node.write(now, rig.proc_float, x).unwrap();
     node.write(now, rig.proc_bool, b).unwrap();
@@ -197,8 +208,9 @@ fn round(rig: &mut Rig, i: u64) {
 }
 
 // Design §6 / lib docs: "propagating a scalar allocates nothing" — over a Normal hop, a
-// fan-out of 4, a 5-layer OverrideOut chain (S6 override windows refreshed every write) and an
-// OnWrite-triggered process (S7) whose own write propagates, for i64, f64 and bool values.
+// fan-out of 4, a 5-layer OverrideOut chain (S6 override windows refreshed every write), a wave
+// the plain path hands to the general one midway, and an OnWrite-triggered process (S7) whose
+// own write propagates, for i64, f64 and bool values.
 #[test]
 fn scalar_propagation_does_not_allocate() {
     let mut rig = rig();
@@ -227,6 +239,9 @@ fn scalar_propagation_does_not_allocate() {
         assert_eq!(node.read(d).unwrap(), Value::Int(last as i64));
     }
     assert_eq!(node.read(rig.chain_bottom).unwrap(), Value::Int(last as i64));
+    for d in ["MA", "MB", "MC"] {
+        assert_eq!(node.read(node.port(d, "In").unwrap()).unwrap(), Value::Int(last as i64));
+    }
     assert_eq!(node.read(rig.q_in).unwrap(), Value::Int(last as i64));
     assert_eq!(rig.runs.load(Ordering::Relaxed) - runs_before, 3 * ROUNDS);
     assert_eq!(node.counters().total(), 0, "nothing was dropped: {:?}", node.counters());
