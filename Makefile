@@ -2,7 +2,7 @@
 # CI (.ci/run) runs `make lint` and `make test`.
 CARGO ?= cargo
 
-.PHONY: demo test lint test-python lint-python bench-python bench bench-c bench-net bench-peers bench-sim zenoh test-zenoh fuzz fuzz-long soak fmt docs
+.PHONY: demo test lint test-python lint-python bench-python bench bench-c bench-net bench-peers bench-sim zenoh test-zenoh bench-zenoh fuzz fuzz-long soak fmt docs
 
 ## Run the main demo: W-CMOMMT in the simulator (the paper's setting, a sweep, a robot killed
 ## halfway) for BLE and every baseline; prints a short summary (BLE against each baseline, whether
@@ -81,6 +81,11 @@ test-zenoh:
 	$(ZENOH_CARGO) fmt -- --check
 	$(ZENOH_CARGO) clippy --release --all-targets -- -D warnings
 	$(ZENOH_CARGO) test --release
+
+## Ayllu over zenoh:// (peer mode, and clients of a router) beside udp:// and raw UDP, same run:
+## round trip and one-way rate, with ratios (about 30 s once built; docs/zenoh.md, "Measured").
+bench-zenoh:
+	$(ZENOH_CARGO) test --release --test zenoh_bench -- --ignored --nocapture
 
 ## Simulation speed against real time (10, 100, 1000 robots, BLE and Random), one thread.
 bench-sim:
