@@ -75,8 +75,9 @@ ZENOH_CARGO = cd crates/ayllu-zenoh && CARGO_TARGET_DIR=$(abspath $(TARGET_DIR))
 zenoh:
 	$(ZENOH_CARGO) build --release
 
-## Its lints and tests (three nodes in one process over Zenoh peer mode on loopback, about a
-## second once built): the workspace's `make lint` does not see this project.
+## Its lints and tests (nodes in one process and as processes, routers, the bridge, conformance,
+## TLS and access control, network namespaces when root; about 45 s once built): the
+## workspace's `make lint` does not see this project.
 test-zenoh:
 	$(ZENOH_CARGO) fmt -- --check
 	$(ZENOH_CARGO) clippy --release --all-targets -- -D warnings
