@@ -9,7 +9,10 @@
 //! crates/ayllu-cli/tests/cross_subsumption_processes.rs (stdlib controller, 4 layers, BLE at
 //! 1 Hz, the paper's sight table): n1 and n3 in A, n2 in B, each a Zenoh client of the router
 //! (`mode=client`, connected to R's address on its own subnet), with a team key. So every claim,
-//! HELLO and CLI request between n1 and n2 crossed the router, MACed end to end.
+//! HELLO and CLI request between n1 and n2 crossed the router, MACed end to end. Run twice: over
+//! TCP links, and over TLS with examples/zenoh/'s router.json5 as it is (TLS only, mutual TLS,
+//! access control admitting robot-1..3 by certificate name) and robot.json5 (each node with its
+//! own certificate from examples/zenoh/gen-certs.sh): docs/zenoh.md's three-machine recipe.
 //!
 //! Checks (from the nodes' JSON status lines; limits derived from the BLE periods as in the
 //! udp:// test, never from this machine's speed; every wait bounded):
@@ -20,10 +23,12 @@
 //!   the same margin as the udp:// test), not before n1's lease ran out; then n2 claims T1 and
 //!   T2, n3 keeps T3 and T4.
 //!
-//! Needs root and `ip`; without them it prints `SKIPPED: ...` and passes. Namespaces and links
+//! Needs root and `ip` (and `openssl` for the TLS run); without them it prints `SKIPPED: ...`
+//! and passes. Namespaces and links
 //! are removed when the guard drops (also when the test panics), names unique per run.
 
 use std::io::{BufRead, BufReader, Read};
+use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -31,6 +36,7 @@ use std::time::{Duration, Instant};
 use serde_json::Value as Json;
 
 const BIN: &str = env!("CARGO_BIN_EXE_ayllu-zenoh");
+const EXAMPLES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../examples/zenoh");
 const SIGHT: [&str; 3] = ["1:0.9,2:0.5", "1:0.6,2:0.8,3:0.4", "3:0.7,4:0.5"];
 const CLAIM_HZ: f64 = 1.0;
 const STATUS: Duration = Duration::from_millis(100);
@@ -61,9 +67,9 @@ const B: usize = 2;
 impl Net {
     /// A in 10.subnet.1.0/24 (A .2, R .1), B in 10.subnet.2.0/24 (B .2, R .1); R forwards
     /// nothing.
-    fn create(subnet: u8) -> Result<Net, String> {
-        // Unique per test process (interface names stay within 15 bytes).
-        let tag = format!("zr{}", std::process::id() % 100_000);
+    fn create(tag: &str, subnet: u8) -> Result<Net, String> {
+        // Unique per test process and test (interface names stay within 15 bytes).
+        let tag = format!("{tag}{}", std::process::id() % 100_000);
         let mut net = Net { subnet, namespaces: Vec::new(), links: Vec::new() };
         for name in ["a", "r", "b"] {
             let ns = format!("{tag}{name}");
@@ -293,14 +299,86 @@ fn diagnostics(procs: &[&Proc]) -> String {
     procs.iter().map(|p| p.report()).collect::<Vec<_>>().join("\n")
 }
 
+/// A directory of this test run, removed when dropped.
+struct TempDir(PathBuf);
+
+impl TempDir {
+    fn new(tag: &str) -> TempDir {
+        let nanos = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap().subsec_nanos();
+        let dir = std::env::temp_dir().join(format!("ayllu-{tag}-{}-{nanos}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("create a temporary directory");
+        TempDir(dir)
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// TLS for the run: certificates by examples/zenoh/gen-certs.sh (the router's naming its two
+/// addresses), the router's home with `certs/`, and each robot's copy of
+/// examples/zenoh/robot.json5 pointed at its certificates.
+struct Tls {
+    dir: TempDir,
+}
+
+impl Tls {
+    fn make(net: &Net) -> Result<Tls, String> {
+        let dir = TempDir::new("netns-tls");
+        let names = format!("IP:{},IP:{}", net.router_addr(A), net.router_addr(B));
+        let out = Command::new("sh")
+            .arg(Path::new(EXAMPLES).join("gen-certs.sh"))
+            .arg(dir.0.join("certs"))
+            .arg(&names)
+            .args(["robot-1", "robot-2", "robot-3"])
+            .output()
+            .map_err(|e| format!("running gen-certs.sh: {e}"))?;
+        if !out.status.success() {
+            return Err(format!("gen-certs.sh: {}", String::from_utf8_lossy(&out.stderr)));
+        }
+        let home = dir.0.join("router-home");
+        std::fs::create_dir_all(&home).unwrap();
+        std::os::unix::fs::symlink(dir.0.join("certs/router"), home.join("certs")).unwrap();
+        let robot = std::fs::read_to_string(Path::new(EXAMPLES).join("robot.json5")).unwrap();
+        for name in ["robot-1", "robot-2", "robot-3"] {
+            let certs = dir.0.join("certs").join(name);
+            let text = robot.replace("\"certs/", &format!("\"{}/", certs.display()));
+            std::fs::write(dir.0.join(format!("{name}.json5")), text).unwrap();
+        }
+        Ok(Tls { dir })
+    }
+
+    fn router_home(&self) -> PathBuf {
+        self.dir.0.join("router-home")
+    }
+
+    /// The `config=` of robot `name`'s URL.
+    fn robot_config(&self, name: &str) -> String {
+        self.dir.0.join(format!("{name}.json5")).display().to_string()
+    }
+}
+
 #[test]
 fn cross_subsumption_across_namespaces_joined_only_by_a_zenoh_router() {
+    cross_subsumption_through_a_router("zr", 91, false);
+}
+
+/// The same with examples/zenoh/'s router.json5 (TLS only, mutual TLS, access control by
+/// certificate name) and robot.json5: the deployment recipe of docs/zenoh.md, as there.
+#[test]
+fn cross_subsumption_across_namespaces_over_tls_with_access_control() {
+    cross_subsumption_through_a_router("zt", 92, true);
+}
+
+fn cross_subsumption_through_a_router(tag: &str, subnet: u8, tls: bool) {
     let is_root = Command::new("id").arg("-u").output().map(|o| o.stdout.starts_with(b"0\n")).unwrap_or(false);
     if !is_root {
         eprintln!("SKIPPED: network namespaces need root");
         return;
     }
-    let net = match Net::create(91) {
+    let net = match Net::create(tag, subnet) {
         Ok(net) => net,
         Err(reason) => {
             eprintln!("SKIPPED: network namespaces unavailable: {reason}");
@@ -315,19 +393,42 @@ fn cross_subsumption_across_namespaces_joined_only_by_a_zenoh_router() {
         assert!(to_router.is_ok(), "{} reaches the router: {to_router:?}", net.ns(from));
     }
 
-    // The router in R, on every address of R, a port the system chooses.
+    let tls = match tls.then(|| Tls::make(&net)) {
+        None => None,
+        Some(Ok(tls)) => Some(tls),
+        Some(Err(reason)) => {
+            eprintln!("SKIPPED: the certificates could not be made (openssl): {reason}");
+            return;
+        }
+    };
+    let scheme = if tls.is_some() { "tls" } else { "tcp" };
+
+    // The router in R, on every address of R, a port the system chooses (with TLS: the
+    // example configuration as it is, run from a directory whose certs/ is the router's).
     let mut router_cmd = net.command(R, BIN);
-    router_cmd.args(["router", "--listen", "tcp/0.0.0.0:0", "--scouting", "0"]);
+    router_cmd.args(["router", "--listen", &format!("{scheme}/0.0.0.0:0"), "--scouting", "0"]);
+    if let Some(tls) = &tls {
+        let config = Path::new(EXAMPLES).join("router.json5");
+        router_cmd.args(["--config", config.to_str().unwrap()]).current_dir(tls.router_home());
+    }
     let mut router = Proc::spawn("router", router_cmd);
     let located = router.wait_line(START_LIMIT, |j| j.get("locators").is_some());
     let locators: Vec<String> =
         located["locators"].as_array().unwrap().iter().filter_map(|l| l.as_str()).map(str::to_owned).collect();
     let endpoint = |side: usize| {
-        let prefix = format!("tcp/{}:", net.router_addr(side));
+        let prefix = format!("{scheme}/{}:", net.router_addr(side));
         locators.iter().find(|l| l.starts_with(&prefix)).unwrap_or_else(|| panic!("{prefix}* in {locators:?}")).clone()
     };
     let key = "a7".repeat(32);
-    let url = |side: usize| format!("zenoh://?mode=client&scouting=0&connect={}&team={TEAM}&key={key}", endpoint(side));
+    // Node n uses robot-n's certificate (the CLI robot-2's, from n2's namespace).
+    let url = |side: usize, id: u32| {
+        let config = tls.as_ref().map(|t| format!("&config={}", t.robot_config(&format!("robot-{id}"))));
+        format!(
+            "zenoh://?mode=client&scouting=0&connect={}&team={TEAM}&key={key}{}",
+            endpoint(side),
+            config.unwrap_or_default()
+        )
+    };
 
     let bounds = Bounds::new();
     let secs = "90";
@@ -338,7 +439,7 @@ fn cross_subsumption_across_namespaces_joined_only_by_a_zenoh_router() {
             "--id",
             &id.to_string(),
             "--udp",
-            &url(side),
+            &url(side, id),
             "--controller",
             "cross-subsumption",
             "--layers",
@@ -385,7 +486,7 @@ fn cross_subsumption_across_namespaces_joined_only_by_a_zenoh_router() {
 
     // The tool, from B, through the router: n1's claim write-inhibits n2's OBS1.Rotate.
     let mut why = net.command(B, BIN);
-    why.args(["why", "2", "OBS1.Rotate", "--json", "--timeout", "15", "--udp", &url(B)]);
+    why.args(["why", "2", "OBS1.Rotate", "--json", "--timeout", "15", "--udp", &url(B, 2)]);
     let out = why.output().expect("run ayllu-zenoh why");
     assert!(out.status.success(), "why: {}", String::from_utf8_lossy(&out.stderr));
     let why: Json = serde_json::from_slice(&out.stdout).expect("why --json prints JSON");
@@ -405,7 +506,7 @@ fn cross_subsumption_across_namespaces_joined_only_by_a_zenoh_router() {
     let everyone: Vec<&Proc> = nodes.iter().chain([&router]).collect();
     let took = took.unwrap_or_else(|| panic!("n2 never took over target 1\n{}", diagnostics(&everyone)));
     eprintln!(
-        "netns + zenoh router: settled {:.2}s after start; n2 (B) driven by layer 1 {:.3}s after n1 (A) was killed \
+        "netns + zenoh router ({scheme}): settled {:.2}s after start; n2 (B) driven by layer 1 {:.3}s after n1 (A) was killed \
          (protocol bound {:?}, lease floor {:?}, asserted with {:?} margin)",
         settle_time.as_secs_f64(),
         took.as_secs_f64(),
