@@ -403,9 +403,9 @@ impl OsSocket {
         }
         // Sparse traffic (each read found one datagram): a plain blocking `recvfrom`, raw UDP's
         // call, cheaper than `recvmmsg` by the second receive attempt it makes to tell whether
-        // more is waiting (0.2 us a wait here); the socket then counts as emptied by it. Every
-        // PROBE_EVERY-th such wait, and every wait once reads find several datagrams, reads
-        // with `recvmmsg`, up to READ_AHEAD at once.
+        // more is waiting (0.4 us a wait here: docs/performance.md); the socket then counts as
+        // emptied by it. Every PROBE_EVERY-th such wait, and every wait once reads find several
+        // datagrams, reads with `recvmmsg`, up to READ_AHEAD at once.
         let single = !self.dense && self.sparse_waits < PROBE_EVERY;
         let read = if single {
             self.sparse_waits += 1;
