@@ -14,9 +14,10 @@
 //!   holds as is: each node id keeps one address on the other side, and CHALLENGE/ECHO cross
 //!   like any datagram;
 //! * **broadcasts cross once**: what UDP nodes send to the bridge's own socket (HELLOs to it as
-//!   a configured peer, group messages to the broadcast address) goes to the team's broadcast
-//!   key; what Zenoh nodes publish there goes from the sender's proxy to the UDP URL's
-//!   `broadcast=` address, else to its `peer=` addresses and every UDP node heard;
+//!   a configured peer, HELLOs and group messages to the broadcast or discovery address) goes
+//!   to the team's broadcast key; what Zenoh nodes publish there goes from the sender's proxy to
+//!   the UDP URL's `peer=` addresses and its `broadcast=` and `discovery=` addresses, or, with
+//!   neither, to every UDP node heard;
 //! * **no loops**: a datagram from a node id known on the other side is never relayed back
 //!   (counted `looped`); the bridge's own Zenoh publications never reach its subscribers;
 //! * **bounded**: at most [`MAX_ROUTES`] node ids per side (then `table_full`), routes silent
@@ -38,6 +39,7 @@ use std::sync::{Arc, Condvar, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
+use ayllu::datagram::{DatagramSocket, OsSocket};
 use ayllu::{NodeId, RuntimeError, UdpConfig};
 use ayllu_wire::{FLAG_AUTH, HEADER_LEN, MAC_LEN, MAGIC, MAX_DATAGRAM_LEN, VERSION};
 use zenoh::pubsub::{Publisher, Subscriber};
@@ -95,9 +97,12 @@ struct Receiver {
 }
 
 impl Receiver {
-    fn start(socket: UdpSocket, proxy: Option<NodeId>, queue: Arc<Queue>) -> std::io::Result<Receiver> {
+    fn start(socket: UdpSocket, proxy: NodeId, ttl: u32, queue: Arc<Queue>) -> std::io::Result<Receiver> {
         socket.set_read_timeout(Some(RECV_POLL))?;
         socket.set_broadcast(true)?;
+        // Relayed HELLOs and group messages may go to the discovery (multicast) address.
+        socket.set_multicast_ttl_v4(ttl)?;
+        let proxy = Some(proxy);
         let socket = Arc::new(socket);
         let stop = Arc::new(AtomicBool::new(false));
         let (s, halt) = (socket.clone(), stop.clone());
@@ -116,6 +121,41 @@ impl Receiver {
 }
 
 impl Drop for Receiver {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+/// The bridge's own UDP socket ([`OsSocket`], as a node's: it also hears the team's broadcast
+/// and discovery addresses) and the thread that receives on it; stopped and joined when dropped.
+struct Listener {
+    addr: SocketAddr,
+    stop: Arc<AtomicBool>,
+    thread: Option<JoinHandle<()>>,
+}
+
+impl Listener {
+    fn start(mut socket: OsSocket, queue: Arc<Queue>) -> std::io::Result<Listener> {
+        let addr = socket.local_addr()?;
+        let stop = Arc::new(AtomicBool::new(false));
+        let halt = stop.clone();
+        let thread = std::thread::Builder::new().name("ayllu-bridge-main".into()).spawn(move || {
+            let mut buf = vec![0u8; MAX_DATAGRAM_LEN + 1];
+            while !halt.load(Ordering::Relaxed) {
+                socket.wait(RECV_POLL);
+                while let Ok(Some((n, from))) = socket.recv_from(&mut buf) {
+                    queue.push(Arrival::Udp { proxy: None, bytes: buf[..n].to_vec(), from });
+                }
+            }
+        })?;
+        Ok(Listener { addr, stop, thread: Some(thread) })
+    }
+}
+
+impl Drop for Listener {
     fn drop(&mut self) {
         self.stop.store(true, Ordering::Relaxed);
         if let Some(t) = self.thread.take() {
@@ -155,9 +195,11 @@ pub struct Bridge {
     key: Option<[u8; 32]>,
     session: Session,
     nonce: u16,
-    main: Receiver,
+    main: Listener,
     bind_ip: IpAddr,
-    broadcast: Option<SocketAddr>,
+    ttl: u32,
+    /// The UDP side's broadcast and discovery addresses: where Zenoh nodes' broadcasts go.
+    broadcast: Vec<SocketAddr>,
     peers: Vec<SocketAddr>,
     zenoh_nodes: HashMap<NodeId, ZenohNode>,
     udp_nodes: HashMap<NodeId, UdpNode>,
@@ -178,15 +220,16 @@ impl Bridge {
     /// Bind the UDP side as `udp_url` says (its address, `team=`, `peer=`, `broadcast=`, and
     /// optionally `key=`) and join Zenoh as `zenoh_url` says (`mode`, `connect`, `listen`,
     /// `scouting`, `config`; its `team=` must be the UDP URL's, when both give one).
-    /// `discovery=` and `group=` are refused: the bridge hears a UDP team on its own address
-    /// and on the broadcast address only (docs/zenoh.md).
+    /// `discovery=` (a multicast address, as in the default URL) is heard and relayed to like
+    /// `broadcast=`; `group=` (a group's own multicast address) is refused (docs/zenoh.md).
     pub fn open(udp_url: &str, zenoh_url: &str) -> Result<Bridge, RuntimeError> {
         let udp = UdpConfig::parse(udp_url)?;
         let zenoh = ZenohUrl::parse(zenoh_url)?;
         let bad = |reason: String| RuntimeError::BadUrl { url: udp_url.to_owned(), reason };
-        if udp.discovery.is_some() || !udp.groups.is_empty() {
-            return Err(bad("the bridge takes peer= and broadcast= on its UDP side, not discovery= or group= \
-                            (multicast): give the UDP nodes peer=BRIDGE, or a broadcast address"
+        if !udp.groups.is_empty() {
+            return Err(bad("the bridge takes peer=, broadcast= and discovery= on its UDP side, not group= \
+                            (a group's own multicast address): let the UDP nodes send groups to their \
+                            broadcast or to each member"
                 .into()));
         }
         let has_team = |url: &str| ayllu::transport::url_setting(url, "team").is_some();
@@ -206,8 +249,17 @@ impl Bridge {
             overflowed: AtomicU64::new(0),
             unattributed: AtomicU64::new(0),
         });
-        let socket = UdpSocket::bind(udp.bind).map_err(|e| fail(&format!("binding {}", udp.bind), e))?;
-        let main = Receiver::start(socket, None, queue.clone()).map_err(|e| fail("the bridge's UDP socket", e))?;
+        // The bridge's own socket, set up as a node's (the udp:// transport's rules): it also
+        // hears the broadcast and discovery addresses, joining the discovery group.
+        let mut socket = OsSocket::bind(udp.bind).map_err(|e| fail(&format!("binding {}", udp.bind), e))?;
+        let heard: Vec<SocketAddr> = udp.broadcast.iter().chain(udp.discovery.iter()).copied().collect();
+        for addr in &heard {
+            socket.listen_also(*addr).map_err(|e| fail(&format!("listening on {addr}"), e))?;
+        }
+        if let Some(SocketAddr::V4(d)) = udp.discovery {
+            socket.join_multicast(*d.ip()).map_err(|e| fail(&format!("joining {d}"), e))?;
+        }
+        let main = Listener::start(socket, queue.clone()).map_err(|e| fail("the bridge's UDP socket", e))?;
         let config = zenoh_config(&zenoh).map_err(|e| fail("configuring Zenoh", e))?;
         let session = zenoh::open(config).wait().map_err(|e| fail("opening the Zenoh session", e))?;
         let nonce = nonce_of(&session);
@@ -233,7 +285,8 @@ impl Bridge {
             nonce,
             main,
             bind_ip: udp.bind.ip(),
-            broadcast: udp.broadcast,
+            ttl: udp.ttl,
+            broadcast: heard,
             peers: udp.peers,
             zenoh_nodes: HashMap::new(),
             udp_nodes: HashMap::new(),
@@ -248,7 +301,7 @@ impl Bridge {
 
     /// Where the bridge listens on the UDP side (give it to the UDP nodes as `peer=`).
     pub fn udp_address(&self) -> SocketAddr {
-        self.main.socket.local_addr().unwrap_or_else(|_| SocketAddr::new(self.bind_ip, 0))
+        self.main.addr
     }
 
     /// The Zenoh session (its id, for diagnostics).
@@ -451,7 +504,7 @@ impl Bridge {
                 return self.count("table_full");
             }
             let proxy = UdpSocket::bind(SocketAddr::new(self.bind_ip, 0))
-                .and_then(|s| Receiver::start(s, Some(z), self.queue.clone()));
+                .and_then(|s| Receiver::start(s, z, self.ttl, self.queue.clone()));
             match proxy {
                 Ok(proxy) => {
                     self.zenoh_nodes.insert(z, ZenohNode { addr: from, proxy, last_heard: now });
@@ -474,9 +527,10 @@ impl Bridge {
             },
             None => {
                 targets.extend(self.peers.iter().copied());
-                match self.broadcast {
-                    Some(b) => targets.push(b),
-                    None => targets.extend(self.udp_nodes.values().map(|u| u.addr)),
+                if self.broadcast.is_empty() {
+                    targets.extend(self.udp_nodes.values().map(|u| u.addr));
+                } else {
+                    targets.extend(self.broadcast.iter().copied());
                 }
                 targets.sort();
                 targets.dedup();

@@ -5,6 +5,9 @@
 //!   others; port messages, group messages, LIST/WHY/CONNECT cross both ways; a write-inhibit
 //!   window opened across the bridge blocks the remote port's own writes; the team key's MACs
 //!   verify end to end through the bridge, which does not hold the key; nothing loops.
+//! * The same with no address given anywhere: a UDP node and the bridge on the default URL's
+//!   discovery (multicast on this machine), a Zenoh node: HELLOs and group messages cross.
+//! * A keyed bridge drops a forged datagram and another team's, and learns no route from them.
 //! * As processes: `ayllu-zenoh bridge` joining an `ayllu-zenoh node` on `udp://` and one on
 //!   `zenoh://` that run the paper's cross-subsumption: one claimer per target, `list` and
 //!   `why` from the UDP side see the Zenoh node, and the survivor takes a killed node's target
@@ -221,6 +224,48 @@ fn udp_and_zenoh_nodes_are_one_team_through_the_bridge() {
     let get = |c: &str| counts.iter().find(|(k, _)| k == c).map_or(0, |(_, n)| *n);
     assert!(get("to_zenoh") > 0 && get("to_udp") > 0, "{counts:?}");
     assert_eq!(get("malformed") + get("wrong_team") + get("no_route"), 0, "{counts:?}");
+}
+
+#[test]
+fn a_bridge_on_the_discovery_address_joins_zero_configuration_nodes() {
+    // The default URL's discovery (multicast on this machine, TTL 0): neither side is told the
+    // other's address. A team of this test's own, so that other tests' discovery traffic on
+    // the shared multicast address is another team's.
+    ayllu_zenoh::register();
+    let team = 40_000 + std::process::id() % 20_000;
+    let discovery = "discovery=239.255.65.89:7400&ttl=0";
+    let zenoh_port = free_port();
+    let mut bridge = Bridge::open(
+        &format!("udp://0.0.0.0:0?{discovery}&team={team}"),
+        &format!("zenoh://?scouting=0&listen=tcp/127.0.0.1:{zenoh_port}&team={team}"),
+    )
+    .expect("open the bridge");
+    let key = key_hex();
+    let n1 = relay_node(1, &format!("udp://0.0.0.0:0?{discovery}&team={team}&key={key}&hello_ms=200"));
+    let n2 = relay_node(
+        2,
+        &format!("zenoh://?scouting=0&connect=tcp/127.0.0.1:{zenoh_port}&team={team}&key={key}&hello_ms=200"),
+    );
+    let mut nodes = vec![n1, n2];
+    let greeted = |n: &mut [Node]| {
+        n[0].peers().iter().any(|p| p.node == NodeId(2)) && n[1].peers().iter().any(|p| p.node == NodeId(1))
+    };
+    assert!(run_until(&mut nodes, &mut bridge, greeted), "HELLOs cross between discovery and Zenoh");
+    for (from, v) in [(0usize, 21i64), (1, 22)] {
+        nodes[from]
+            .connect(&Endpoint::local("SRC", "Out"), &Endpoint::group("team", "DST", "In"), ConnectionKind::Normal)
+            .unwrap();
+        nodes[from].write("SRC", "Out", v).unwrap();
+        let to = 1 - from;
+        assert!(
+            run_until(&mut nodes, &mut bridge, |n| read(&n[to], "DST", "In") == Value::Int(v)),
+            "a group message from node {} crosses the bridge",
+            from + 1
+        );
+    }
+    for n in &nodes {
+        assert_eq!(count(n, "bad_mac") + count(n, "duplicate_id"), 0, "node {}", n.id());
+    }
 }
 
 #[test]
