@@ -224,12 +224,13 @@ pub fn url_setting<'a>(url: &'a str, key: &str) -> Option<&'a str> {
     query.split('&').find_map(|part| part.strip_prefix(key)?.strip_prefix('='))
 }
 
-/// [`open`], with the node named `name` unless the URL names it (`name=`): what the tools do
+/// [`open`], with the node named `name` unless the URL names it (a `name=` that is not
+/// empty): what the tools do
 /// for every node they start (`node-3`, `body-2`, `ayllu-cli`), whatever the scheme. `mem://`
 /// has no names and ignores it.
 pub fn open_named(url: &str, id: NodeId, name: &str) -> Result<Box<dyn Transport>, Error> {
     let scheme = url.split_once("://").map_or("", |(scheme, _)| scheme);
-    if scheme == "mem" || name.is_empty() || url_setting(url, "name").is_some() {
+    if scheme == "mem" || name.is_empty() || url_setting(url, "name").is_some_and(|n| !n.is_empty()) {
         return open(url, id);
     }
     if scheme == "udp" {
