@@ -842,6 +842,26 @@ mod tests {
         assert!(t.elapsed() >= StdDuration::from_millis(15), "wait returned early with nothing to read");
     }
 
+    /// A segmented send the kernel refuses (here: more than one UDP payload in all) is sent
+    /// one datagram per call instead, and the socket does not try segmenting again.
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn a_refused_segmented_send_goes_one_datagram_per_call() {
+        let loopback: SocketAddr = "127.0.0.1:0".parse().unwrap();
+        let (mut rx, mut tx) = (OsSocket::bind(loopback).unwrap(), OsSocket::bind(loopback).unwrap());
+        let train: Vec<u8> = (0..2 * 40_000).map(|i| (i / 40_000) as u8 + 1).collect();
+        tx.send_segments(&train, 40_000, rx.local_addr().unwrap()).unwrap();
+        assert!(!tx.segmented, "80 000 bytes in one send is refused (EMSGSIZE): segmenting is off");
+        let mut buf = vec![0u8; SLOT];
+        for i in 1..=2u8 {
+            rx.wait(StdDuration::from_secs(1));
+            let (len, from) = rx.recv_from(&mut buf).unwrap().expect("datagram waiting");
+            // Longer than a receiver accepts, so cut to SLOT, as any receive would.
+            assert_eq!((len, from), (SLOT, tx.local_addr().unwrap()), "datagram {i}");
+            assert!(buf[..len].iter().all(|&b| b == i), "datagram {i} content");
+        }
+    }
+
     /// RECHECK is counted in turn time: an empty finding stands within a turn and for turns
     /// less than RECHECK later, and no longer; a wait that emptied the socket counts from the
     /// next turn, and a later wait that heard something undoes that.
