@@ -18,7 +18,7 @@ static const char *const CAUSE_NAMES[AYL_CAUSE_COUNT] = {
     "ok",        "oversized",     "truncated",   "bad_magic",        "bad_version",  "bad_flags",
     "wrong_team", "unauthenticated", "unexpected_auth", "bad_mac",   "replayed",     "malformed",
     "unknown_kind", "stale",      "type_mismatch", "unknown_behavior", "unknown_port", "suppressed",
-    "overridden_in", "too_large",
+    "overridden_in", "too_large", "not_member",
 };
 
 const char *ayl_cause_name(ayl_cause cause) {
@@ -284,6 +284,25 @@ static ayl_str rd_str8(reader *r, int nonempty) {
     return s;
 }
 
+/* PORT's appended group: read when the bytes after the value are a whole str8 of UTF-8; an
+ * empty one, or bytes that are not a whole str8, leave it empty and are ignored as a later
+ * field would be (spec/protocol.md, PORT). */
+static void rd_optional_group(reader *r, ayl_str *group) {
+    size_t n;
+    group->ptr = "";
+    group->len = 0;
+    if (r->bad || r->pos >= r->end) {
+        return;
+    }
+    n = r->b[r->pos];
+    if (r->end - r->pos - 1 < n || !ayl_utf8_valid(r->b + r->pos + 1, n)) {
+        return;
+    }
+    group->ptr = (const char *)(r->b + r->pos + 1);
+    group->len = n;
+    r->pos += 1 + n;
+}
+
 static ayl_str rd_str16(reader *r) { return rd_text(r, (size_t)rd_int(r, 2)); }
 
 static void rd_kind_period(reader *r, ayl_conn_kind *kind, uint64_t *period) {
@@ -365,6 +384,7 @@ static ayl_cause decode_body(uint8_t kind, reader *r, ayl_msg *m) {
         p->behavior = rd_str8(r, 1);
         p->port = rd_str8(r, 1);
         rd_value(r, &p->value);
+        rd_optional_group(r, &p->group);
         break;
     }
     case AYL_KIND_HELLO: {
@@ -712,6 +732,9 @@ static void wr_body(wbuf *w, const ayl_msg *m) {
         wr_str8(w, p->behavior, 1);
         wr_str8(w, p->port, 1);
         wr_value(w, &p->value);
+        if (p->group.len > 0) {
+            wr_str8(w, p->group, 1);
+        }
         break;
     }
     case AYL_KIND_HELLO: {
@@ -1714,6 +1737,18 @@ static ayl_cause admit(const ayl_port *p, uint32_t node, uint64_t conn, uint64_t
     return override_open && !holds_pass ? AYL_OVERRIDDEN_IN : AYL_OK;
 }
 
+/* Whether cfg.groups lists `group`. */
+static int joined(const ayl_node *n, ayl_str group) {
+    size_t i;
+    for (i = 0; i < n->cfg.ngroups; i++) {
+        const ayl_str *g = &n->cfg.groups[i];
+        if (g->len == group.len && memcmp(g->ptr, group.ptr, group.len) == 0) {
+            return 1;
+        }
+    }
+    return 0;
+}
+
 /* Same order as the core's receive: stale, unknown names, the connection's own window,
  * storing, type. */
 static void apply_port(ayl_node *n, uint32_t sender, const ayl_port_msg *m) {
@@ -1806,6 +1841,12 @@ ayl_cause ayl_node_receive(ayl_node *node, const uint8_t *data, size_t len, cons
     while (ayl_next(&d, &m)) {
         switch (m.kind) {
         case AYL_KIND_PORT:
+            if (m.u.port.group.len > 0 && !joined(node, m.u.port.group)) {
+                /* Sent to a group we have not joined: a shared broadcast address reaches us
+                 * anyway, and S10 says only members apply it (D-S10.6). */
+                node->counters[AYL_NOT_MEMBER]++;
+                break;
+            }
             apply_port(node, d.sender, &m.u.port);
             break;
         case AYL_KIND_HELLO:

@@ -118,6 +118,7 @@ typedef enum {
     AYL_SUPPRESSED,
     AYL_OVERRIDDEN_IN,
     AYL_TOO_LARGE, /* lite only: a value longer than the port's caller-supplied storage */
+    AYL_NOT_MEMBER, /* a PORT sent to a group not in cfg.groups (appended: values above stay) */
     AYL_CAUSE_COUNT
 } ayl_cause;
 
@@ -202,6 +203,10 @@ typedef struct {
     ayl_str behavior; /* non-empty */
     ayl_str port;     /* non-empty */
     ayl_value value;
+    /* The group the message was sent to (the optional field appended to PORT), or empty for a
+     * message to a node. A node whose cfg.groups does not list it drops the message
+     * (AYL_NOT_MEMBER, docs/semantics.md D-S10.6). Zero-initialised: node-addressed. */
+    ayl_str group;
 } ayl_port_msg;
 
 /* HELLO, with the broadcast groups the sender has joined (a node without broadcast delivers a
@@ -468,7 +473,8 @@ typedef struct {
     uint8_t *tx;         /* send buffer: AYL_MTU bytes is the default path MTU */
     size_t tx_cap;
     const char *name;    /* for HELLO; NULL: empty */
-    const ayl_str *groups; /* announced in HELLO so nodes send group traffic here; may be NULL */
+    const ayl_str *groups; /* joined: announced in HELLO so nodes send group traffic here, and
+                            * the only groups whose PORT messages are applied; may be NULL */
     size_t ngroups;
     uint32_t hello_interval_ms; /* 0: 1000 */
     const ayl_addr *broadcast;  /* also receives HELLO; NULL: none */

@@ -227,7 +227,10 @@ class Endpoint:
 
 @dataclass(frozen=True)
 class Port:
-    """PORT: a value travelling along a connection (``period_ns`` is 0 only for NORMAL)."""
+    """PORT: a value travelling along a connection (``period_ns`` is 0 only for NORMAL).
+
+    ``group`` is the group the message was sent to, or None for a message to a node; a node
+    that has not joined it drops the message (``not_member``, docs/semantics.md D-S10.6)."""
 
     conn: int
     seq: int
@@ -237,6 +240,7 @@ class Port:
     behavior: str
     port: str
     value: Value
+    group: str | None = None
 
 
 @dataclass(frozen=True)
@@ -430,6 +434,8 @@ def _encode_body(m: Message) -> tuple[int, bytes]:
             + _str8(m.port, "port", nonempty=True)
             + _encode_value(m.value)
         )
+        if m.group is not None:
+            body += _str8(m.group, "group", nonempty=True)
         return KIND_PORT, body
     if isinstance(m, Hello):
         if m.interval_ms <= 0:
@@ -589,6 +595,21 @@ class _Reader:
     def str16(self) -> str:
         return self.text(self.u16())
 
+    def optional_group(self) -> str | None:
+        """PORT's appended group: a whole non-empty str8 of UTF-8 after the value, else None
+        (an empty one, or bytes that are not a whole str8, are ignored as a later field)."""
+        if self.pos >= self.end:
+            return None
+        n = self.buf[self.pos]
+        if self.end - self.pos - 1 < n:
+            return None
+        try:
+            group = self.buf[self.pos + 1 : self.pos + 1 + n].decode("utf-8")
+        except UnicodeDecodeError:
+            return None
+        self.pos += 1 + n
+        return group or None
+
     def kind_period(self) -> tuple[ConnKind, int]:
         code, period = self.u8(), self.u64()
         if code > ConnKind.WRITE_INHIBIT:
@@ -635,7 +656,8 @@ def _decode_message(kind: int, r: _Reader) -> Message:
         ck, period = r.kind_period()
         priority = r.i32()
         behavior, port = r.str8(nonempty=True), r.str8(nonempty=True)
-        return Port(conn, seq, ck, period, priority, behavior, port, r.value())
+        value = r.value()
+        return Port(conn, seq, ck, period, priority, behavior, port, value, r.optional_group())
     if kind == KIND_HELLO:
         interval = r.u32()
         if interval == 0:
@@ -950,6 +972,7 @@ def message_to_json(m: Message) -> dict[str, Any]:
             "behavior": m.behavior,
             "port": m.port,
             "value": value_to_json(m.value),
+            **({} if m.group is None else {"group": m.group}),
         }
     if isinstance(m, Hello):
         return {"kind": "hello", "interval_ms": m.interval_ms, "name": m.name, "groups": list(m.groups)}
@@ -1008,6 +1031,7 @@ def message_from_json(j: dict[str, Any]) -> Message:
             j["behavior"],
             j["port"],
             value_from_json(j["value"]),
+            j.get("group"),
         )
     if k == "hello":
         return Hello(j["interval_ms"], j["name"], tuple(j["groups"]))
@@ -1606,7 +1630,12 @@ class LiteNode:
             replies: list[Reply] = []
             for m in d.messages:
                 if isinstance(m, Port):
-                    self._apply_port(d.sender, m, calls)
+                    if m.group is not None and m.group not in self.groups:
+                        # Sent to a group we have not joined: a shared broadcast address
+                        # reaches us anyway, and S10 says only members apply it (D-S10.6).
+                        self._count("not_member")
+                    else:
+                        self._apply_port(d.sender, m, calls)
                 elif isinstance(m, Reply):
                     self._apply_reply(m)
                 elif isinstance(m, Request):

@@ -277,7 +277,15 @@ fn decode_port(body: &[u8], names: &mut NameCache) -> Option<WireMessage> {
     let behavior = r.name()?;
     let port = r.name()?;
     let value = r.value()?;
-    Some(WireMessage::Port(PortMessage { conn, seq, behavior, port, kind, priority, value }))
+    let message = PortMessage { conn, seq, behavior, port, kind, priority, value };
+    // The optional group (D-S10.6): read only when what follows the value is a whole str8 of
+    // UTF-8. Anything else there is ignored as a later field would be, so bodies that were
+    // valid before the field existed (trailing bytes included) decode as they always did; an
+    // empty group means "sent to a node" and lets later fields follow.
+    match r.str8() {
+        Some(group) if !group.is_empty() => Some(WireMessage::GroupPort { group, message }),
+        _ => Some(WireMessage::Port(message)),
+    }
 }
 
 fn decode_hello(body: &[u8], names: &mut NameCache) -> Option<WireMessage> {

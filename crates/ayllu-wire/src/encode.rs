@@ -247,6 +247,10 @@ pub fn encoded_len(message: &WireMessage) -> Result<usize, EncodeError> {
 fn encode_body(buf: &mut Vec<u8>, message: &WireMessage) -> Result<(), EncodeError> {
     match message {
         WireMessage::Port(p) => encode_port(buf, p),
+        WireMessage::GroupPort { group, message } => {
+            encode_port(buf, message)?;
+            put_str8(buf, group, NonEmpty::Yes)
+        }
         WireMessage::Hello { interval_ms, name, groups } => {
             if *interval_ms == 0 {
                 return Err(EncodeError::Invalid("HELLO interval_ms must be above zero"));

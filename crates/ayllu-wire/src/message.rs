@@ -16,8 +16,18 @@ use crate::COOKIE_LEN;
 /// One message of a datagram.
 #[derive(Clone, Debug, PartialEq)]
 pub enum WireMessage {
-    /// PORT (0x01): a value travelling along a connection.
+    /// PORT (0x01): a value travelling along a connection to one node.
     Port(PortMessage),
+    /// PORT (0x01) sent to a group: the value and the group's name (the optional `group` field,
+    /// appended). A node that has not joined `group` drops it (`not_member`, D-S10.6): a
+    /// broadcast or a team-wide key reaches non-members too. Decoded from a PORT whose group
+    /// field is present and non-empty; encoded with it.
+    GroupPort {
+        /// The group the message was sent to (non-empty, at most 255 bytes).
+        group: Arc<str>,
+        /// The value and where it goes on each member.
+        message: PortMessage,
+    },
     /// HELLO (0x02): liveness announcement and the sender's broadcast groups.
     Hello {
         /// How often the sender announces itself, in milliseconds (> 0); it is forgotten after
@@ -100,7 +110,7 @@ impl WireMessage {
     /// The kind byte this message is sent under.
     pub fn kind_code(&self) -> u8 {
         match self {
-            WireMessage::Port(_) => crate::kind::PORT,
+            WireMessage::Port(_) | WireMessage::GroupPort { .. } => crate::kind::PORT,
             WireMessage::Hello { .. } => crate::kind::HELLO,
             WireMessage::Request { .. } | WireMessage::UnknownRequest { .. } => crate::kind::REQUEST,
             WireMessage::Reply { .. } => crate::kind::REPLY,

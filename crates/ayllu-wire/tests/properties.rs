@@ -123,19 +123,24 @@ fn reply() -> impl Strategy<Value = WireMessage> {
     ]
 }
 
+fn port_message() -> impl Strategy<Value = PortMessage> {
+    (any::<u64>(), any::<u64>(), name(), name(), conn_kind(), any::<i32>(), value()).prop_map(
+        |(conn, seq, behavior, port, kind, priority, value)| PortMessage {
+            conn: ConnectionId(conn),
+            seq,
+            behavior,
+            port,
+            kind,
+            priority,
+            value,
+        },
+    )
+}
+
 fn message() -> impl Strategy<Value = WireMessage> {
     prop_oneof![
-        (any::<u64>(), any::<u64>(), name(), name(), conn_kind(), any::<i32>(), value()).prop_map(
-            |(conn, seq, behavior, port, kind, priority, value)| WireMessage::Port(PortMessage {
-                conn: ConnectionId(conn),
-                seq,
-                behavior,
-                port,
-                kind,
-                priority,
-                value
-            })
-        ),
+        port_message().prop_map(WireMessage::Port),
+        (name(), port_message()).prop_map(|(group, message)| WireMessage::GroupPort { group, message }),
         (1u32.., "[a-z0-9-]{0,12}", proptest::collection::vec(name(), 0..4))
             .prop_map(|(interval_ms, n, groups)| WireMessage::Hello { interval_ms, name: n.into(), groups }),
         (any::<u64>(), request_body(), proptest::option::of(any::<[u8; 32]>())).prop_map(|(id, body, sig)| {
@@ -175,6 +180,9 @@ fn same(a: &WireMessage, b: &WireMessage) -> bool {
             p2.value = Value::Int(0);
             q2.value = Value::Int(0);
             p2 == q2 && same_value(&p.value, &q.value)
+        }
+        (WireMessage::GroupPort { group: g, message: p }, WireMessage::GroupPort { group: h, message: q }) => {
+            g == h && same(&WireMessage::Port(p.clone()), &WireMessage::Port(q.clone()))
         }
         (
             WireMessage::Reply { id, part, parts, payload: ReplyPart::Value(v) },
@@ -236,6 +244,36 @@ proptest! {
             got.extend(decode(d, &config).unwrap().messages);
         }
         prop_assert!(all_same(&got, &sent));
+    }
+
+    /// A group message is the node-addressed message's bytes with the group appended: a
+    /// receiver that stops reading after `value` (any receiver older than the field) sees exactly
+    /// the node-addressed message, and one that knows the field reads the group back.
+    #[test]
+    fn group_field_is_appended(group in name(), message in port_message()) {
+        let config = ReceiverConfig::open(7);
+        let plain = encode_datagram(7, NodeId(1), 1, None, &[WireMessage::Port(message.clone())]).unwrap();
+        let grouped = WireMessage::GroupPort { group: group.clone(), message: message.clone() };
+        let bytes = encode_datagram(7, NodeId(1), 1, None, std::slice::from_ref(&grouped)).unwrap();
+        // Same header and body prefix; only the message length and the appended str8 differ.
+        let extra = 1 + group.len();
+        prop_assert_eq!(bytes.len(), plain.len() + extra);
+        prop_assert_eq!(&bytes[..21], &plain[..21]);
+        prop_assert_eq!(
+            u16::from_le_bytes([bytes[21], bytes[22]]),
+            u16::from_le_bytes([plain[21], plain[22]]) + extra as u16
+        );
+        prop_assert_eq!(&bytes[23..plain.len()], &plain[23..]);
+        prop_assert_eq!(bytes[plain.len()] as usize, group.len());
+        prop_assert_eq!(&bytes[plain.len() + 1..], group.as_bytes());
+        // The old receiver's view: the body cut after `value`.
+        let mut old_view = bytes[..plain.len()].to_vec();
+        old_view[21..23].copy_from_slice(&plain[21..23]);
+        prop_assert_eq!(&old_view, &plain);
+        let d = decode(&bytes, &config).unwrap();
+        prop_assert!(all_same(&d.messages, &[grouped]));
+        let d = decode(&plain, &config).unwrap();
+        prop_assert!(all_same(&d.messages, &[WireMessage::Port(message)]));
     }
 
     #[test]

@@ -66,6 +66,12 @@ fn port(conn: u64, seq: u64, kind: ConnectionKind, priority: i32, behavior: &str
     })
 }
 
+/// `message` (a [`WireMessage::Port`]) as sent to `group`.
+fn group_port(group: &str, message: WireMessage) -> WireMessage {
+    let WireMessage::Port(message) = message else { panic!("a PORT message") };
+    WireMessage::GroupPort { group: group.into(), message }
+}
+
 fn port_value(v: Value) -> WireMessage {
     port(3, 1, ConnectionKind::Normal, 0, "OBS2", "Rotate", v)
 }
@@ -422,6 +428,24 @@ fn vectors() -> Vec<Vector> {
             vec![port(8, 4, ConnectionKind::Inhibit(ms(500)), 0, "OBS1", "Rotate", Value::Bool(true))],
         ),
         ok_with("auth_empty", "an authenticated datagram with no messages", 2, 9, true, vec![]),
+        // --- PORT sent to a group (D-S10.6): the optional group field appended ---
+        ok(
+            "port_to_group",
+            "a PORT sent to group `arm`: the node-addressed body plus the group as str8; receivers that have \
+             not joined `arm` drop it (not_member), older receivers ignore the field",
+            vec![group_port("arm", port(3, 1, ConnectionKind::Normal, 0, "OBS2", "Rotate", Value::Int(42)))],
+        ),
+        ok(
+            "port_to_group_and_node",
+            "a PORT to group `Peers` (override-in, text value) batched with a node-addressed PORT",
+            vec![
+                group_port(
+                    "Peers",
+                    port(9, 7, ConnectionKind::OverrideIn(ms(100)), 2, "Avoid", "Heading", Value::Text("left".into())),
+                ),
+                port(3, 2, ConnectionKind::Normal, 0, "OBS2", "Rotate", Value::Float(0.5)),
+            ],
+        ),
     ];
 
     // --- valid input no encoder produces ---
@@ -450,6 +474,42 @@ fn vectors() -> Vec<Vector> {
         team: TEAM,
         auth: false,
         bytes: raw(&[(kind::PORT, longer)]),
+        encode: false,
+        expect: Expect::Ok { sender: SENDER, seq: SEQ, messages: vec![p.clone()] },
+    });
+    let mut grouped = p_body.clone();
+    grouped.extend_from_slice(&[3, b'a', b'r', b'm', 0xaa, 0xbb]);
+    v.push(Vector {
+        name: "port_group_then_later_bytes",
+        description: "a PORT naming group `arm` followed by 2 bytes (a later version's fields): the group is read, \
+                      the rest ignored",
+        team: TEAM,
+        auth: false,
+        bytes: raw(&[(kind::PORT, grouped)]),
+        encode: false,
+        expect: Expect::Ok { sender: SENDER, seq: SEQ, messages: vec![group_port("arm", p.clone())] },
+    });
+    let mut empty_group = p_body.clone();
+    empty_group.extend_from_slice(&[0, 0xaa]);
+    v.push(Vector {
+        name: "port_empty_group",
+        description: "a PORT whose group field is empty (then a later byte): sent to a node, applied by every \
+                      receiver",
+        team: TEAM,
+        auth: false,
+        bytes: raw(&[(kind::PORT, empty_group)]),
+        encode: false,
+        expect: Expect::Ok { sender: SENDER, seq: SEQ, messages: vec![p.clone()] },
+    });
+    let mut bad_group = p_body.clone();
+    bad_group.extend_from_slice(&[2, 0xc3, 0x28]);
+    v.push(Vector {
+        name: "port_group_not_utf8",
+        description: "a PORT whose bytes after the value are a str8 of invalid UTF-8: not a group, ignored as a \
+                      later field would be (sent to a node)",
+        team: TEAM,
+        auth: false,
+        bytes: raw(&[(kind::PORT, bad_group)]),
         encode: false,
         expect: Expect::Ok { sender: SENDER, seq: SEQ, messages: vec![p.clone()] },
     });
@@ -874,6 +934,11 @@ fn message_json(m: &WireMessage) -> Json {
                 "priority": p.priority, "behavior": &*p.behavior, "port": &*p.port, "value": value_json(&p.value),
             })
         }
+        WireMessage::GroupPort { group, message } => {
+            let mut j = message_json(&WireMessage::Port(message.clone()));
+            j.as_object_mut().unwrap().insert("group".into(), json!(&**group));
+            j
+        }
         WireMessage::Hello { interval_ms, name, groups } => json!({
             "kind": "hello", "interval_ms": interval_ms, "name": &**name,
             "groups": groups.iter().map(|g| &**g).collect::<Vec<_>>(),
@@ -948,15 +1013,21 @@ fn message_json(m: &WireMessage) -> Json {
 
 fn message_from(j: &Json) -> WireMessage {
     match j["kind"].as_str().expect("message kind") {
-        "port" => WireMessage::Port(PortMessage {
-            conn: ConnectionId(u64_from(j, "conn")),
-            seq: u64_from(j, "seq"),
-            behavior: str_from(j, "behavior"),
-            port: str_from(j, "port"),
-            kind: kind_from(j),
-            priority: j["priority"].as_i64().unwrap() as i32,
-            value: value_from(&j["value"]),
-        }),
+        "port" => {
+            let message = PortMessage {
+                conn: ConnectionId(u64_from(j, "conn")),
+                seq: u64_from(j, "seq"),
+                behavior: str_from(j, "behavior"),
+                port: str_from(j, "port"),
+                kind: kind_from(j),
+                priority: j["priority"].as_i64().unwrap() as i32,
+                value: value_from(&j["value"]),
+            };
+            match j.get("group") {
+                Some(_) => WireMessage::GroupPort { group: str_from(j, "group"), message },
+                None => WireMessage::Port(message),
+            }
+        }
         "hello" => WireMessage::Hello {
             interval_ms: u64_from(j, "interval_ms") as u32,
             name: str_from(j, "name"),

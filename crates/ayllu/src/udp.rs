@@ -19,6 +19,8 @@
 //!   once ([`crate::operator`]); with `operator_secret=`, the ones we request are signed.
 //! * S10: `(node, ..)` goes to the peer's last known address; `(group, ..)` to the group's
 //!   address, else the broadcast address, else by unicast to each peer that announced the group.
+//!   A group's port messages name the group, and a node that has not joined it drops them
+//!   (`not_member`, D-S10.6): those addresses reach non-members too.
 
 use std::collections::{BTreeMap, VecDeque};
 use std::net::{IpAddr, SocketAddr};
@@ -694,6 +696,15 @@ impl<S: DatagramSocket> UdpTransport<S> {
         for m in messages.drain(..) {
             match m {
                 WireMessage::Port(p) => self.inbox.push_back((sender, Message::Port(p))),
+                WireMessage::GroupPort { group, message } => {
+                    // Only a member applies a group's message (S10, D-S10.6); a handful of
+                    // names compared as bytes, nothing allocated.
+                    if self.joined.iter().any(|g| g.as_str() == &*group) {
+                        self.inbox.push_back((sender, Message::Port(message)));
+                    } else {
+                        self.count("not_member");
+                    }
+                }
                 WireMessage::Request { id, body, signature } => {
                     let team = self.config.team;
                     let verdict = match &mut self.operator {
@@ -881,8 +892,13 @@ impl<S: DatagramSocket> UdpTransport<S> {
                 }
             };
         } else if let Message::Port(p) = message {
-            // A port message is one wire message, moved rather than copied (the hot path).
-            let m = WireMessage::Port(p);
+            // A port message is one wire message, moved rather than copied (the hot path). To
+            // a group it names the group: its address or the team's broadcast reaches
+            // non-members too, and they drop it (D-S10.6).
+            let m = match to {
+                Destination::Group(group) => WireMessage::GroupPort { group: group.clone(), message: p },
+                Destination::Node(_) => WireMessage::Port(p),
+            };
             for &addr in &addrs {
                 self.push(addr, &m);
             }

@@ -94,7 +94,10 @@ fn n5_a_keyed_team_refuses_keyless_forged_and_replayed_datagrams() {
     while let Some((n, from)) = sniffer.recv_from(&mut buf).unwrap() {
         if from == addr(1) {
             let d = decode(&buf[..n], &ReceiverConfig { team: TEAM, key: Some(KEY) }).unwrap();
-            if d.messages.iter().any(|m| matches!(m, WireMessage::Port(p) if p.value == Value::Int(1))) {
+            // A group's port message names its group (D-S10.6).
+            let carries_1 =
+                |m: &WireMessage| matches!(m, WireMessage::GroupPort { message: p, .. } if p.value == Value::Int(1));
+            if d.messages.iter().any(carries_1) {
                 captured = buf[..n].to_vec();
             }
         }
@@ -348,6 +351,10 @@ fn s10_a_group_with_a_multicast_address_is_delivered_by_multicast() {
         let t = UdpTransport::with_socket(NodeId(id), c, bus.bind(addr(id)).unwrap()).unwrap();
         let i = team.add_node(Node::new(team.clock().clone(), t));
         relay(team.node(i));
+        if id != 3 {
+            // The URL gives the group's address; membership is the program's join (D-S10.6).
+            team.node(i).join("team");
+        }
     }
     team.advance(Duration::from_millis(300), TICK);
     team.node(0)

@@ -273,6 +273,40 @@ static void inject_port(uint8_t to, uint64_t dseq, uint64_t conn, uint64_t seq, 
     net_inject(9, to, buf, (size_t)len);
 }
 
+/* D-S10.6: a PORT naming a group applies only on a member (cfg.groups); a non-member counts
+ * not_member and its port keeps its value; a node-addressed PORT applies as before. */
+static void test_group_membership(void) {
+    static tnode a;
+    static const char *const groups[] = {"Other", "Peers"};
+    ayl_value v = ayl_int(0);
+    int i;
+    net_clear();
+    tnode_init(&a, 1, 1, NULL);
+    ayl_node_expose(&a.node, "B", "P", &v, NULL, 0, NULL, NULL);
+    for (i = 0; i < 3; i++) {
+        uint8_t buf[256];
+        ayl_writer w;
+        ayl_msg m;
+        int len;
+        memset(&m, 0, sizeof m);
+        m.kind = AYL_KIND_PORT;
+        m.u.port.conn = 7;
+        m.u.port.seq = (uint64_t)i + 1;
+        m.u.port.behavior = ayl_s("B");
+        m.u.port.port = ayl_s("P");
+        m.u.port.value = ayl_int(i + 1);
+        m.u.port.group = ayl_s(i < 2 ? groups[i] : NULL); /* the last is node-addressed */
+        ayl_writer_begin(&w, buf, sizeof buf, 7, 9, (uint64_t)i + 1, 0);
+        CHECK(ayl_writer_add(&w, &m) == 0);
+        len = ayl_writer_finish(&w, NULL);
+        net_inject(9, 1, buf, (size_t)len);
+        ayl_node_poll(&a.node, 0);
+        CHECK(a.node.counters[AYL_NOT_MEMBER] == 1);
+        CHECK(ayl_node_get(&a.node, "B", "P")->u.i == (i == 0 ? 0 : i + 1));
+    }
+    CHECK(strcmp(ayl_cause_name(AYL_NOT_MEMBER), "not_member") == 0);
+}
+
 static void test_stale_and_windows(void) {
     static tnode a;
     ayl_value v = ayl_int(0);
@@ -849,6 +883,7 @@ static void test_oversized_receive(void) {
 int main(void) {
     test_port_writes_and_datagram_contents();
     test_stale_and_windows();
+    test_group_membership();
     test_hello_and_peers();
     test_requests();
     test_retries();

@@ -228,10 +228,14 @@ static int msg_of(int j, ayl_msg *m) {
     memset(m, 0, sizeof *m);
     if (json_str_is(kind, "port")) {
         static const char *const k[] = {"kind",     "conn",     "seq",  "conn_kind", "period_ns",
-                                        "priority", "behavior", "port", "value"};
+                                        "priority", "behavior", "port", "value",     "group"};
         ayl_port_msg *p = &m->u.port;
+        int grouped = json_get(j, "group") >= 0;
         m->kind = AYL_KIND_PORT;
-        return keys_are(j, k, 9) && get_u64(j, "conn", &p->conn) == 0 && get_u64(j, "seq", &p->seq) == 0 &&
+        if (grouped && (get_str(j, "group", &p->group) < 0 || p->group.len == 0)) {
+            return -1;
+        }
+        return keys_are(j, k, grouped ? 10 : 9) && get_u64(j, "conn", &p->conn) == 0 && get_u64(j, "seq", &p->seq) == 0 &&
                        conn_kind_of(json_get(j, "conn_kind"), &p->kind) == 0 &&
                        get_u64(j, "period_ns", &p->period_ns) == 0 && get_i32(j, "priority", &p->priority) == 0 &&
                        get_str(j, "behavior", &p->behavior) == 0 && get_str(j, "port", &p->port) == 0 &&
@@ -391,7 +395,7 @@ static int msg_eq(const ayl_msg *a, const ayl_msg *b) {
         const ayl_port_msg *x = &a->u.port, *y = &b->u.port;
         return x->conn == y->conn && x->seq == y->seq && x->kind == y->kind && x->period_ns == y->period_ns &&
                x->priority == y->priority && str_eq(x->behavior, y->behavior) && str_eq(x->port, y->port) &&
-               ayl_value_equal(&x->value, &y->value);
+               ayl_value_equal(&x->value, &y->value) && str_eq(x->group, y->group);
     }
     case AYL_KIND_HELLO: {
         const ayl_hello_msg *x = &a->u.hello, *y = &b->u.hello;

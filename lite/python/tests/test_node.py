@@ -12,6 +12,7 @@ import socket
 import threading
 import time
 from collections.abc import Callable, Iterator
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -21,6 +22,7 @@ import ayllu_lite as al
 TEAM = 42
 KEY = bytes(range(1, 33))
 LOOP = ("127.0.0.1", 0)
+VECTORS = Path(__file__).resolve().parents[3] / "spec" / "vectors" / "vectors.json"
 
 
 def wait_for(cond: Callable[[], bool], *nodes: al.LiteNode, timeout: float = 2.0) -> None:
@@ -77,6 +79,33 @@ def test_stale_port_messages_are_dropped(pair: tuple[al.LiteNode, al.LiteNode]) 
         assert a.get("B", "P") == 11
     finally:
         raw.close()
+
+
+def test_group_messages_apply_only_in_joined_groups() -> None:
+    # D-S10.6: a PORT naming a group reaches every node sharing a broadcast address; only a
+    # member applies it, a non-member counts not_member; a node-addressed PORT applies as before.
+    a = al.LiteNode(1, TEAM, bind=LOOP, groups=("arm",))
+    try:
+        a.expose("B", "P", 0)
+        frm = ("127.0.0.1", 9)
+        to_legs = al.Port(7, 1, al.ConnKind.NORMAL, 0, 0, "B", "P", 5, group="legs")
+        assert a.handle_datagram(al.encode(TEAM, 9, 100, [to_legs]), frm) is None
+        assert a.counters["not_member"] == 1
+        assert a.get("B", "P") == 0
+        to_arm = al.Port(7, 2, al.ConnKind.NORMAL, 0, 0, "B", "P", 6, group="arm")
+        a.handle_datagram(al.encode(TEAM, 9, 101, [to_arm]), frm)
+        assert a.get("B", "P") == 6
+        to_node = al.Port(7, 3, al.ConnKind.NORMAL, 0, 0, "B", "P", 7)
+        a.handle_datagram(al.encode(TEAM, 9, 102, [to_node]), frm)
+        assert a.get("B", "P") == 7
+        assert a.counters["not_member"] == 1
+        # The golden vector of a group message, as the Rust encoder writes it.
+        vectors = json.loads(VECTORS.read_text())["vectors"]
+        (v,) = (v for v in vectors if v["name"] == "port_to_group")
+        (m,) = al.decode(bytes.fromhex(v["hex"]), v["team"]).messages
+        assert isinstance(m, al.Port) and m.group == "arm" and m.value == 42
+    finally:
+        a.close()
 
 
 def test_suppress_blocks_connection_writes_for_its_period(pair: tuple[al.LiteNode, al.LiteNode]) -> None:
