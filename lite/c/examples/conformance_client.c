@@ -369,6 +369,22 @@ static int add_port(ayl_writer *w, uint64_t conn, const char *b, const char *p, 
     return ayl_writer_add(w, &m);
 }
 
+/* A PORT sent to `group` (non-empty), as a node writing a group's port sends it. */
+static int add_group_port(ayl_writer *w, uint64_t conn, const char *b, const char *p, const ayl_value *v,
+                          const char *group) {
+    ayl_msg m;
+    memset(&m, 0, sizeof m);
+    m.kind = AYL_KIND_PORT;
+    m.u.port.conn = conn;
+    m.u.port.seq = ++raw_conn_seq;
+    m.u.port.kind = AYL_NORMAL;
+    m.u.port.behavior = ayl_s(b);
+    m.u.port.port = ayl_s(p);
+    m.u.port.value = *v;
+    m.u.port.group = ayl_s(group);
+    return ayl_writer_add(w, &m);
+}
+
 static int add_hello(ayl_writer *w) {
     ayl_msg m;
     memset(&m, 0, sizeof m);
@@ -418,6 +434,11 @@ static int craft(const char *cse, const ayl_value *a, const ayl_value *b, int *c
         if (add_port(&w, 3, "RELAY", "In", &v) != 0) {
             return -1;
         }
+    } else if (strcmp(cse, "not_member") == 0) {
+        /* Well formed, but sent to a group the node has not joined (D-S10.6). */
+        if (a == NULL || add_group_port(&w, 4, "RELAY", "In", a, "NotJoined") != 0) {
+            return -1;
+        }
     } else if (add_hello(&w) != 0) {
         return -1;
     }
@@ -463,7 +484,8 @@ static int craft(const char *cse, const ayl_value *a, const ayl_value *b, int *c
         }
         *copies = 2; /* the first is applied, the second is the replay */
     } else if (strcmp(cse, "wrong_team") != 0 && strcmp(cse, "unexpected_auth") != 0 &&
-               strcmp(cse, "unauthenticated") != 0 && strcmp(cse, "unknown_kind") != 0) {
+               strcmp(cse, "unauthenticated") != 0 && strcmp(cse, "unknown_kind") != 0 &&
+               strcmp(cse, "not_member") != 0) {
         return -1;
     }
     return len;
