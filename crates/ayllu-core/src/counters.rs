@@ -116,6 +116,11 @@ impl Counters {
         let c = &mut self.counts[cause as usize];
         *c = c.saturating_add(1);
     }
+    /// Count `n` more messages under `cause` (saturating).
+    pub(crate) fn add_n(&mut self, cause: DropCause, n: u64) {
+        let c = &mut self.counts[cause as usize];
+        *c = c.saturating_add(n);
+    }
     /// How many messages were counted under `cause`.
     pub fn get(&self, cause: DropCause) -> u64 {
         self.counts[cause as usize]

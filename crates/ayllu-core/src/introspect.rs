@@ -248,7 +248,7 @@ impl NodeCore {
             input_blocked: ps.windows.admit_write(now, nobody).err(),
             internal_output_blocked: ps.windows.admit_propagation(now, Origin::Internal).err(),
             connection_output_blocked: ps.windows.admit_propagation(now, Origin::Connection(nobody)).err(),
-            counters: ps.counters.clone(),
+            counters: ps.counters(),
             incoming,
             outgoing,
             triggers,

@@ -101,6 +101,11 @@ pub(crate) struct PortState {
     pub(crate) plain: bool,
     pub(crate) visited: u64,
     pub(crate) accepted: u64,
+    /// Values this port absorbed (counted under [`DropCause::Absorbed`]): kept here, beside
+    /// the wave mark, rather than in `counters` at the far end of the port, because an
+    /// aggregating port absorbs most of what it is offered (a Max port of eligibilities) and
+    /// the far end is one more cache line per message. `counters` holds every other cause.
+    pub(crate) absorbed: u64,
     /// Outgoing connections, with what a hop needs copied in so that a local hop never
     /// touches the connection table (see [`Edge`]).
     pub(crate) out: Vec<Edge>,
@@ -109,6 +114,25 @@ pub(crate) struct PortState {
     pub(crate) windows: Windows,
     pub(crate) cell: PortCell,
     pub(crate) counters: Counters,
+}
+
+impl PortState {
+    /// Count a message this port blocked, refused or absorbed, by cause.
+    #[inline]
+    pub(crate) fn count(&mut self, cause: DropCause) {
+        if cause == DropCause::Absorbed {
+            self.absorbed = self.absorbed.saturating_add(1);
+        } else {
+            self.counters.add(cause);
+        }
+    }
+
+    /// The port's counters by cause, [`DropCause::Absorbed`] included.
+    pub(crate) fn counters(&self) -> Counters {
+        let mut c = self.counters.clone();
+        c.add_n(DropCause::Absorbed, self.absorbed);
+        c
+    }
 }
 
 pub(crate) struct MonoState {
@@ -501,6 +525,7 @@ impl NodeCore {
                 visited: 0,
                 counters: Counters::default(),
                 accepted: 0,
+                absorbed: 0,
             })
             .collect();
         let mut monos: Vec<MonoState> =
@@ -1056,7 +1081,7 @@ impl NodeCore {
             return Err(DropCause::UnknownPort);
         };
         if let Err(cause) = port.cell.merge(now, value, Source::internal(me), 0) {
-            port.counters.add(cause);
+            port.count(cause);
             self.counters.add(cause);
             return if cause == DropCause::Absorbed { Ok(()) } else { Err(cause) };
         }
@@ -1075,7 +1100,7 @@ impl NodeCore {
         match port.windows.admit_propagation(now, Origin::Internal) {
             Ok(()) => self.propagate_from(b, p),
             Err(cause) => {
-                port.counters.add(cause);
+                port.count(cause);
                 self.counters.add(cause);
             }
         }
@@ -1197,7 +1222,7 @@ impl NodeCore {
         // refused as invalid opens no window (D6.7). The blocking kinds carry no value to check.
         if matches!(kind, ConnectionKind::OverrideIn(_) | ConnectionKind::OverrideOut(_)) {
             if let Err(cause) = port.cell.check(value) {
-                port.counters.add(cause);
+                port.count(cause);
                 self.counters.add(cause);
                 return false;
             }
@@ -1230,7 +1255,7 @@ impl NodeCore {
             port.windows.admit_write(now, from).and_then(|()| port.cell.merge(now, value, from, priority))
         };
         if let Err(cause) = outcome {
-            port.counters.add(cause);
+            port.count(cause);
             self.counters.add(cause);
             return false;
         }
@@ -1248,7 +1273,7 @@ impl NodeCore {
         match port.windows.admit_propagation(now, Origin::Connection(from)) {
             Ok(()) => true,
             Err(cause) => {
-                port.counters.add(cause);
+                port.count(cause);
                 self.counters.add(cause);
                 false
             }
