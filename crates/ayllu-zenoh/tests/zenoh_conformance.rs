@@ -678,15 +678,20 @@ fn conformance(mode: &'static str, key: Option<[u8; 32]>) {
             n.run_for(StdDuration::from_millis(5));
         }
     }
-    // Not checked: a node of the team outside the group that has the named port. Over
-    // zenoh:// every group message goes on the team's broadcast key, and a port message names
-    // no group, so such a node applies it -- as a udp:// node on a `broadcast=` address does
-    // (D-S10.1); docs/zenoh.md, "Not yet".
-    println!(
-        "NOTE {}/{check}: a team node outside the group holds {:?} (the group write was {g})",
-        r.mode,
-        outsider.read("CONF", "Got").unwrap()
-    );
+    // A node of the team outside the group that has the named port: over zenoh:// every group
+    // message goes on the team's broadcast key and reaches it, but the message names its group
+    // and the outsider drops it (not_member, D-S10.6). Run until it has counted one (bounded).
+    let not_member = |n: &Node| n.transport_counters().iter().find(|(c, _)| c == "not_member").map_or(0, |(_, k)| *k);
+    while not_member(&outsider) == 0 {
+        if StdInstant::now() > give_up {
+            fail(check, "the team node outside the group never received the group write");
+        }
+        outsider.run_for(StdDuration::from_millis(5));
+    }
+    let outside = outsider.read("CONF", "Got").unwrap();
+    if outside != Value::Int(0) {
+        fail(check, format!("a team node outside the group applied the group write: it holds {outside:?}"));
+    }
     if r.client.read("CONF", "Got").unwrap() == Value::Int(g) {
         fail(check, "the sender got its own group write");
     }
