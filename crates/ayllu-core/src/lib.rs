@@ -56,6 +56,7 @@ pub mod node;
 mod plain;
 pub mod port;
 pub mod process;
+mod schedule;
 pub mod time;
 pub mod transaction;
 pub mod value;

@@ -27,6 +27,7 @@ use crate::journal::{Event, Journal};
 use crate::message::{ControlBody, ControlMessage, Destination, Message, Outgoing, PortMessage, ReplyBody};
 use crate::port::PortCell;
 use crate::process::Ctx;
+use crate::schedule::{Periodic, Schedule};
 use crate::time::{Duration, Instant};
 use crate::value::Value;
 
@@ -172,6 +173,10 @@ impl ProcState {
             retriggers: 0,
             outcomes: Vec::new(),
         }
+    }
+
+    pub(crate) fn is_periodic(&self) -> bool {
+        matches!(self.spec.trigger, Trigger::Periodic(_))
     }
 }
 
@@ -364,6 +369,9 @@ pub struct NodeCore {
     pub(crate) wave: u64,
     stack: Vec<Frame>,
     pending: VecDeque<(u32, u64, u16)>,
+    /// The periodic processes and the next monostable edge, so that a poll need not walk
+    /// every process (crate::schedule).
+    schedule: Schedule,
     deferred: Vec<(u32, u64, u16)>,
     /// When the processes in `deferred` may run (`Instant::MAX` while there are none).
     deferred_due: Instant,
@@ -417,6 +425,7 @@ impl NodeCore {
             wave: 0,
             stack: Vec::with_capacity(64),
             pending: VecDeque::with_capacity(64),
+            schedule: Schedule::default(),
             deferred: Vec::new(),
             deferred_due: Instant::MAX,
             poll_epoch: 0,
@@ -557,6 +566,7 @@ impl NodeCore {
             }
         };
         self.names.insert(Arc::from(name), b);
+        self.schedule.add_behavior(b, &self.behaviors[b as usize].as_ref().expect("just placed").processes);
         let class = self.behaviors[b as usize].as_ref().map_or(String::new(), |beh| beh.class.name.clone());
         self.journal(|| Event::Create { class, name: name.to_owned() });
         Ok(BehaviorRef { b, id })
@@ -583,6 +593,7 @@ impl NodeCore {
         }
         self.names.remove(name);
         self.behaviors[b as usize] = None;
+        self.schedule.remove_behavior(b);
         self.free_behaviors.push(b);
         Ok(())
     }
@@ -607,6 +618,9 @@ impl NodeCore {
         attach_trigger(&mut beh.ports, &mut beh.monos, spec.trigger, ix);
         let trigger = spec.trigger;
         beh.processes.push(ProcState::new(spec, now));
+        if matches!(trigger, Trigger::Periodic(_)) {
+            self.schedule.add_process(b, ix, now);
+        }
         self.journal(|| Event::AddProcess { behavior: behavior.to_owned(), name: name.to_owned(), trigger });
         Ok(())
     }
@@ -1539,43 +1553,60 @@ impl NodeCore {
             self.pending.extend(self.deferred.drain(..));
             self.deferred_due = Instant::MAX;
         }
-        // Monostable falling edges.
-        for b in 0..self.behaviors.len() as u32 {
-            let Some(beh) = self.behaviors[b as usize].as_mut() else { continue };
-            let id = beh.id;
-            for m in &mut beh.monos {
-                if m.high && now >= m.end {
-                    m.high = false;
-                    for &pi in &m.watchers {
-                        queue(&mut self.pending, &mut beh.processes[usize::from(pi)], b, id, pi);
+        // Monostable falling edges: none before the schedule's bound on the earliest end.
+        if now >= self.schedule.mono_edge {
+            let mut edge = Instant::MAX;
+            for b in 0..self.behaviors.len() as u32 {
+                let Some(beh) = self.behaviors[b as usize].as_mut() else { continue };
+                let id = beh.id;
+                for m in &mut beh.monos {
+                    if m.high && now >= m.end {
+                        m.high = false;
+                        for &pi in &m.watchers {
+                            queue(&mut self.pending, &mut beh.processes[usize::from(pi)], b, id, pi);
+                        }
+                    }
+                    if m.high {
+                        edge = edge.min(m.end);
                     }
                 }
             }
+            self.schedule.mono_edge = edge;
         }
         self.run_triggered();
-        // Periodic processes, in (behavior slot, declaration) order.
-        for b in 0..self.behaviors.len() as u32 {
-            let mut pi = 0u16;
-            while let Some(proc_) = self
-                .behaviors
-                .get_mut(b as usize)
-                .and_then(Option::as_mut)
-                .and_then(|beh| beh.processes.get_mut(usize::from(pi)))
-            {
-                if let Trigger::Periodic(period) = proc_.spec.trigger {
-                    if proc_.next_due <= now {
-                        let mut next = proc_.next_due + period;
-                        if next <= now {
-                            let missed = (now - next).as_nanos() / period.as_nanos() + 1;
-                            proc_.overruns += missed;
-                            next += period * missed;
-                        }
-                        proc_.next_due = next;
-                        self.run_process(b, pi);
-                        self.run_triggered();
-                    }
-                }
-                pi += 1;
+        // Periodic processes, in (behavior slot, declaration) order, as a walk over the slots
+        // this poll started with would find them (crate::schedule): a process that changed
+        // the structure makes the walk find its place again after the process just run.
+        let slots = self.behaviors.len() as u32;
+        let mut generation = self.schedule.generation;
+        let mut i = 0;
+        while let Some(&Periodic { b, pi, next_due }) = self.schedule.periodic.get(i) {
+            if b >= slots {
+                break;
+            }
+            i += 1;
+            if next_due > now {
+                continue;
+            }
+            let Some(proc_) = self.behaviors[b as usize].as_mut().map(|beh| &mut beh.processes[usize::from(pi)]) else {
+                debug_assert!(false, "the schedule lists a removed behavior's process");
+                continue;
+            };
+            let Trigger::Periodic(period) = proc_.spec.trigger else { continue };
+            debug_assert_eq!(proc_.next_due, next_due, "the schedule's copy of next_due drifted");
+            let mut next = next_due + period;
+            if next <= now {
+                let missed = (now - next).as_nanos() / period.as_nanos() + 1;
+                proc_.overruns += missed;
+                next += period * missed;
+            }
+            proc_.next_due = next;
+            self.schedule.periodic[i - 1].next_due = next;
+            self.run_process(b, pi);
+            self.run_triggered();
+            if self.schedule.generation != generation {
+                generation = self.schedule.generation;
+                i = self.schedule.after(b, pi);
             }
         }
         if !self.deferred.is_empty() && self.deferred_due == Instant::MAX {
@@ -1584,7 +1615,15 @@ impl NodeCore {
         self.flush_requests();
     }
 
+    /// Run the processes triggered so far (most calls find none: checked here, inlined).
+    #[inline]
     fn run_triggered(&mut self) {
+        if !self.pending.is_empty() {
+            self.run_pending();
+        }
+    }
+
+    fn run_pending(&mut self) {
         let epoch = self.poll_epoch;
         while let Some((b, id, pi)) = self.pending.pop_front() {
             let Some(beh) = self.behaviors.get_mut(b as usize).and_then(Option::as_mut).filter(|x| x.id == id) else {
@@ -1614,6 +1653,8 @@ impl NodeCore {
         let Some(beh) = self.behavior_mut(b) else { return };
         let proc_ = &mut beh.processes[usize::from(pi)];
         proc_.runs += 1;
+        // Only this process's own activations set its outcomes, and they do not nest.
+        let had_outcomes = !proc_.outcomes.is_empty();
         let body = proc_.spec.body.clone();
         if let Some(j) = self.journal.as_mut() {
             let beh = self.behaviors[b as usize].as_ref().expect("running behavior exists");
@@ -1623,6 +1664,9 @@ impl NodeCore {
         }
         let mut ctx = Ctx { core: self, b, pi, changes: Vec::new() };
         body(&mut ctx);
+        if ctx.changes.is_empty() && !had_outcomes {
+            return;
+        }
         let changes = std::mem::take(&mut ctx.changes);
         self.apply_process_changes(b, pi, changes);
     }
@@ -1661,12 +1705,10 @@ impl NodeCore {
         if !self.deferred.is_empty() {
             consider(self.deferred_due);
         }
+        for p in &self.schedule.periodic {
+            consider(p.next_due);
+        }
         for beh in self.behaviors.iter().flatten() {
-            for p in &beh.processes {
-                if matches!(p.spec.trigger, Trigger::Periodic(_)) {
-                    consider(p.next_due);
-                }
-            }
             for m in &beh.monos {
                 if m.high && !m.watchers.is_empty() {
                     consider(m.end);
@@ -1780,6 +1822,9 @@ impl NodeCore {
             for &pi in &mono.watchers {
                 queue(&mut self.pending, &mut beh.processes[usize::from(pi)], b, id, pi);
             }
+        }
+        if mono.high {
+            self.schedule.mono_high_until(mono.end);
         }
     }
 

@@ -1,0 +1,256 @@
+//! The node's schedule of timed work: its periodic processes in run order, and a lower bound
+//! on the next monostable falling edge.
+//!
+//! A poll used to walk every behavior's every process to find the periodic ones that are due,
+//! and every behavior's monostables to find the edges, touching each process's state (a cache
+//! line each once the node is cold, as it is in a simulator stepping hundreds of nodes). The
+//! schedule keeps what that walk needed in one compact array, so a poll reads 16 bytes per
+//! periodic process and nothing for the others.
+//!
+//! What it promises: the poll runs the same processes in the same order as the walk over
+//! (behavior slot, declaration) did, structure changes made by a running process included
+//! (a behavior created into a later free slot runs in the same poll, one created into an
+//! earlier slot or past the slots the poll started with does not), with the same due times
+//! and overrun counts. It is kept up to date where periodic processes come and go (`create`,
+//! a behavior's removal, `add_process`); a process's own `next_due` stays the one the
+//! reports show, and the schedule's copy is written with it.
+
+use crate::node::ProcState;
+use crate::time::Instant;
+
+/// One periodic process: where it lives and when it is next due (a copy of its `next_due`).
+#[derive(Copy, Clone, Debug)]
+pub(crate) struct Periodic {
+    pub(crate) b: u32,
+    pub(crate) pi: u16,
+    pub(crate) next_due: Instant,
+}
+
+/// See the module docs.
+#[derive(Debug)]
+pub(crate) struct Schedule {
+    /// Every periodic process of the node, ordered by (behavior slot, declaration).
+    pub(crate) periodic: Vec<Periodic>,
+    /// Bumped whenever `periodic` changes shape, so that a poll walking it knows to find its
+    /// place again (see `after`).
+    pub(crate) generation: u64,
+    /// No high monostable ends before this (`Instant::MAX`: none is high). A lower bound, not
+    /// the exact earliest end: a poll before it has no edge to look for.
+    pub(crate) mono_edge: Instant,
+}
+
+impl Default for Schedule {
+    fn default() -> Schedule {
+        Schedule { periodic: Vec::new(), generation: 0, mono_edge: Instant::MAX }
+    }
+}
+
+impl Schedule {
+    /// The position of the first entry after process `pi` of slot `b` in run order.
+    pub(crate) fn after(&self, b: u32, pi: u16) -> usize {
+        self.periodic.partition_point(|e| (e.b, e.pi) <= (b, pi))
+    }
+
+    /// List the periodic processes of the behavior just placed in slot `b`.
+    pub(crate) fn add_behavior(&mut self, b: u32, processes: &[ProcState]) {
+        let at = self.periodic.partition_point(|e| e.b < b);
+        let new = processes.iter().enumerate().filter(|(_, p)| p.is_periodic()).map(|(pi, p)| Periodic {
+            b,
+            pi: pi as u16,
+            next_due: p.next_due,
+        });
+        self.periodic.splice(at..at, new);
+        self.generation += 1;
+    }
+
+    /// Forget the periodic processes of the behavior removed from slot `b`.
+    pub(crate) fn remove_behavior(&mut self, b: u32) {
+        let from = self.periodic.partition_point(|e| e.b < b);
+        let to = self.periodic.partition_point(|e| e.b <= b);
+        self.periodic.drain(from..to);
+        self.generation += 1;
+    }
+
+    /// List process `pi`, just added to the behavior in slot `b` (the last of its processes).
+    pub(crate) fn add_process(&mut self, b: u32, pi: u16, next_due: Instant) {
+        let at = self.after(b, pi);
+        self.periodic.insert(at, Periodic { b, pi, next_due });
+        self.generation += 1;
+    }
+
+    /// A monostable just rose (or stays high) until `end`.
+    pub(crate) fn mono_high_until(&mut self, end: Instant) {
+        self.mono_edge = self.mono_edge.min(end);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    //! The poll's order and due times with structure changed by running processes, as the
+    //! walk over (behavior slot, declaration) gave them before the schedule existed (the
+    //! expected lines were recorded with that walk).
+
+    use std::sync::{Arc, Mutex};
+
+    use crate::*;
+
+    type Log = Arc<Mutex<Vec<String>>>;
+
+    fn node(log: &Log) -> NodeCore {
+        let mut node = NodeCore::new(NodeId(1));
+        let mut tick = BehaviorClass::new("Tick");
+        let out = tick.port(PortSpec::new("Out", 0i64)).unwrap();
+        let l = log.clone();
+        tick.process("P", Trigger::Periodic(Duration::from_millis(100)), move |ctx| {
+            l.lock().unwrap().push(format!("{}.P@{}", ctx.behavior(), ctx.now().as_nanos() / 1_000_000));
+            let _ = ctx.write(out, 1i64);
+        })
+        .unwrap();
+        let l = log.clone();
+        tick.on_write("W", out, move |ctx| l.lock().unwrap().push(format!("{}.W", ctx.behavior()))).unwrap();
+        let l = log.clone();
+        tick.process("Q", Trigger::Periodic(Duration::from_millis(30)), move |ctx| {
+            l.lock().unwrap().push(format!("{}.Q@{}", ctx.behavior(), ctx.now().as_nanos() / 1_000_000));
+        })
+        .unwrap();
+        node.define(tick).unwrap();
+        let mut maker = BehaviorClass::new("Maker");
+        let l = log.clone();
+        maker
+            .process("M", Trigger::Periodic(Duration::from_millis(100)), move |ctx| {
+                let t = ctx.now().as_nanos() / 1_000_000;
+                l.lock().unwrap().push(format!("{}.M@{t}", ctx.behavior()));
+                if t == 0 {
+                    // Frees slots 0 (A) and 3 (C); X takes 3 (after M: runs now), Y takes 0
+                    // (before M: not now), Z a new slot 4 (past the poll's slots: not now).
+                    ctx.remove("A").unwrap();
+                    ctx.remove("C").unwrap();
+                    ctx.create("Tick", "X").unwrap();
+                    ctx.create("Tick", "Y").unwrap();
+                    ctx.create("Tick", "Z").unwrap();
+                }
+                if t == 250 {
+                    // Removes itself and the behavior after it, then re-creates into its own
+                    // slot (the last freed): the new behavior's processes run in this poll.
+                    ctx.remove("B").unwrap();
+                    ctx.remove("M").unwrap();
+                    ctx.create("Tick", "R").unwrap();
+                }
+            })
+            .unwrap();
+        node.define(maker).unwrap();
+        for (class, name) in [("Tick", "A"), ("Maker", "M"), ("Tick", "B"), ("Tick", "C")] {
+            node.create(class, name).unwrap();
+        }
+        node
+    }
+
+    fn processes(node: &NodeCore) -> String {
+        let mut s = String::new();
+        for b in node.report().behaviors {
+            for p in b.processes {
+                s += &format!(
+                    "{}.{} runs {} overruns {} next {:?}\n",
+                    b.name,
+                    p.name,
+                    p.runs,
+                    p.overruns,
+                    p.next_due.map(|t| t.as_nanos() / 1_000_000)
+                );
+            }
+        }
+        s
+    }
+
+    #[test]
+    fn the_poll_runs_periodic_processes_in_slot_and_declaration_order_through_structure_changes() {
+        let log: Log = Arc::default();
+        let mut node = node(&log);
+        let mut polls = Vec::new();
+        for t in [0u64, 50, 120, 130, 250, 400, 410, 1000] {
+            node.run_due(Instant::from_millis(t));
+            polls.push(log.lock().unwrap().drain(..).collect::<Vec<_>>().join(" "));
+            if t == 130 {
+                let l = log.clone();
+                node.add_process("X", "Late", Trigger::Periodic(Duration::from_millis(200)), move |ctx| {
+                    l.lock().unwrap().push(format!("{}.Late@{}", ctx.behavior(), ctx.now().as_nanos() / 1_000_000))
+                })
+                .unwrap();
+            }
+        }
+        let expected: [&str; 8] = [
+            "A.P@0 A.W A.Q@0 M.M@0 B.P@0 B.W B.Q@0 X.P@0 X.W X.Q@0",
+            "Y.P@50 Y.W Y.Q@50 B.Q@50 X.Q@50 Z.P@50 Z.W Z.Q@50",
+            "Y.P@120 Y.W Y.Q@120 M.M@120 B.P@120 B.W B.Q@120 X.P@120 X.W X.Q@120 Z.P@120 Z.W Z.Q@120",
+            "",
+            "Y.P@250 Y.W Y.Q@250 M.M@250 R.Q@250 X.P@250 X.W X.Q@250 X.Late@250 Z.P@250 Z.W Z.Q@250",
+            "Y.P@400 Y.W Y.Q@400 R.P@400 R.W R.Q@400 X.P@400 X.W X.Q@400 X.Late@400 Z.P@400 Z.W Z.Q@400",
+            "",
+            "Y.P@1000 Y.W Y.Q@1000 R.P@1000 R.W R.Q@1000 X.P@1000 X.W X.Q@1000 X.Late@1000 Z.P@1000 Z.W Z.Q@1000",
+        ];
+        assert_eq!(polls, expected);
+        let expected = concat!(
+            "R.P runs 2 overruns 6 next Some(1050)\n",
+            "R.W runs 2 overruns 0 next None\n",
+            "R.Q runs 3 overruns 23 next Some(1030)\n",
+            "X.P runs 5 overruns 6 next Some(1100)\n",
+            "X.W runs 5 overruns 0 next None\n",
+            "X.Q runs 6 overruns 28 next Some(1020)\n",
+            "X.Late runs 3 overruns 2 next Some(1130)\n",
+            "Y.P runs 5 overruns 6 next Some(1100)\n",
+            "Y.W runs 5 overruns 0 next None\n",
+            "Y.Q runs 5 overruns 29 next Some(1020)\n",
+            "Z.P runs 5 overruns 6 next Some(1100)\n",
+            "Z.W runs 5 overruns 0 next None\n",
+            "Z.Q runs 5 overruns 29 next Some(1020)\n",
+        );
+        assert_eq!(processes(&node), expected);
+        assert_eq!(node.poll_at(), Some(Instant::from_millis(1020)));
+    }
+
+    #[test]
+    fn a_monostable_edge_is_found_whenever_it_falls() {
+        let log: Log = Arc::default();
+        let mut node = NodeCore::new(NodeId(1));
+        let mut c = BehaviorClass::new("Mono");
+        let m = c.monostable("Busy").unwrap();
+        let l = log.clone();
+        c.on_monostable("Edge", m, move |ctx| {
+            l.lock().unwrap().push(format!("{}@{}", ctx.is_high(m), ctx.now().as_nanos() / 1_000_000))
+        })
+        .unwrap();
+        node.define(c).unwrap();
+        node.create("Mono", "K").unwrap();
+        node.create("Mono", "L").unwrap();
+        let mut seen = Vec::new();
+        for t in [0u64, 5, 10, 20, 30, 45, 60, 70, 100, 150] {
+            match t {
+                0 => node.trigger(Instant::from_millis(t), "K", "Busy", Duration::from_millis(40)).unwrap(),
+                5 => node.trigger(Instant::from_millis(t), "L", "Busy", Duration::from_millis(10)).unwrap(),
+                20 => node.trigger(Instant::from_millis(t), "K", "Busy", Duration::from_millis(50)).unwrap(),
+                60 => node.remove("K").unwrap(),
+                70 => node.trigger(Instant::from_millis(t), "L", "Busy", Duration::from_millis(20)).unwrap(),
+                _ => {}
+            }
+            let at = node.poll(Instant::from_millis(t));
+            seen.push(format!(
+                "{t}: {} next {:?}",
+                log.lock().unwrap().drain(..).collect::<Vec<_>>().join(" "),
+                at.map(|a| a.as_nanos() / 1_000_000)
+            ));
+        }
+        let expected = [
+            "0: true@0 next Some(40)",
+            "5: true@5 next Some(15)",
+            "10:  next Some(15)",
+            "20: false@20 next Some(70)",
+            "30:  next Some(70)",
+            "45:  next Some(70)",
+            "60:  next None",
+            "70: true@70 next Some(90)",
+            "100: false@100 next None",
+            "150:  next None",
+        ];
+        assert_eq!(seen, expected);
+    }
+}
