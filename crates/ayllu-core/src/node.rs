@@ -142,16 +142,17 @@ pub(crate) struct MonoState {
     pub(crate) watchers: Vec<u16>,
 }
 
-/// In declaration order (`repr(C)`): what a poll's walk over the processes reads (the trigger,
-/// in `spec`, and the due time) together at the front, so that a node coming back from cold
-/// memory costs about one cache line per process, not two.
+/// In declaration order (`repr(C)`): what every run reads or writes (the trigger and body, in
+/// `spec`, the run count and the due time) together at the front, so that a node coming back
+/// from cold memory costs about one cache line per process run, not two. (The change outcomes
+/// further on are read only on nodes whose processes ever asked for changes.)
 #[repr(C)]
 pub(crate) struct ProcState {
     pub(crate) spec: ProcessSpec,
+    pub(crate) runs: u64,
     pub(crate) next_due: Instant,
     pub(crate) ran_in_poll: u64,
     pub(crate) pending: bool,
-    pub(crate) runs: u64,
     pub(crate) overruns: u64,
     /// Times it was triggered again in a poll in which it had already run (by its own write
     /// or a cycle of processes) and was held back by [`RETRIGGER_INTERVAL`] (D7.3).
@@ -372,6 +373,9 @@ pub struct NodeCore {
     /// The periodic processes and the next monostable edge, so that a poll need not walk
     /// every process (crate::schedule).
     schedule: Schedule,
+    /// Whether a process of this node ever kept change outcomes (R2): until then a run need
+    /// not read its process's outcomes to know there are none to clear.
+    outcomes_kept: bool,
     deferred: Vec<(u32, u64, u16)>,
     /// When the processes in `deferred` may run (`Instant::MAX` while there are none).
     deferred_due: Instant,
@@ -426,6 +430,7 @@ impl NodeCore {
             stack: Vec::with_capacity(64),
             pending: VecDeque::with_capacity(64),
             schedule: Schedule::default(),
+            outcomes_kept: false,
             deferred: Vec::new(),
             deferred_due: Instant::MAX,
             poll_epoch: 0,
@@ -1650,11 +1655,12 @@ impl NodeCore {
     }
 
     fn run_process(&mut self, b: u32, pi: u16) {
+        let outcomes_kept = self.outcomes_kept;
         let Some(beh) = self.behavior_mut(b) else { return };
         let proc_ = &mut beh.processes[usize::from(pi)];
         proc_.runs += 1;
         // Only this process's own activations set its outcomes, and they do not nest.
-        let had_outcomes = !proc_.outcomes.is_empty();
+        let had_outcomes = outcomes_kept && !proc_.outcomes.is_empty();
         let body = proc_.spec.body.clone();
         if let Some(j) = self.journal.as_mut() {
             let beh = self.behaviors[b as usize].as_ref().expect("running behavior exists");
@@ -1689,6 +1695,7 @@ impl NodeCore {
             })
             .collect();
         // A behavior that removed itself has no next activation to read them (R3).
+        self.outcomes_kept |= !outcomes.is_empty();
         if let Some(beh) = self.behavior_mut(b).filter(|beh| Some(beh.id) == id) {
             beh.processes[usize::from(pi)].outcomes = outcomes;
         }
