@@ -230,7 +230,11 @@ impl NodeCore {
             .filter_map(|c| all.iter().find(|i| i.id.0 == c.id).cloned())
             .collect();
         let empty = ps.cell.is_empty(now);
-        let triggers = ps.triggers.iter().map(|&pi| process_report(&beh.processes[usize::from(pi)])).collect();
+        let triggers = ps
+            .triggers
+            .iter()
+            .map(|&pi| process_report(&beh.processes[usize::from(pi)], self.next_due(r.b, pi)))
+            .collect();
         Ok(PortReport {
             node: me,
             now,
@@ -268,8 +272,9 @@ impl NodeCore {
         let mut behaviors: Vec<BehaviorReport> = self
             .behaviors
             .iter()
-            .flatten()
-            .map(|beh| BehaviorReport {
+            .enumerate()
+            .filter_map(|(b, beh)| Some((b as u32, beh.as_ref()?)))
+            .map(|(b, beh)| BehaviorReport {
                 name: beh.name.to_string(),
                 class: beh.class.name().to_owned(),
                 ports: beh
@@ -293,7 +298,12 @@ impl NodeCore {
                     .zip(&beh.monos)
                     .map(|(n, m)| (n.clone(), now < m.end))
                     .collect(),
-                processes: beh.processes.iter().map(process_report).collect(),
+                processes: beh
+                    .processes
+                    .iter()
+                    .enumerate()
+                    .map(|(pi, p)| process_report(p, self.next_due(b, pi as u16)))
+                    .collect(),
             })
             .collect();
         behaviors.sort_by(|a, b| a.name.cmp(&b.name));
@@ -316,14 +326,14 @@ impl NodeCore {
     }
 }
 
-fn process_report(p: &ProcState) -> ProcessReport {
+fn process_report(p: &ProcState, next_due: Option<Instant>) -> ProcessReport {
     ProcessReport {
         name: p.spec.name.clone(),
         trigger: p.spec.trigger,
         runs: p.runs,
         overruns: p.overruns,
         retriggered: p.retriggers,
-        next_due: matches!(p.spec.trigger, Trigger::Periodic(_)).then_some(p.next_due),
+        next_due,
     }
 }
 

@@ -143,14 +143,14 @@ pub(crate) struct MonoState {
 }
 
 /// In declaration order (`repr(C)`): what every run reads or writes (the trigger and body, in
-/// `spec`, the run count and the due time) together at the front, so that a node coming back
-/// from cold memory costs about one cache line per process run, not two. (The change outcomes
-/// further on are read only on nodes whose processes ever asked for changes.)
+/// `spec`, and the run count) together at the front, so that a node coming back from cold
+/// memory costs about one cache line per process run, not two. (The change outcomes further
+/// on are read only on nodes whose processes ever asked for changes; a periodic process's due
+/// time lives in the node's schedule, `crate::schedule`.)
 #[repr(C)]
 pub(crate) struct ProcState {
     pub(crate) spec: ProcessSpec,
     pub(crate) runs: u64,
-    pub(crate) next_due: Instant,
     pub(crate) ran_in_poll: u64,
     pub(crate) pending: bool,
     pub(crate) overruns: u64,
@@ -162,18 +162,10 @@ pub(crate) struct ProcState {
 }
 
 impl ProcState {
-    /// A process that has not run yet, first due at `now` (periodic ones; D7.2).
-    fn new(spec: ProcessSpec, now: Instant) -> ProcState {
-        ProcState {
-            spec,
-            next_due: now,
-            runs: 0,
-            overruns: 0,
-            pending: false,
-            ran_in_poll: 0,
-            retriggers: 0,
-            outcomes: Vec::new(),
-        }
+    /// A process that has not run yet (a periodic one is first due when the schedule lists
+    /// it: at its creation, D7.2).
+    fn new(spec: ProcessSpec) -> ProcState {
+        ProcState { spec, runs: 0, overruns: 0, pending: false, ran_in_poll: 0, retriggers: 0, outcomes: Vec::new() }
     }
 
     pub(crate) fn is_periodic(&self) -> bool {
@@ -547,7 +539,7 @@ impl NodeCore {
         let mut processes = Vec::with_capacity(class.processes.len());
         for (i, spec) in class.processes.iter().enumerate() {
             attach_trigger(&mut ports, &mut monos, spec.trigger, i as u16);
-            processes.push(ProcState::new(spec.clone(), now));
+            processes.push(ProcState::new(spec.clone()));
         }
         ports.iter_mut().for_each(PortState::refresh_plain);
         let behavior = Behavior {
@@ -571,7 +563,7 @@ impl NodeCore {
             }
         };
         self.names.insert(Arc::from(name), b);
-        self.schedule.add_behavior(b, &self.behaviors[b as usize].as_ref().expect("just placed").processes);
+        self.schedule.add_behavior(b, &self.behaviors[b as usize].as_ref().expect("just placed").processes, now);
         let class = self.behaviors[b as usize].as_ref().map_or(String::new(), |beh| beh.class.name.clone());
         self.journal(|| Event::Create { class, name: name.to_owned() });
         Ok(BehaviorRef { b, id })
@@ -622,7 +614,7 @@ impl NodeCore {
             .map_err(|_| Error::TooManyRegisters { behavior: behavior.to_owned() })?;
         attach_trigger(&mut beh.ports, &mut beh.monos, spec.trigger, ix);
         let trigger = spec.trigger;
-        beh.processes.push(ProcState::new(spec, now));
+        beh.processes.push(ProcState::new(spec));
         if matches!(trigger, Trigger::Periodic(_)) {
             self.schedule.add_process(b, ix, now);
         }
@@ -1598,14 +1590,12 @@ impl NodeCore {
                 continue;
             };
             let Trigger::Periodic(period) = proc_.spec.trigger else { continue };
-            debug_assert_eq!(proc_.next_due, next_due, "the schedule's copy of next_due drifted");
             let mut next = next_due + period;
             if next <= now {
                 let missed = (now - next).as_nanos() / period.as_nanos() + 1;
                 proc_.overruns += missed;
                 next += period * missed;
             }
-            proc_.next_due = next;
             self.schedule.periodic[i - 1].next_due = next;
             self.run_process(b, pi);
             self.run_triggered();
@@ -1699,6 +1689,12 @@ impl NodeCore {
         if let Some(beh) = self.behavior_mut(b).filter(|beh| Some(beh.id) == id) {
             beh.processes[usize::from(pi)].outcomes = outcomes;
         }
+    }
+
+    /// When periodic process `pi` of the behavior in slot `b` is next due; `None` for a
+    /// process that is not periodic (or not there).
+    pub(crate) fn next_due(&self, b: u32, pi: u16) -> Option<Instant> {
+        self.schedule.next_due(b, pi)
     }
 
     /// When `poll` next has work: the earliest periodic activation, monostable edge or

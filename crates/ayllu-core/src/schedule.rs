@@ -12,13 +12,13 @@
 //! (a behavior created into a later free slot runs in the same poll, one created into an
 //! earlier slot or past the slots the poll started with does not), with the same due times
 //! and overrun counts. It is kept up to date where periodic processes come and go (`create`,
-//! a behavior's removal, `add_process`); a process's own `next_due` stays the one the
-//! reports show, and the schedule's copy is written with it.
+//! a behavior's removal, `add_process`), and it is where a periodic process's due time lives
+//! (the reports read it here), so a run writes it in the schedule only.
 
 use crate::node::ProcState;
 use crate::time::Instant;
 
-/// One periodic process: where it lives and when it is next due (a copy of its `next_due`).
+/// One periodic process: where it lives and when it is next due.
 #[derive(Copy, Clone, Debug)]
 pub(crate) struct Periodic {
     pub(crate) b: u32,
@@ -51,13 +51,20 @@ impl Schedule {
         self.periodic.partition_point(|e| (e.b, e.pi) <= (b, pi))
     }
 
-    /// List the periodic processes of the behavior just placed in slot `b`.
-    pub(crate) fn add_behavior(&mut self, b: u32, processes: &[ProcState]) {
+    /// When process `pi` of slot `b` is next due, if it is periodic.
+    pub(crate) fn next_due(&self, b: u32, pi: u16) -> Option<Instant> {
+        let at = self.periodic.partition_point(|e| (e.b, e.pi) < (b, pi));
+        self.periodic.get(at).filter(|e| (e.b, e.pi) == (b, pi)).map(|e| e.next_due)
+    }
+
+    /// List the periodic processes of the behavior just placed in slot `b`, first due `now`
+    /// (D7.2).
+    pub(crate) fn add_behavior(&mut self, b: u32, processes: &[ProcState], now: Instant) {
         let at = self.periodic.partition_point(|e| e.b < b);
-        let new = processes.iter().enumerate().filter(|(_, p)| p.is_periodic()).map(|(pi, p)| Periodic {
+        let new = processes.iter().enumerate().filter(|(_, p)| p.is_periodic()).map(|(pi, _)| Periodic {
             b,
             pi: pi as u16,
-            next_due: p.next_due,
+            next_due: now,
         });
         self.periodic.splice(at..at, new);
         self.generation += 1;
