@@ -564,6 +564,7 @@ impl NodeCore {
         };
         self.names.insert(Arc::from(name), b);
         self.schedule.add_behavior(b, &self.behaviors[b as usize].as_ref().expect("just placed").processes, now);
+        self.debug_check_schedule();
         let class = self.behaviors[b as usize].as_ref().map_or(String::new(), |beh| beh.class.name.clone());
         self.journal(|| Event::Create { class, name: name.to_owned() });
         Ok(BehaviorRef { b, id })
@@ -591,6 +592,7 @@ impl NodeCore {
         self.names.remove(name);
         self.behaviors[b as usize] = None;
         self.schedule.remove_behavior(b);
+        self.debug_check_schedule();
         self.free_behaviors.push(b);
         Ok(())
     }
@@ -617,6 +619,7 @@ impl NodeCore {
         beh.processes.push(ProcState::new(spec));
         if matches!(trigger, Trigger::Periodic(_)) {
             self.schedule.add_process(b, ix, now);
+            self.debug_check_schedule();
         }
         self.journal(|| Event::AddProcess { behavior: behavior.to_owned(), name: name.to_owned(), trigger });
         Ok(())
@@ -1688,6 +1691,20 @@ impl NodeCore {
         self.outcomes_kept |= !outcomes.is_empty();
         if let Some(beh) = self.behavior_mut(b).filter(|beh| Some(beh.id) == id) {
             beh.processes[usize::from(pi)].outcomes = outcomes;
+        }
+    }
+
+    /// Debug builds: the schedule lists exactly the node's periodic processes, in run order.
+    fn debug_check_schedule(&self) {
+        if cfg!(debug_assertions) {
+            let listed: Vec<(u32, u16)> = self.schedule.periodic.iter().map(|e| (e.b, e.pi)).collect();
+            let live: Vec<(u32, u16)> = (0..self.behaviors.len() as u32)
+                .filter_map(|b| Some((b, self.behaviors[b as usize].as_ref()?)))
+                .flat_map(|(b, beh)| {
+                    beh.processes.iter().enumerate().filter(|(_, p)| p.is_periodic()).map(move |(pi, _)| (b, pi as u16))
+                })
+                .collect();
+            assert_eq!(listed, live, "the schedule does not list the node's periodic processes");
         }
     }
 
