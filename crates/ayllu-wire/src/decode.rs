@@ -191,10 +191,48 @@ pub fn decode_with(
 /// destination behaviors and ports) become shared `Arc<str>`s rather than one allocation and
 /// one UTF-8 check per message. Bounded whatever arrives: [`NameCache::SETS`] sets of two
 /// names of at most 255 bytes; a name that is not in its set replaces the older of the two.
+///
+/// A lookup is meant to cost a small fraction of an allocation: the bytes are hashed a word
+/// at a time, each slot keeps its name's hash beside it so a slot holding another name is
+/// passed over without reading that name, and a short name is compared in place. A PORT's
+/// two names lie side by side in its body, so they are looked up as one: a second table of as
+/// many sets holds (behavior, port) pairs, keyed by those bytes, and a repeated destination
+/// costs one lookup instead of two.
 #[derive(Clone, Debug)]
 pub struct NameCache {
     /// `2 * SETS` entries, or none for a cache that keeps nothing.
-    slots: Vec<Option<Arc<str>>>,
+    slots: Vec<Option<NameSlot>>,
+    /// `2 * SETS` (behavior, port) pairs, or none.
+    pairs: Vec<Option<PairSlot>>,
+}
+
+/// A PORT's destination names, with the hash of the bytes that spell both ([`name_hash`] of
+/// `[len][behavior][len][port]`).
+#[derive(Clone, Debug)]
+struct PairSlot {
+    hash: u64,
+    behavior: Arc<str>,
+    port: Arc<str>,
+}
+
+impl PairSlot {
+    /// Whether `span` spells this pair: `[len][behavior][len][port]`.
+    #[inline(always)]
+    fn spelled_by(&self, span: &[u8]) -> bool {
+        let (b, p) = (self.behavior.as_bytes(), self.port.as_bytes());
+        span.len() == b.len() + p.len() + 2
+            && same_bytes(&span[1..=b.len()], b)
+            && same_bytes(&span[b.len() + 2..], p)
+            && usize::from(span[0]) == b.len()
+            && usize::from(span[b.len() + 1]) == p.len()
+    }
+}
+
+/// One cached name with the hash of its bytes ([`name_hash`]).
+#[derive(Clone, Debug)]
+struct NameSlot {
+    hash: u64,
+    name: Arc<str>,
 }
 
 impl Default for NameCache {
@@ -207,34 +245,130 @@ impl NameCache {
     /// Number of sets (of two names each).
     pub const SETS: usize = 256;
 
-    /// An empty cache of [`NameCache::SETS`] sets (about 8 KiB of slots, names besides).
+    /// An empty cache of [`NameCache::SETS`] sets (about 12 KiB of slots, names besides).
     pub fn new() -> Self {
-        NameCache { slots: vec![None; 2 * NameCache::SETS] }
+        NameCache { slots: vec![None; 2 * NameCache::SETS], pairs: vec![None; 2 * NameCache::SETS] }
     }
 
     /// A cache that keeps nothing (one-off decoding).
     fn none() -> Self {
-        NameCache { slots: Vec::new() }
+        NameCache { slots: Vec::new(), pairs: Vec::new() }
     }
 
-    /// The name `bytes` spell, if they are UTF-8.
+    /// The name `bytes` spell, if they are UTF-8. The hit is inlined into the decoder; the
+    /// miss (an allocation anyway) is not.
+    #[inline(always)]
     fn intern(&mut self, bytes: &[u8]) -> Option<Arc<str>> {
-        if self.slots.is_empty() {
-            return core::str::from_utf8(bytes).ok().map(Arc::from);
-        }
-        // FNV-1a: names are short, and a collision costs only a miss.
-        let hash =
-            bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| (h ^ u64::from(b)).wrapping_mul(0x100_0000_01b3));
-        let set = 2 * (hash as usize % NameCache::SETS);
-        for slot in &self.slots[set..set + 2] {
-            if let Some(name) = slot.as_ref().filter(|n| n.as_bytes() == bytes) {
-                return Some(name.clone());
+        let hash = name_hash(bytes);
+        // The top bits: they depend on every byte of the name (a product's low bits do not).
+        let set = 2 * ((hash >> (64 - NameCache::SETS.trailing_zeros())) as usize % NameCache::SETS);
+        if let Some(pair) = self.slots.get(set..set + 2) {
+            for slot in pair.iter().flatten() {
+                if slot.hash == hash && same_bytes(slot.name.as_bytes(), bytes) {
+                    return Some(slot.name.clone());
+                }
             }
         }
+        self.insert(set, hash, bytes)
+    }
+
+    /// The (behavior, port) pair that `span` (`[len][behavior][len][port]`, as a PORT body
+    /// has them) spells, with each name's own checks (non-empty, UTF-8) made when the pair was
+    /// first kept: a pair in the cache was checked then.
+    #[inline(always)]
+    fn intern_pair(&mut self, span: &[u8]) -> Option<(Arc<str>, Arc<str>)> {
+        let hash = name_hash(span);
+        let set = 2 * ((hash >> (64 - NameCache::SETS.trailing_zeros())) as usize % NameCache::SETS);
+        if let Some(pair) = self.pairs.get(set..set + 2) {
+            for slot in pair.iter().flatten() {
+                if slot.hash == hash && slot.spelled_by(span) {
+                    return Some((slot.behavior.clone(), slot.port.clone()));
+                }
+            }
+        }
+        self.insert_pair(set, hash, span)
+    }
+
+    /// A pair not in the cache: each name through [`NameCache::intern`], the pair kept.
+    #[cold]
+    #[inline(never)]
+    fn insert_pair(&mut self, set: usize, hash: u64, span: &[u8]) -> Option<(Arc<str>, Arc<str>)> {
+        let lb = usize::from(*span.first()?);
+        let behavior = self.intern(span.get(1..=lb)?).filter(|n| !n.is_empty())?;
+        let port = self.intern(span.get(lb + 2..)?).filter(|n| !n.is_empty())?;
+        if let Some(pair) = self.pairs.get_mut(set..set + 2) {
+            pair[1] = pair[0].take();
+            pair[0] = Some(PairSlot { hash, behavior: behavior.clone(), port: port.clone() });
+        }
+        Some((behavior, port))
+    }
+
+    /// A name not in the cache: checked, allocated and kept (unless the cache keeps nothing).
+    #[cold]
+    #[inline(never)]
+    fn insert(&mut self, set: usize, hash: u64, bytes: &[u8]) -> Option<Arc<str>> {
         let name: Arc<str> = Arc::from(core::str::from_utf8(bytes).ok()?);
-        self.slots[set + 1] = self.slots[set].take();
-        self.slots[set] = Some(name.clone());
+        if let Some(pair) = self.slots.get_mut(set..set + 2) {
+            pair[1] = pair[0].take();
+            pair[0] = Some(NameSlot { hash, name: name.clone() });
+        }
         Some(name)
+    }
+}
+
+// The set index takes the hash's top bits: SETS must be a power of two.
+const _: () = assert!(NameCache::SETS.is_power_of_two() && NameCache::SETS > 1);
+
+/// A hash of a name's bytes, a word at a time (names are short: most are one or two words).
+/// Not for adversaries: a collision only costs a cache miss, never a wrong name, since the
+/// bytes are compared too.
+#[inline(always)]
+fn name_hash(bytes: &[u8]) -> u64 {
+    const K: u64 = 0x9e37_79b9_7f4a_7c15;
+    let n = bytes.len();
+    let mut h = (n as u64).wrapping_mul(K);
+    let mut words = bytes.chunks_exact(8);
+    for w in &mut words {
+        h = (h ^ word(w)).wrapping_mul(K).rotate_left(29);
+    }
+    // The last bytes in one or two loads, overlapping what came before (the length is in the
+    // hash, so a hash still depends on every byte) rather than one step per byte.
+    let tail = match n {
+        0 => 0,
+        1..=3 => u64::from(bytes[0]) | u64::from(bytes[n / 2]) << 8 | u64::from(bytes[n - 1]) << 16,
+        4..=7 => u64::from(half(&bytes[..4])) | u64::from(half(&bytes[n - 4..])) << 32,
+        _ if words.remainder().is_empty() => 0,
+        _ => word(&bytes[n - 8..]),
+    };
+    (h ^ tail).wrapping_mul(K)
+}
+
+/// Eight bytes (exactly) as a little-endian word.
+#[inline(always)]
+fn word(b: &[u8]) -> u64 {
+    u64::from_le_bytes([b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7]])
+}
+
+/// Four bytes (exactly) as a little-endian word.
+#[inline(always)]
+fn half(b: &[u8]) -> u32 {
+    u32::from_le_bytes([b[0], b[1], b[2], b[3]])
+}
+
+/// `a == b`, compared in place for short names (a call to `memcmp` costs more than the bytes):
+/// two loads from each side, overlapping when the length is not a whole number of them.
+#[inline(always)]
+fn same_bytes(a: &[u8], b: &[u8]) -> bool {
+    let n = a.len();
+    if n != b.len() {
+        return false;
+    }
+    match n {
+        0 => true,
+        1..=3 => a[0] == b[0] && a[n / 2] == b[n / 2] && a[n - 1] == b[n - 1],
+        4..=7 => half(&a[..4]) == half(&b[..4]) && half(&a[n - 4..]) == half(&b[n - 4..]),
+        8..=16 => word(&a[..8]) == word(&b[..8]) && word(&a[n - 8..]) == word(&b[n - 8..]),
+        _ => a == b,
     }
 }
 
@@ -274,14 +408,17 @@ fn decode_port(body: &[u8], names: &mut NameCache) -> Option<WireMessage> {
     let seq = r.u64()?;
     let kind = r.kind()?;
     let priority = r.i32()?;
-    let behavior = r.name()?;
-    let port = r.name()?;
+    let (behavior, port) = r.name_pair()?;
     let value = r.value()?;
     let message = PortMessage { conn, seq, behavior, port, kind, priority, value };
     // The optional group (D-S10.6): read only when what follows the value is a whole str8 of
     // UTF-8. Anything else there is ignored as a later field would be, so bodies that were
     // valid before the field existed (trailing bytes included) decode as they always did; an
     // empty group means "sent to a node" and lets later fields follow.
+    // Most port messages end with their value: nothing to look up then.
+    if r.buf.is_empty() {
+        return Some(WireMessage::Port(message));
+    }
     match r.str8() {
         Some(group) if !group.is_empty() => Some(WireMessage::GroupPort { group, message }),
         _ => Some(WireMessage::Port(message)),
@@ -424,6 +561,8 @@ impl<'a> Reader<'a, '_> {
     fn utf8(&mut self, n: usize) -> Option<&'a str> {
         core::str::from_utf8(self.take(n)?).ok()
     }
+    // Inlined into its callers: a call's register saving cost as much as a cached name.
+    #[inline(always)]
     fn str8(&mut self) -> Option<Arc<str>> {
         let n = self.u8()?;
         let bytes = self.take(usize::from(n))?;
@@ -432,6 +571,14 @@ impl<'a> Reader<'a, '_> {
     /// A behavior, port or group name: a non-empty str8.
     fn name(&mut self) -> Option<Arc<str>> {
         self.str8().filter(|s| !s.is_empty())
+    }
+    /// Two names side by side (a PORT's behavior and port), looked up as one.
+    #[inline(always)]
+    fn name_pair(&mut self) -> Option<(Arc<str>, Arc<str>)> {
+        let lb = usize::from(*self.buf.first()?);
+        let lp = usize::from(*self.buf.get(lb + 1)?);
+        let span = self.take(lb + lp + 2)?;
+        self.names.intern_pair(span)
     }
     fn str16(&mut self) -> Option<&'a str> {
         let n = self.u16()?;
@@ -591,6 +738,43 @@ mod tests {
             priority: 0,
             value: Value::Int(1),
         })
+    }
+
+    #[test]
+    fn the_name_cache_spreads_similar_names_and_finds_long_ones() {
+        // Names that differ only in their last bytes (p00, p01, ...) must not share a set, or
+        // a receiver of 64 such ports would miss again and again.
+        let mut names = NameCache::new();
+        let sets: std::collections::HashSet<u64> =
+            (0..64).map(|i| name_hash(format!("p{i:02}").as_bytes()) >> 56).collect();
+        assert!(sets.len() > 40, "64 names in {} sets", sets.len());
+        // Every length around the word size and past the in-place comparison, twice: the
+        // second lookup hands out the first one's name.
+        for n in 0..=40 {
+            let name = "x".repeat(n) + "y";
+            let a = names.intern(name.as_bytes()).unwrap();
+            let b = names.intern(name.as_bytes()).unwrap();
+            assert!(Arc::ptr_eq(&a, &b) && *a == *name);
+            // A name one byte different is a different name.
+            let other = "x".repeat(n) + "z";
+            assert_eq!(&*names.intern(other.as_bytes()).unwrap(), other);
+            let mut middle = name.clone().into_bytes();
+            middle[n / 2] = b'w';
+            assert!(!same_bytes(name.as_bytes(), &middle) && same_bytes(&middle, &middle.clone()));
+        }
+        assert_eq!(names.intern(&[0xff, 0xfe]), None, "not UTF-8");
+        // Pairs: the same bytes cut differently are different pairs; a pair with an empty or
+        // non-UTF-8 name is refused every time, cached or not.
+        let ab_c = names.intern_pair(&[2, b'a', b'b', 1, b'c']).unwrap();
+        let a_bc = names.intern_pair(&[1, b'a', 2, b'b', b'c']).unwrap();
+        assert_eq!((&*ab_c.0, &*ab_c.1, &*a_bc.0, &*a_bc.1), ("ab", "c", "a", "bc"));
+        let again = names.intern_pair(&[2, b'a', b'b', 1, b'c']).unwrap();
+        assert!(Arc::ptr_eq(&again.0, &ab_c.0) && Arc::ptr_eq(&again.1, &ab_c.1));
+        for _ in 0..2 {
+            assert_eq!(names.intern_pair(&[0, 1, b'c']), None);
+            assert_eq!(names.intern_pair(&[1, b'a', 0]), None);
+            assert_eq!(names.intern_pair(&[1, 0xff, 1, b'c']), None);
+        }
     }
 
     #[test]
