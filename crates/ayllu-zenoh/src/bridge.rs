@@ -42,12 +42,11 @@ use std::time::{Duration, Instant};
 use ayllu::datagram::{DatagramSocket, OsSocket};
 use ayllu::{NodeId, RuntimeError, UdpConfig};
 use ayllu_wire::{FLAG_AUTH, HEADER_LEN, MAC_LEN, MAGIC, MAX_DATAGRAM_LEN, VERSION};
-use zenoh::pubsub::{Publisher, Subscriber};
-use zenoh::qos::CongestionControl;
+use zenoh::pubsub::Subscriber;
 use zenoh::sample::Locality;
 use zenoh::{Session, Wait};
 
-use crate::zenoh_socket::{key_for, nonce_of, sender, zenoh_config, BROADCAST};
+use crate::zenoh_socket::{key_for, nonce_of, sender, zenoh_config, Publishers, BROADCAST};
 use crate::zenoh_url::ZenohUrl;
 
 /// Node ids kept per side; beyond it new ones are dropped and counted (`table_full`).
@@ -89,11 +88,36 @@ impl Queue {
     }
 }
 
+/// A thread that receives on one of the bridge's sockets until told to stop; told and joined
+/// when dropped (its socket's read timeout, [`RECV_POLL`], bounds how long that takes).
+struct ReceivingThread {
+    stop: Arc<AtomicBool>,
+    thread: Option<JoinHandle<()>>,
+}
+
+impl ReceivingThread {
+    /// Run `receive` (given the stop flag to look at between reads) on a thread called `name`.
+    fn spawn(name: &str, receive: impl FnOnce(&AtomicBool) + Send + 'static) -> std::io::Result<ReceivingThread> {
+        let stop = Arc::new(AtomicBool::new(false));
+        let halt = stop.clone();
+        let thread = std::thread::Builder::new().name(name.into()).spawn(move || receive(&halt))?;
+        Ok(ReceivingThread { stop, thread: Some(thread) })
+    }
+}
+
+impl Drop for ReceivingThread {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
 /// A UDP socket and the thread that receives on it, stopped and joined when dropped.
 struct Receiver {
     socket: Arc<UdpSocket>,
-    stop: Arc<AtomicBool>,
-    thread: Option<JoinHandle<()>>,
+    _thread: ReceivingThread,
 }
 
 impl Receiver {
@@ -104,9 +128,8 @@ impl Receiver {
         socket.set_multicast_ttl_v4(ttl)?;
         let proxy = Some(proxy);
         let socket = Arc::new(socket);
-        let stop = Arc::new(AtomicBool::new(false));
-        let (s, halt) = (socket.clone(), stop.clone());
-        let thread = std::thread::Builder::new().name("ayllu-bridge-udp".into()).spawn(move || {
+        let s = socket.clone();
+        let thread = ReceivingThread::spawn("ayllu-bridge-udp", move |halt| {
             let mut buf = vec![0u8; MAX_DATAGRAM_LEN + 1];
             while !halt.load(Ordering::Relaxed) {
                 match s.recv_from(&mut buf) {
@@ -116,16 +139,7 @@ impl Receiver {
                 }
             }
         })?;
-        Ok(Receiver { socket, stop, thread: Some(thread) })
-    }
-}
-
-impl Drop for Receiver {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
+        Ok(Receiver { socket, _thread: thread })
     }
 }
 
@@ -133,16 +147,13 @@ impl Drop for Receiver {
 /// and discovery addresses) and the thread that receives on it; stopped and joined when dropped.
 struct Listener {
     addr: SocketAddr,
-    stop: Arc<AtomicBool>,
-    thread: Option<JoinHandle<()>>,
+    _thread: ReceivingThread,
 }
 
 impl Listener {
     fn start(mut socket: OsSocket, queue: Arc<Queue>) -> std::io::Result<Listener> {
         let addr = socket.local_addr()?;
-        let stop = Arc::new(AtomicBool::new(false));
-        let halt = stop.clone();
-        let thread = std::thread::Builder::new().name("ayllu-bridge-main".into()).spawn(move || {
+        let thread = ReceivingThread::spawn("ayllu-bridge-main", move |halt| {
             let mut buf = vec![0u8; MAX_DATAGRAM_LEN + 1];
             while !halt.load(Ordering::Relaxed) {
                 socket.wait(RECV_POLL);
@@ -151,16 +162,7 @@ impl Listener {
                 }
             }
         })?;
-        Ok(Listener { addr, stop, thread: Some(thread) })
-    }
-}
-
-impl Drop for Listener {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
+        Ok(Listener { addr, _thread: thread })
     }
 }
 
@@ -203,7 +205,7 @@ pub struct Bridge {
     peers: Vec<SocketAddr>,
     zenoh_nodes: HashMap<NodeId, ZenohNode>,
     udp_nodes: HashMap<NodeId, UdpNode>,
-    publishers: HashMap<SocketAddr, Publisher<'static>>,
+    publishers: Publishers,
     /// Kept alive: the team's broadcast key.
     _broadcast: Subscriber<()>,
     queue: Arc<Queue>,
@@ -290,7 +292,7 @@ impl Bridge {
             peers: udp.peers,
             zenoh_nodes: HashMap::new(),
             udp_nodes: HashMap::new(),
-            publishers: HashMap::new(),
+            publishers: Publishers::new(2 * MAX_ROUTES),
             _broadcast: subscriber,
             queue,
             counts: BTreeMap::new(),
@@ -438,7 +440,7 @@ impl Bridge {
                 None => return self.count("no_route"),
             },
         };
-        match self.publish(to, bytes, attachment) {
+        match self.publishers.put(&self.session, self.team, to, bytes, &attachment) {
             Ok(()) => self.count("to_zenoh"),
             Err(_) => self.count("send_failed"),
         }
@@ -468,24 +470,6 @@ impl Bridge {
             .wait()
             .map_err(|e| fail(&format!("subscribing to {key}"), e))?;
         Ok(UdpNode { addr, attachment, _subscriber: subscriber, last_heard: Instant::now() })
-    }
-
-    fn publish(&mut self, to: SocketAddr, bytes: &[u8], attachment: [u8; 6]) -> Result<(), zenoh::Error> {
-        if !self.publishers.contains_key(&to) {
-            if self.publishers.len() >= 2 * MAX_ROUTES {
-                self.publishers.clear();
-            }
-            let publisher = self
-                .session
-                .declare_publisher(key_for(self.team, to))
-                // Best effort, as every node's (N1): a congested link drops, never blocks.
-                .congestion_control(CongestionControl::Drop)
-                .express(true)
-                .allowed_destination(Locality::Remote)
-                .wait()?;
-            self.publishers.insert(to, publisher);
-        }
-        self.publishers[&to].put(bytes.to_vec()).attachment(attachment.to_vec()).wait()
     }
 
     fn relay_zenoh(&mut self, to: Option<NodeId>, bytes: &[u8], from: SocketAddr) {
@@ -573,9 +557,9 @@ pub fn bridge_main(args: &[String]) -> std::process::ExitCode {
         match flag.as_str() {
             "--udp" => udp = Some(value.clone()),
             "--zenoh" => zenoh = Some(value.clone()),
-            "--for" => match value.parse::<f64>() {
-                Ok(s) if s.is_finite() && s >= 0.0 => run_for = Some(Duration::from_secs_f64(s)),
-                _ => return usage(&format!("--for takes seconds, got `{value}`")),
+            "--for" => match crate::router::seconds(value) {
+                Some(d) => run_for = Some(d),
+                None => return usage(&format!("--for takes seconds, got `{value}`")),
             },
             "--status-ms" => match value.parse::<u64>() {
                 Ok(ms) if ms > 0 => status_ms = ms,

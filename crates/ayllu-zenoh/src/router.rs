@@ -110,6 +110,15 @@ impl Router {
 pub const USAGE: &str = "usage: ayllu-zenoh router [--listen ENDPOINT]... [--connect ENDPOINT]... [--config FILE] \
                          [--scouting 0|1] [--for SECONDS]\n  e.g. ayllu-zenoh router --listen tcp/0.0.0.0:7447";
 
+/// A `--for SECONDS` value (the router's and the bridge's): a finite, non-negative number of
+/// seconds, fractions allowed.
+pub(crate) fn seconds(value: &str) -> Option<std::time::Duration> {
+    match value.parse::<f64>() {
+        Ok(s) if s.is_finite() && s >= 0.0 => Some(std::time::Duration::from_secs_f64(s)),
+        _ => None,
+    }
+}
+
 /// `ayllu-zenoh router ARGS`: start a router, print one JSON line
 /// `{"router":ZID,"locators":[...]}` (the bound endpoints: port 0 resolved) and run until killed
 /// or `--for` seconds have passed. Returns the exit status (2: usage, 1: the router failed).
@@ -136,9 +145,9 @@ pub fn router_main(args: &[String]) -> std::process::ExitCode {
                 "1" | "true" => options.scouting = Some(true),
                 _ => return usage(&format!("--scouting takes 0 or 1, got `{value}`")),
             },
-            "--for" => match value.parse::<f64>() {
-                Ok(s) if s.is_finite() && s >= 0.0 => run_for = Some(std::time::Duration::from_secs_f64(s)),
-                _ => return usage(&format!("--for takes seconds, got `{value}`")),
+            "--for" => match seconds(value) {
+                Some(d) => run_for = Some(d),
+                None => return usage(&format!("--for takes seconds, got `{value}`")),
             },
             _ => return usage(&format!("unknown option `{flag}`")),
         }

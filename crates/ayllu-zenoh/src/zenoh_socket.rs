@@ -42,6 +42,47 @@ pub const INBOX_LIMIT: usize = 4096;
 /// learned from forged datagrams cannot grow it.
 const MAX_PUBLISHERS: usize = 1024;
 
+/// Publishers on the key expressions of the addresses sent to, declared on first use and held
+/// for the next datagram; a node's socket and the bridge publish through one each, so both
+/// send with the same settings. At most `cap` are held: beyond it the cache starts again, so
+/// addresses learned from forged datagrams cannot grow it.
+pub(crate) struct Publishers {
+    held: HashMap<SocketAddr, Publisher<'static>>,
+    cap: usize,
+}
+
+impl Publishers {
+    pub(crate) fn new(cap: usize) -> Publishers {
+        Publishers { held: HashMap::new(), cap }
+    }
+
+    /// Publish `bytes` on team `team`'s key for `to`, the sender's address as `attachment`.
+    pub(crate) fn put(
+        &mut self,
+        session: &Session,
+        team: u32,
+        to: SocketAddr,
+        bytes: &[u8],
+        attachment: &[u8],
+    ) -> Result<(), zenoh::Error> {
+        if !self.held.contains_key(&to) {
+            if self.held.len() >= self.cap {
+                self.held.clear();
+            }
+            let publisher = session
+                .declare_publisher(key_for(team, to))
+                // Best effort (N1): a congested link drops, it never blocks the sender's loop.
+                .congestion_control(CongestionControl::Drop)
+                // Ayllu batches a loop turn's messages itself (N3).
+                .express(true)
+                .allowed_destination(Locality::Remote)
+                .wait()?;
+            self.held.insert(to, publisher);
+        }
+        self.held[&to].put(bytes.to_vec()).attachment(attachment.to_vec()).wait()
+    }
+}
+
 #[derive(Default)]
 struct Inbox {
     queue: VecDeque<(Vec<u8>, SocketAddr)>,
@@ -57,7 +98,7 @@ pub struct ZenohSocket {
     /// The sender's address as every payload's attachment carries it.
     attachment: [u8; 6],
     inbox: Shared,
-    publishers: HashMap<SocketAddr, Publisher<'static>>,
+    publishers: Publishers,
     /// Kept alive: dropping a subscriber undeclares it.
     _subscribers: Vec<Subscriber<()>>,
     overflowed: Arc<AtomicU64>,
@@ -153,7 +194,7 @@ impl ZenohSocket {
             addr,
             attachment,
             inbox,
-            publishers: HashMap::new(),
+            publishers: Publishers::new(MAX_PUBLISHERS),
             _subscribers: subscribers,
             overflowed,
             unattributed,
@@ -190,24 +231,7 @@ pub(crate) fn sender(a: &[u8]) -> Option<SocketAddr> {
 
 impl DatagramSocket for ZenohSocket {
     fn send_to(&mut self, bytes: &[u8], to: SocketAddr) -> io::Result<()> {
-        if !self.publishers.contains_key(&to) {
-            if self.publishers.len() >= MAX_PUBLISHERS {
-                self.publishers.clear();
-            }
-            let publisher = self
-                .session
-                .declare_publisher(key_for(self.team, to))
-                // Best effort (N1): a congested link drops, it never blocks the node's loop.
-                .congestion_control(CongestionControl::Drop)
-                // Ayllu batches a loop turn's messages itself (N3).
-                .express(true)
-                .allowed_destination(Locality::Remote)
-                .wait()
-                .map_err(io_error)?;
-            self.publishers.insert(to, publisher);
-        }
-        let publisher = &self.publishers[&to];
-        publisher.put(bytes.to_vec()).attachment(self.attachment.to_vec()).wait().map_err(io_error)
+        self.publishers.put(&self.session, self.team, to, bytes, &self.attachment).map_err(io_error)
     }
 
     fn recv_from(&mut self, buf: &mut [u8]) -> io::Result<Option<(usize, SocketAddr)>> {
