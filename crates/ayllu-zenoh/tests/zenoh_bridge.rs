@@ -17,41 +17,25 @@
 //! listen on loopback ports the system chose a moment before. Every wait is bounded and only
 //! ends early; timing never decides a verdict.
 
-use std::io::{BufRead, BufReader};
-use std::process::{Child, Command, Stdio};
-use std::sync::{Arc, Mutex};
+mod common;
+
+use std::process::Command;
 use std::time::{Duration, Instant};
 
-use ayllu::{
-    BehaviorClass, ConnectOptions, ConnectionKind, ControlBody, Endpoint, Node, NodeId, PortSpec, ReplyBody,
-    RequestStatus, Value, WindowKind,
-};
+use ayllu::{ConnectOptions, ConnectionKind, ControlBody, Endpoint, Node, NodeId, ReplyBody, Value, WindowKind};
 use ayllu_zenoh::Bridge;
-use serde_json::Value as Json;
+use common::{count, free_port, ints, read, strings, Proc, BIN};
 
 const TEAM: u32 = 12;
+const KEY: [u8; 32] = [0x5a; 32];
 const PATIENCE: Duration = Duration::from_secs(30);
-const BIN: &str = env!("CARGO_BIN_EXE_ayllu-zenoh");
 
 fn key_hex() -> String {
-    "5a".repeat(32)
-}
-
-fn free_port() -> u16 {
-    let l = std::net::TcpListener::bind("127.0.0.1:0").expect("bind port 0");
-    l.local_addr().expect("local address").port()
+    common::key_hex(&KEY)
 }
 
 fn relay_node(id: u32, url: &str) -> Node {
-    let mut node = Node::open(NodeId(id), url).unwrap_or_else(|e| panic!("open node {id} on {url}: {e}"));
-    let mut relay = BehaviorClass::new("Relay");
-    relay.port(PortSpec::new("In", 0i64)).unwrap();
-    relay.port(PortSpec::new("Out", 0i64)).unwrap();
-    node.define(relay).unwrap();
-    node.create("Relay", "SRC").unwrap();
-    node.create("Relay", "DST").unwrap();
-    node.join("team");
-    node
+    common::relay_node(id, url, &["team"])
 }
 
 /// Nodes 1, 2 (udp://), 3, 4 (zenoh://) and the bridge between them.
@@ -81,40 +65,18 @@ fn mixed_team() -> (Vec<Node>, Bridge) {
 }
 
 /// Step every node and the bridge until `done` holds or [`PATIENCE`] passes; whether it held.
-fn run_until(nodes: &mut [Node], bridge: &mut Bridge, mut done: impl FnMut(&mut [Node]) -> bool) -> bool {
-    let give_up = Instant::now() + PATIENCE;
-    while Instant::now() < give_up {
-        for n in nodes.iter_mut() {
-            n.run_for(Duration::from_millis(1));
-            bridge.step(Duration::ZERO);
-        }
-        if done(nodes) {
-            return true;
-        }
-    }
-    false
+fn run_until(nodes: &mut [Node], bridge: &mut Bridge, done: impl FnMut(&mut [Node]) -> bool) -> bool {
+    common::run_until(nodes, PATIENCE, |n| step(n, bridge), done)
 }
 
-fn read(node: &Node, behavior: &str, port: &str) -> Value {
-    node.read(behavior, port).unwrap()
-}
-
-fn count(node: &Node, cause: &str) -> u64 {
-    node.transport_counters().iter().find(|(c, _)| c == cause).map_or(0, |(_, n)| *n)
+/// A node's turn: run it a millisecond, then let the bridge relay what it sent.
+fn step(node: &mut Node, bridge: &mut Bridge) {
+    node.run_for(Duration::from_millis(1));
+    bridge.step(Duration::ZERO);
 }
 
 fn answer(nodes: &mut [Node], bridge: &mut Bridge, asker: usize, id: ayllu::RequestId) -> ReplyBody {
-    let mut reply = None;
-    let answered = run_until(nodes, bridge, |nodes| match nodes[asker].core().request_status(id) {
-        Some(RequestStatus::Done(body)) => {
-            reply = Some(body);
-            true
-        }
-        Some(RequestStatus::Failed(text)) => panic!("request failed: {text}"),
-        _ => false,
-    });
-    assert!(answered, "no answer within {PATIENCE:?}");
-    reply.unwrap()
+    common::answer(nodes, asker, id, PATIENCE, |n| step(n, bridge))
 }
 
 #[test]
@@ -297,98 +259,34 @@ fn a_keyed_bridge_relays_only_the_teams_datagrams() {
     assert_eq!(bridge.udp_nodes(), [NodeId(8)], "only the authenticated sender became a route");
 }
 
-/// A child process whose stdout JSON lines are collected; killed when dropped.
-struct Proc {
-    child: Child,
-    lines: Arc<Mutex<Vec<Json>>>,
-}
-
-impl Proc {
-    fn start(args: &[String]) -> Proc {
-        let mut child = Command::new(BIN)
-            .args(args)
-            .stdin(Stdio::null())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
-            .spawn()
-            .expect("start ayllu-zenoh");
-        let lines = Arc::new(Mutex::new(Vec::new()));
-        let (out, sink) = (child.stdout.take().unwrap(), lines.clone());
-        std::thread::spawn(move || {
-            for line in BufReader::new(out).lines().map_while(Result::ok) {
-                if let Ok(j) = serde_json::from_str(&line) {
-                    sink.lock().unwrap().push(j);
-                }
-            }
-        });
-        Proc { child, lines }
-    }
-
-    fn wait_line(&self, limit: Duration, mut pick: impl FnMut(&Json) -> bool) -> Option<Json> {
-        let give_up = Instant::now() + limit;
-        while Instant::now() < give_up {
-            if let Some(j) = self.lines.lock().unwrap().iter().find(|j| pick(j)) {
-                return Some(j.clone());
-            }
-            std::thread::sleep(Duration::from_millis(50));
-        }
-        None
-    }
-
-    fn latest(&self) -> Option<Json> {
-        self.lines.lock().unwrap().iter().rev().find(|j| j.get("t").is_some()).cloned()
-    }
-}
-
-impl Drop for Proc {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
-
-fn ints(j: &Json, field: &str) -> Vec<u64> {
-    j[field].as_array().map(|a| a.iter().filter_map(Json::as_u64).collect()).unwrap_or_default()
-}
-
-fn strings(args: &[&str]) -> Vec<String> {
-    args.iter().map(|s| s.to_string()).collect()
-}
-
 #[test]
 fn the_papers_team_runs_across_the_bridge_command() {
     let key = key_hex();
     let zenoh_port = free_port();
-    let bridge = Proc::start(&strings(&[
+    let bridge = Proc::start(
         "bridge",
-        "--udp",
-        &format!("udp://127.0.0.1:0?team={TEAM}"),
-        "--zenoh",
-        &format!("zenoh://?scouting=0&listen=tcp/127.0.0.1:{zenoh_port}&team={TEAM}"),
-        "--status-ms",
-        "500",
-        "--for",
-        "120",
-    ]));
+        &strings(&[
+            "bridge",
+            "--udp",
+            &format!("udp://127.0.0.1:0?team={TEAM}"),
+            "--zenoh",
+            &format!("zenoh://?scouting=0&listen=tcp/127.0.0.1:{zenoh_port}&team={TEAM}"),
+            "--status-ms",
+            "500",
+            "--for",
+            "120",
+        ]),
+    );
     let first = bridge.wait_line(PATIENCE, |j| j.get("udp").is_some()).expect("the bridge's first line");
     let at = first["udp"].as_str().unwrap().to_owned();
     let udp_url = format!("udp://127.0.0.1:0?team={TEAM}&key={key}&hello_ms=200&peer={at}");
     let zenoh_url =
         format!("zenoh://?scouting=0&connect=tcp/127.0.0.1:{zenoh_port}&team={TEAM}&key={key}&hello_ms=200");
     let node = |id: &str, url: &str, sight: &str| {
-        Proc::start(&strings(&[
-            "node",
-            "--id",
-            id,
-            "--udp",
-            url,
-            "--sight",
-            sight,
-            "--status-ms",
-            "300",
-            "--for",
-            "120",
-        ]))
+        Proc::start(
+            &format!("n{id}"),
+            &strings(&["node", "--id", id, "--udp", url, "--sight", sight, "--status-ms", "300", "--for", "120"]),
+        )
     };
     let n1 = node("1", &udp_url, "1:0.9,2:0.5");
     let n2 = node("2", &zenoh_url, "1:0.6,2:0.8");

@@ -13,146 +13,36 @@
 //! is off, so nothing leaves the machine. Every wait is bounded and only ends early; timing
 //! never decides a verdict.
 
-use std::io::{BufRead, BufReader, Read};
-use std::process::{Child, Command, Output, Stdio};
-use std::sync::{Arc, Mutex};
+mod common;
+
+use std::process::Output;
 use std::time::{Duration, Instant};
 
 use ayllu::{Node, NodeId};
+use common::{free_port, strings, Proc};
 use serde_json::Value as Json;
 use zenoh::Wait;
 
 const TEAM: u32 = 12;
-const BIN: &str = env!("CARGO_BIN_EXE_ayllu-zenoh");
+const KEY: [u8; 32] = [0x5a; 32];
 /// The longest any condition is waited for.
 const PATIENCE: Duration = Duration::from_secs(60);
 
 fn key_hex() -> String {
-    "5a".repeat(32)
-}
-
-/// A loopback port free a moment ago (the system chose it).
-fn free_port() -> u16 {
-    let l = std::net::TcpListener::bind("127.0.0.1:0").expect("bind port 0");
-    l.local_addr().expect("local address").port()
-}
-
-/// A child process whose stdout JSON lines and stderr are collected; killed when dropped.
-struct Proc {
-    name: String,
-    child: Child,
-    lines: Arc<Mutex<Vec<Json>>>,
-    stderr: Arc<Mutex<String>>,
-}
-
-impl Proc {
-    fn start(name: &str, args: &[String]) -> Proc {
-        let mut child = Command::new(BIN)
-            .args(args)
-            .stdin(Stdio::null())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .unwrap_or_else(|e| panic!("start {name}: {e}"));
-        let lines = Arc::new(Mutex::new(Vec::new()));
-        let stderr = Arc::new(Mutex::new(String::new()));
-        let (out, err) = (child.stdout.take().unwrap(), child.stderr.take().unwrap());
-        let sink = lines.clone();
-        std::thread::spawn(move || {
-            for line in BufReader::new(out).lines().map_while(Result::ok) {
-                if let Ok(j) = serde_json::from_str(&line) {
-                    sink.lock().unwrap().push(j);
-                }
-            }
-        });
-        let sink = stderr.clone();
-        std::thread::spawn(move || {
-            let mut text = String::new();
-            let mut err = err;
-            let mut buf = [0u8; 4096];
-            while let Ok(n) = err.read(&mut buf) {
-                if n == 0 {
-                    break;
-                }
-                text.push_str(&String::from_utf8_lossy(&buf[..n]));
-                *sink.lock().unwrap() = text.clone();
-            }
-        });
-        Proc { name: name.to_owned(), child, lines, stderr }
-    }
-
-    fn lines(&self) -> Vec<Json> {
-        self.lines.lock().unwrap().clone()
-    }
-
-    /// The first line (from the start) for which `pick` holds, waited for at most [`PATIENCE`].
-    fn wait_line(&self, mut pick: impl FnMut(&Json) -> bool) -> Option<Json> {
-        let give_up = Instant::now() + PATIENCE;
-        while Instant::now() < give_up {
-            if let Some(j) = self.lines().into_iter().find(&mut pick) {
-                return Some(j);
-            }
-            std::thread::sleep(Duration::from_millis(50));
-        }
-        None
-    }
-
-    fn report(&self) -> String {
-        let lines = self.lines();
-        let tail: Vec<String> = lines.iter().rev().take(3).map(Json::to_string).collect();
-        format!("--- {}: last lines {tail:#?}\nstderr: {}", self.name, self.stderr.lock().unwrap())
-    }
-}
-
-impl Drop for Proc {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
-
-fn strings(args: &[&str]) -> Vec<String> {
-    args.iter().map(|s| s.to_string()).collect()
+    common::key_hex(&KEY)
 }
 
 /// Run the tool to the end (killed after [`PATIENCE`]); its output, printed for --nocapture.
 fn tool(args: &[&str], url: &str) -> Output {
-    let mut child = Command::new(BIN)
-        .args(args)
-        .args(["--udp", url, "--timeout", "15"])
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("start ayllu-zenoh");
-    let give_up = Instant::now() + PATIENCE;
-    while child.try_wait().expect("poll the tool").is_none() && Instant::now() < give_up {
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    if child.try_wait().expect("poll the tool").is_none() {
-        let _ = child.kill();
-    }
-    let out = child.wait_with_output().expect("the tool's output");
-    println!(
-        "$ ayllu-zenoh {}\n{}{}",
-        args.join(" "),
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    out
+    common::run_tool(args, url, PATIENCE, || std::thread::sleep(Duration::from_millis(20)))
 }
 
 fn claims(j: &Json) -> Vec<u64> {
-    j["claims"].as_array().map(|a| a.iter().filter_map(Json::as_u64).collect()).unwrap_or_default()
+    common::ints(j, "claims")
 }
 
 fn peers(j: &Json) -> Vec<u64> {
-    j["peers"].as_array().map(|a| a.iter().filter_map(Json::as_u64).collect()).unwrap_or_default()
-}
-
-/// The latest status line of `p` (with a `t`), if any.
-fn latest(p: &Proc) -> Option<Json> {
-    p.lines().into_iter().rev().find(|j| j.get("t").is_some())
+    common::ints(j, "peers")
 }
 
 #[test]
@@ -163,7 +53,7 @@ fn node_processes_over_zenoh_are_listed_explained_echoed_and_take_over() {
         strings(&["node", "--id", id, "--udp", &url, "--sight", sight, "--status-ms", "300", "--for", "120"])
     };
     let n1 = Proc::start("n1", &node("1", format!("{base}&listen=tcp/127.0.0.1:{p1}"), "1:0.9,2:0.5"));
-    let first = n1.wait_line(|j| j.get("listening").is_some()).unwrap_or_else(|| panic!("{}", n1.report()));
+    let first = n1.wait_line(PATIENCE, |j| j.get("listening").is_some()).unwrap_or_else(|| panic!("{}", n1.report()));
     assert_eq!(first["node"], 1);
     let n2 = Proc::start(
         "n2",
@@ -175,7 +65,7 @@ fn node_processes_over_zenoh_are_listed_explained_echoed_and_take_over() {
     let mut settled = false;
     while !settled && Instant::now() < give_up {
         std::thread::sleep(Duration::from_millis(100));
-        if let (Some(a), Some(b)) = (latest(&n1), latest(&n2)) {
+        if let (Some(a), Some(b)) = (n1.latest(), n2.latest()) {
             settled = peers(&a) == [2] && peers(&b) == [1] && claims(&a) == [1] && claims(&b) == [2];
         }
     }
@@ -228,7 +118,8 @@ fn node_processes_over_zenoh_are_listed_explained_echoed_and_take_over() {
 
     // Kill n1: n2 takes target 1 over once n1's lease lapses (the paper's cross-subsumption).
     drop(n1);
-    let took_over = n2.wait_line(|j| j.get("t").is_some() && claims(j).contains(&1) && !peers(j).contains(&1));
+    let took_over =
+        n2.wait_line(PATIENCE, |j| j.get("t").is_some() && claims(j).contains(&1) && !peers(j).contains(&1));
     assert!(took_over.is_some(), "n2 never took target 1 over\n{}", n2.report());
 }
 
@@ -292,9 +183,11 @@ fn the_distributed_simulator_runs_over_a_zenoh_router() {
         .collect();
     let report = || format!("{}\n{}\n{}", serve.report(), robots[0].report(), robots[1].report());
 
-    let start = serve.wait_line(|j| j["start"] == true).unwrap_or_else(|| panic!("no start line\n{}", report()));
+    let start =
+        serve.wait_line(PATIENCE, |j| j["start"] == true).unwrap_or_else(|| panic!("no start line\n{}", report()));
     assert_eq!(start["missing"], serde_json::json!([]), "every body heard its controller over Zenoh\n{}", report());
-    let done = serve.wait_line(|j| j["done"] == true).unwrap_or_else(|| panic!("the run did not end\n{}", report()));
+    let done =
+        serve.wait_line(PATIENCE, |j| j["done"] == true).unwrap_or_else(|| panic!("the run did not end\n{}", report()));
     assert_eq!(done["stopped"], false, "{done}");
     assert!(done["radio"]["sent"].as_u64().unwrap_or(0) > 0, "the robots reported their traffic: {done}");
     let linked = serve

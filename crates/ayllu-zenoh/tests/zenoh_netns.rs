@@ -27,15 +27,19 @@
 //! and passes. Namespaces and links
 //! are removed when the guard drops (also when the test panics), names unique per run.
 
-use std::io::{BufRead, BufReader, Read};
+mod common;
+#[allow(dead_code)]
+#[path = "../../ayllu-cli/tests/common/netns.rs"]
+mod netns;
+
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
-use std::sync::{Arc, Mutex};
+use std::process::Command;
 use std::time::{Duration, Instant};
 
+use common::{wait_for, Proc, TempDir, BIN};
+use netns::Netns;
 use serde_json::Value as Json;
 
-const BIN: &str = env!("CARGO_BIN_EXE_ayllu-zenoh");
 const EXAMPLES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../examples/zenoh");
 const SIGHT: [&str; 3] = ["1:0.9,2:0.5", "1:0.6,2:0.8,3:0.4", "3:0.7,4:0.5"];
 const CLAIM_HZ: f64 = 1.0;
@@ -53,10 +57,11 @@ fn ip(args: &[&str]) -> Result<String, String> {
     }
 }
 
-/// Namespaces A, R, B (indices 0, 1, 2) and veths A-R, B-R; removed on drop.
+/// Namespaces A, R, B (indices 0, 1, 2; made, run in and removed by ayllu-cli's test
+/// [`Netns`], whose bridge this topology does without) and veths A-R, B-R; removed on drop.
 struct Net {
     subnet: u8,
-    namespaces: Vec<String>,
+    namespaces: Netns,
     links: Vec<String>,
 }
 
@@ -68,38 +73,27 @@ impl Net {
     /// A in 10.subnet.1.0/24 (A .2, R .1), B in 10.subnet.2.0/24 (B .2, R .1); R forwards
     /// nothing.
     fn create(tag: &str, subnet: u8) -> Result<Net, String> {
+        let mut net = Net { subnet, namespaces: Netns::bare(tag, subnet, 3)?, links: Vec::new() };
         // Unique per test process and test (interface names stay within 15 bytes).
         let tag = format!("{tag}{}", std::process::id() % 100_000);
-        let mut net = Net { subnet, namespaces: Vec::new(), links: Vec::new() };
-        for name in ["a", "r", "b"] {
-            let ns = format!("{tag}{name}");
-            ip(&["netns", "add", &ns])?;
-            net.namespaces.push(ns.clone());
-            ip(&["-n", &ns, "link", "set", "lo", "up"])?;
-        }
         for (side, k) in [(A, 1u8), (B, 2u8)] {
             let (outer, inner) = (format!("{tag}v{k}r"), format!("{tag}v{k}s"));
             ip(&["link", "add", &outer, "type", "veth", "peer", "name", &inner])?;
             net.links.push(outer.clone());
-            ip(&["link", "set", &outer, "netns", &net.namespaces[R]])?;
-            ip(&["link", "set", &inner, "netns", &net.namespaces[side]])?;
-            let (r_ns, s_ns) = (net.namespaces[R].clone(), net.namespaces[side].clone());
-            ip(&["-n", &r_ns, "addr", "add", &format!("10.{subnet}.{k}.1/24"), "dev", &outer])?;
-            ip(&["-n", &r_ns, "link", "set", &outer, "up"])?;
-            ip(&["-n", &s_ns, "addr", "add", &format!("10.{subnet}.{k}.2/24"), "dev", &inner])?;
-            ip(&["-n", &s_ns, "link", "set", &inner, "up"])?;
+            ip(&["link", "set", &outer, "netns", net.ns(R)])?;
+            ip(&["link", "set", &inner, "netns", net.ns(side)])?;
+            ip(&["-n", net.ns(R), "addr", "add", &format!("10.{subnet}.{k}.1/24"), "dev", &outer])?;
+            ip(&["-n", net.ns(R), "link", "set", &outer, "up"])?;
+            ip(&["-n", net.ns(side), "addr", "add", &format!("10.{subnet}.{k}.2/24"), "dev", &inner])?;
+            ip(&["-n", net.ns(side), "link", "set", &inner, "up"])?;
         }
         // No forwarding in R, whatever the host's default for new namespaces.
-        let sysctl = net.command(R, "sysctl").args(["-qw", "net.ipv4.ip_forward=0"]).output();
-        match sysctl {
-            Ok(o) if o.status.success() => Ok(net),
-            Ok(o) => Err(format!("sysctl in R: {}", String::from_utf8_lossy(&o.stderr).trim())),
-            Err(e) => Err(format!("running sysctl: {e}")),
-        }
+        net.namespaces.exec(R, "sysctl", &["-qw", "net.ipv4.ip_forward=0"]).map_err(|e| format!("in R: {e}"))?;
+        Ok(net)
     }
 
     fn ns(&self, i: usize) -> &str {
-        &self.namespaces[i]
+        self.namespaces.ns(i)
     }
 
     /// R's address on side `side`'s subnet (A: 10.S.1.1, B: 10.S.2.1).
@@ -114,127 +108,18 @@ impl Net {
 
     /// `program` run inside namespace `i` (`ip netns exec` execs it: same pid).
     fn command(&self, i: usize, program: &str) -> Command {
-        let mut cmd = Command::new("ip");
-        cmd.args(["netns", "exec", self.ns(i), program]);
-        cmd
+        self.namespaces.command(i, program)
     }
 }
 
 impl Drop for Net {
     fn drop(&mut self) {
-        // Deleting one end of a veth deletes the other.
+        // The veths go at once (deleting one end deletes the other), before the namespaces
+        // (whose teardown is asynchronous) go with `namespaces`.
         for l in &self.links {
-            let _ = ip(&["-n", &self.namespaces[R], "link", "del", l]);
+            let _ = ip(&["-n", self.ns(R), "link", "del", l]);
             let _ = ip(&["link", "del", l]);
         }
-        for ns in &self.namespaces {
-            let _ = ip(&["netns", "del", ns]);
-        }
-    }
-}
-
-/// A child whose stdout JSON lines are collected with the time they were read; killed and
-/// reaped when dropped.
-struct Proc {
-    name: String,
-    child: Child,
-    lines: Arc<Mutex<Vec<(Instant, Json)>>>,
-    stderr: Arc<Mutex<String>>,
-    killed: bool,
-}
-
-fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
-    m.lock().unwrap_or_else(|e| e.into_inner())
-}
-
-impl Proc {
-    fn spawn(name: &str, mut cmd: Command) -> Proc {
-        let mut child = cmd
-            .stdin(Stdio::null())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .unwrap_or_else(|e| panic!("starting {name}: {e}"));
-        let lines: Arc<Mutex<Vec<(Instant, Json)>>> = Arc::default();
-        let stderr: Arc<Mutex<String>> = Arc::default();
-        let (out, mut err) = (child.stdout.take().unwrap(), child.stderr.take().unwrap());
-        let sink = lines.clone();
-        std::thread::spawn(move || {
-            for line in BufReader::new(out).lines().map_while(Result::ok) {
-                if let Ok(j) = serde_json::from_str::<Json>(&line) {
-                    lock(&sink).push((Instant::now(), j));
-                }
-            }
-        });
-        let sink = stderr.clone();
-        std::thread::spawn(move || {
-            let mut buf = [0u8; 4096];
-            while let Ok(n) = err.read(&mut buf) {
-                if n == 0 {
-                    break;
-                }
-                lock(&sink).push_str(&String::from_utf8_lossy(&buf[..n]));
-            }
-        });
-        Proc { name: name.to_owned(), child, lines, stderr, killed: false }
-    }
-
-    fn lines(&self) -> Vec<(Instant, Json)> {
-        lock(&self.lines).clone()
-    }
-
-    /// The latest status line (one with a `t`).
-    fn latest(&self) -> Option<Json> {
-        lock(&self.lines).iter().rev().find(|(_, j)| j.get("t").is_some()).map(|(_, j)| j.clone())
-    }
-
-    /// The first line for which `pick` holds, waited for at most `limit` (panics if the
-    /// process exits first).
-    fn wait_line(&mut self, limit: Duration, pick: impl Fn(&Json) -> bool) -> Json {
-        let end = Instant::now() + limit;
-        loop {
-            if let Some((_, j)) = self.lines().into_iter().find(|(_, j)| pick(j)) {
-                return j;
-            }
-            if let Ok(Some(status)) = self.child.try_wait() {
-                panic!("{} exited ({status}): {}", self.name, lock(&self.stderr));
-            }
-            assert!(Instant::now() < end, "{}: no such line within {limit:?}\n{}", self.name, self.report());
-            std::thread::sleep(Duration::from_millis(20));
-        }
-    }
-
-    fn report(&self) -> String {
-        let tail: Vec<String> = self.lines().iter().rev().take(3).map(|(_, j)| j.to_string()).collect();
-        format!("--- {}: last lines {tail:#?}\nstderr: {}", self.name, lock(&self.stderr))
-    }
-
-    fn kill(&mut self) {
-        if !self.killed {
-            self.killed = true;
-            let _ = self.child.kill();
-            let _ = self.child.wait();
-        }
-    }
-}
-
-impl Drop for Proc {
-    fn drop(&mut self) {
-        self.kill();
-    }
-}
-
-/// Poll `check` every `every` until it returns `Some`, or `None` after `limit`.
-fn wait_for<T>(limit: Duration, every: Duration, mut check: impl FnMut() -> Option<T>) -> Option<T> {
-    let end = Instant::now() + limit;
-    loop {
-        if let Some(t) = check() {
-            return Some(t);
-        }
-        if Instant::now() >= end {
-            return None;
-        }
-        std::thread::sleep(every);
     }
 }
 
@@ -268,7 +153,7 @@ fn drive(j: &Json) -> u64 {
 }
 
 fn claims(j: &Json) -> Vec<u64> {
-    j["claims"].as_array().map(|a| a.iter().filter_map(Json::as_u64).collect()).unwrap_or_default()
+    common::ints(j, "claims")
 }
 
 /// Whether the latest status of `nodes` shows `drives` (node, layer) and exactly the claimers
@@ -297,24 +182,6 @@ fn state_is(nodes: &[&Proc], drives: &[(u64, u64)], claimers: &[u64; 4]) -> Resu
 
 fn diagnostics(procs: &[&Proc]) -> String {
     procs.iter().map(|p| p.report()).collect::<Vec<_>>().join("\n")
-}
-
-/// A directory of this test run, removed when dropped.
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(tag: &str) -> TempDir {
-        let nanos = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap().subsec_nanos();
-        let dir = std::env::temp_dir().join(format!("ayllu-{tag}-{}-{nanos}", std::process::id()));
-        std::fs::create_dir_all(&dir).expect("create a temporary directory");
-        TempDir(dir)
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
 }
 
 /// TLS for the run: certificates by examples/zenoh/gen-certs.sh (the router's naming its two
@@ -411,8 +278,8 @@ fn cross_subsumption_through_a_router(tag: &str, subnet: u8, tls: bool) {
         let config = Path::new(EXAMPLES).join("router.json5");
         router_cmd.args(["--config", config.to_str().unwrap()]).current_dir(tls.router_home());
     }
-    let mut router = Proc::spawn("router", router_cmd);
-    let located = router.wait_line(START_LIMIT, |j| j.get("locators").is_some());
+    let router = Proc::spawn("router", router_cmd);
+    let located = router.expect_line(START_LIMIT, |j| j.get("locators").is_some());
     let locators: Vec<String> =
         located["locators"].as_array().unwrap().iter().filter_map(|l| l.as_str()).map(str::to_owned).collect();
     let endpoint = |side: usize| {
@@ -453,8 +320,8 @@ fn cross_subsumption_through_a_router(tag: &str, subnet: u8, tls: bool) {
             "--for",
             secs,
         ]);
-        let mut p = Proc::spawn(&format!("n{id}"), cmd);
-        p.wait_line(START_LIMIT, |j| j.get("listening").is_some());
+        let p = Proc::spawn(&format!("n{id}"), cmd);
+        p.expect_line(START_LIMIT, |j| j.get("listening").is_some());
         p
     };
     // Declared after `net` and `router`: dropped (killed) first.
@@ -501,7 +368,7 @@ fn cross_subsumption_through_a_router(tag: &str, subnet: u8, tls: bool) {
     let killed_at = Instant::now();
     nodes[0].kill();
     let took = wait_for(bounds.takeover + bounds.margin * 2, Duration::from_millis(20), || {
-        nodes[1].lines().into_iter().find(|(t, j)| *t > killed_at && drive(j) == 1).map(|(t, _)| t - killed_at)
+        nodes[1].timed_lines().into_iter().find(|(t, j)| *t > killed_at && drive(j) == 1).map(|(t, _)| t - killed_at)
     });
     let everyone: Vec<&Proc> = nodes.iter().chain([&router]).collect();
     let took = took.unwrap_or_else(|| panic!("n2 never took over target 1\n{}", diagnostics(&everyone)));

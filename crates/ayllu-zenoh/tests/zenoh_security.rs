@@ -18,15 +18,17 @@
 //! keep arriving meanwhile), never by a timer alone; every wait is bounded. Needs `openssl`;
 //! without it the test prints `SKIPPED: ...` and passes.
 
-use std::io::{BufRead, BufReader};
+mod common;
+
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::Command;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::{Duration as StdDuration, Instant as StdInstant};
 
-use ayllu::{BehaviorClass, ConnectionKind, Endpoint, Node, NodeId, PortSpec, Value};
+use ayllu::{ConnectionKind, Endpoint, Node, NodeId, Value};
 use ayllu_wire::{encode_datagram, PortMessage, WireMessage};
+use common::{count, key_hex, Proc, TempDir};
 use zenoh::Wait;
 
 /// The team router.json5's access control names (`ayllu/7/**`).
@@ -35,61 +37,14 @@ const KEY: [u8; 32] = [0x3c; 32];
 const PATIENCE: StdDuration = StdDuration::from_secs(20);
 const EXAMPLES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../examples/zenoh");
 
-/// A directory of this test run, removed when dropped.
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(tag: &str) -> TempDir {
-        let nanos = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap().subsec_nanos();
-        let dir = std::env::temp_dir().join(format!("ayllu-{tag}-{}-{nanos}", std::process::id()));
-        std::fs::create_dir_all(&dir).expect("create a temporary directory");
-        TempDir(dir)
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
-
-/// A child process killed and reaped when dropped.
-struct Proc(Child);
-
-impl Drop for Proc {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
 /// Start `ayllu-zenoh router ARGS` in `dir` and read the endpoints it reports.
 fn start_router(dir: &Path, args: &[&str]) -> (Proc, Vec<String>) {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_ayllu-zenoh"))
-        .arg("router")
-        .args(args)
-        .current_dir(dir)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::inherit())
-        .spawn()
-        .expect("start ayllu-zenoh router");
-    let out = child.stdout.take().expect("piped stdout");
-    let proc = Proc(child);
-    let (tx, rx) = std::sync::mpsc::channel();
-    std::thread::spawn(move || {
-        let mut line = String::new();
-        let _ = BufReader::new(out).read_line(&mut line);
-        let _ = tx.send(line);
-    });
-    let line = rx.recv_timeout(PATIENCE).expect("the router reports its endpoints");
-    let json: serde_json::Value = serde_json::from_str(&line).unwrap_or_else(|e| panic!("{e}: `{line}`"));
+    let mut cmd = Command::new(common::BIN);
+    cmd.arg("router").args(args).current_dir(dir);
+    let proc = Proc::spawn("router", cmd);
+    let json = proc.expect_line(PATIENCE, |j| j.get("locators").is_some());
     let locators = json["locators"].as_array().expect("locators").iter().map(|l| l.as_str().unwrap().to_owned());
     (proc, locators.collect())
-}
-
-fn key_hex(key: &[u8; 32]) -> String {
-    key.iter().map(|b| format!("{b:02x}")).collect()
 }
 
 /// examples/zenoh/robot.json5 with its `certs/` pointed at `certs` (written into `dir`).
@@ -101,31 +56,11 @@ fn robot_config(dir: &Path, name: &str, certs: &Path) -> PathBuf {
 }
 
 fn relay_node(id: u32, url: &str) -> Node {
-    let mut node = Node::open(NodeId(id), url).expect("open a zenoh:// node");
-    let mut relay = BehaviorClass::new("Relay");
-    relay.port(PortSpec::new("In", 0i64)).unwrap();
-    relay.port(PortSpec::new("Out", 0i64)).unwrap();
-    node.define(relay).unwrap();
-    node.create("Relay", "SRC").unwrap();
-    node.create("Relay", "DST").unwrap();
-    node
+    common::relay_node(id, url, &[])
 }
 
-fn run_until(nodes: &mut [Node], mut done: impl FnMut(&mut [Node]) -> bool) -> bool {
-    let give_up = StdInstant::now() + PATIENCE;
-    while StdInstant::now() < give_up {
-        for n in nodes.iter_mut() {
-            n.run_for(StdDuration::from_millis(2));
-        }
-        if done(nodes) {
-            return true;
-        }
-    }
-    false
-}
-
-fn count(node: &Node, cause: &str) -> u64 {
-    node.transport_counters().iter().find(|(c, _)| c == cause).map_or(0, |(_, n)| *n)
+fn run_until(nodes: &mut [Node], done: impl FnMut(&mut [Node]) -> bool) -> bool {
+    common::run_until(nodes, PATIENCE, |n| n.run_for(StdDuration::from_millis(2)), done)
 }
 
 /// A raw Zenoh client with robot.json5's settings and `name`'s certificate: it publishes

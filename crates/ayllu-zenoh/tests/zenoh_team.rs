@@ -8,13 +8,13 @@
 //! multicast scouting is off, so nothing leaves the machine. Every wait is bounded in time and
 //! timing never decides a verdict: a wait only ends early.
 
+mod common;
+
 use std::time::{Duration as StdDuration, Instant as StdInstant};
 
-use ayllu::{
-    BehaviorClass, ConnectOptions, ConnectionKind, ControlBody, Endpoint, Node, NodeId, PortSpec, ReplyBody,
-    RequestStatus, Value,
-};
+use ayllu::{ConnectOptions, ConnectionKind, ControlBody, Endpoint, Node, NodeId, ReplyBody, Value};
 use ayllu_wire::{encode_datagram, PortMessage, WireMessage};
+use common::{count, free_port, read, relay_node};
 use zenoh::Wait;
 
 const TEAM: u32 = 12;
@@ -22,14 +22,8 @@ const KEY: [u8; 32] = [0x5a; 32];
 /// The longest any condition is waited for (session setup and routes included).
 const PATIENCE: StdDuration = StdDuration::from_secs(20);
 
-/// A loopback port free a moment ago (the system chose it).
-fn free_port() -> u16 {
-    let l = std::net::TcpListener::bind("127.0.0.1:0").expect("bind port 0");
-    l.local_addr().expect("local address").port()
-}
-
 fn key_hex() -> String {
-    KEY.iter().map(|b| format!("{b:02x}")).collect()
+    common::key_hex(&KEY)
 }
 
 /// Nodes 1..=n, node k listening on its own loopback port and connecting to nodes 1..k-1;
@@ -45,15 +39,7 @@ fn team(n: u32) -> (Vec<Node>, Vec<u16>) {
             "zenoh://?mode=peer&scouting=0&listen=tcp/127.0.0.1:{port}{connect}&team={TEAM}&key={}&hello_ms=200&name=n{id}",
             key_hex()
         );
-        let mut node = Node::open(NodeId(id), &url).expect("open a zenoh:// node");
-        let mut relay = BehaviorClass::new("Relay");
-        relay.port(PortSpec::new("In", 0i64)).unwrap();
-        relay.port(PortSpec::new("Out", 0i64)).unwrap();
-        node.define(relay).unwrap();
-        node.create("Relay", "SRC").unwrap();
-        node.create("Relay", "DST").unwrap();
-        node.join("team");
-        nodes.push(node);
+        nodes.push(relay_node(id, &url, &["team"]));
         ports.push(port);
     }
     (nodes, ports)
@@ -69,39 +55,14 @@ fn client_team(n: u32, router: u16) -> Vec<Node> {
                 "zenoh://?mode=client&scouting=0&connect=tcp/127.0.0.1:{router}&team={TEAM}&key={}&hello_ms=200",
                 key_hex()
             );
-            let mut node = Node::open(NodeId(id), &url).expect("open a zenoh:// client node");
-            let mut relay = BehaviorClass::new("Relay");
-            relay.port(PortSpec::new("In", 0i64)).unwrap();
-            relay.port(PortSpec::new("Out", 0i64)).unwrap();
-            node.define(relay).unwrap();
-            node.create("Relay", "SRC").unwrap();
-            node.create("Relay", "DST").unwrap();
-            node.join("team");
-            node
+            relay_node(id, &url, &["team"])
         })
         .collect()
 }
 
 /// Step every node until `done` holds or [`PATIENCE`] passes; whether it held.
-fn run_until(nodes: &mut [Node], mut done: impl FnMut(&mut [Node]) -> bool) -> bool {
-    let give_up = StdInstant::now() + PATIENCE;
-    while StdInstant::now() < give_up {
-        for n in nodes.iter_mut() {
-            n.run_for(StdDuration::from_millis(2));
-        }
-        if done(nodes) {
-            return true;
-        }
-    }
-    false
-}
-
-fn read(node: &Node, behavior: &str, port: &str) -> Value {
-    node.read(behavior, port).unwrap()
-}
-
-fn count(node: &Node, cause: &str) -> u64 {
-    node.transport_counters().iter().find(|(c, _)| c == cause).map_or(0, |(_, n)| *n)
+fn run_until(nodes: &mut [Node], done: impl FnMut(&mut [Node]) -> bool) -> bool {
+    common::run_until(nodes, PATIENCE, |n| n.run_for(StdDuration::from_millis(2)), done)
 }
 
 fn everyone_greeted(nodes: &mut [Node]) -> bool {
@@ -111,17 +72,7 @@ fn everyone_greeted(nodes: &mut [Node]) -> bool {
 
 /// Wait for the answer to a request `asker` (index) sent.
 fn answer(nodes: &mut [Node], asker: usize, id: ayllu::RequestId) -> ReplyBody {
-    let mut reply = None;
-    let answered = run_until(nodes, |nodes| match nodes[asker].core().request_status(id) {
-        Some(RequestStatus::Done(body)) => {
-            reply = Some(body);
-            true
-        }
-        Some(RequestStatus::Failed(text)) => panic!("request failed: {text}"),
-        _ => false,
-    });
-    assert!(answered, "no answer within {PATIENCE:?}");
-    reply.unwrap()
+    common::answer(nodes, asker, id, PATIENCE, |n| n.run_for(StdDuration::from_millis(2)))
 }
 
 #[test]
@@ -252,19 +203,9 @@ fn a_forged_datagram_is_counted_not_applied() {
 #[test]
 #[ignore]
 fn round_trip_figures() {
-    fn relay_node(id: u32, url: &str) -> Node {
-        let mut node = Node::open(NodeId(id), url).expect("open");
-        let mut relay = BehaviorClass::new("Relay");
-        relay.port(PortSpec::new("In", 0i64)).unwrap();
-        relay.port(PortSpec::new("Out", 0i64)).unwrap();
-        node.define(relay).unwrap();
-        node.create("Relay", "SRC").unwrap();
-        node.create("Relay", "DST").unwrap();
-        node
-    }
     fn echo_pair(a_url: &str, b_url: impl FnOnce(&Node) -> String) -> (Node, Node) {
-        let a = relay_node(1, a_url);
-        let b = relay_node(2, &b_url(&a));
+        let a = relay_node(1, a_url, &[]);
+        let b = relay_node(2, &b_url(&a), &[]);
         (a, b)
     }
     fn measure(label: &str, a: Node, b: Node) {

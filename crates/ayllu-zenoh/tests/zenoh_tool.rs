@@ -3,8 +3,10 @@
 //! tool does over `udp://`. Every wait is bounded (the tool's own `--timeout`, and a deadline
 //! here); timing never decides a verdict.
 
-use std::process::{Command, Output, Stdio};
-use std::time::{Duration as StdDuration, Instant as StdInstant};
+mod common;
+
+use std::process::Output;
+use std::time::Duration as StdDuration;
 
 use ayllu::{BehaviorClass, Node, NodeId, PortSpec, Value};
 
@@ -12,35 +14,13 @@ const TEAM: u32 = 12;
 
 /// Run the tool while stepping `node`, so it can answer; the tool's output.
 fn tool(node: &mut Node, args: &[&str], url: &str) -> Output {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_ayllu-zenoh"))
-        .args(args)
-        .args(["--udp", url, "--timeout", "15"])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("start ayllu-zenoh");
-    let give_up = StdInstant::now() + StdDuration::from_secs(30);
-    while child.try_wait().expect("poll the tool").is_none() && StdInstant::now() < give_up {
-        node.run_for(StdDuration::from_millis(5));
-    }
-    if child.try_wait().expect("poll the tool").is_none() {
-        let _ = child.kill();
-    }
-    let out = child.wait_with_output().expect("the tool's output");
-    // Shown with --nocapture, and in a failure's report.
-    println!(
-        "$ ayllu-zenoh {}\n{}{}",
-        args.join(" "),
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    out
+    common::run_tool(args, url, StdDuration::from_secs(30), || node.run_for(StdDuration::from_millis(5)))
 }
 
 #[test]
 fn the_tool_lists_writes_and_explains_over_zenoh() {
     ayllu_zenoh::register();
-    let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+    let port = common::free_port();
     let key: String = "5a".repeat(32);
     let mut node = Node::open(
         NodeId(1),
