@@ -356,20 +356,7 @@ static void resign(uint8_t *buf, size_t len) {
     memcpy(buf + len - AYL_MAC_LEN, mac, AYL_MAC_LEN);
 }
 
-static int add_port(ayl_writer *w, uint64_t conn, const char *b, const char *p, const ayl_value *v) {
-    ayl_msg m;
-    memset(&m, 0, sizeof m);
-    m.kind = AYL_KIND_PORT;
-    m.u.port.conn = conn;
-    m.u.port.seq = ++raw_conn_seq;
-    m.u.port.kind = AYL_NORMAL;
-    m.u.port.behavior = ayl_s(b);
-    m.u.port.port = ayl_s(p);
-    m.u.port.value = *v;
-    return ayl_writer_add(w, &m);
-}
-
-/* A PORT sent to `group` (non-empty), as a node writing a group's port sends it. */
+/* A PORT sent to `group` (NULL: node-addressed), as a node writing a group's port sends it. */
 static int add_group_port(ayl_writer *w, uint64_t conn, const char *b, const char *p, const ayl_value *v,
                           const char *group) {
     ayl_msg m;
@@ -383,6 +370,10 @@ static int add_group_port(ayl_writer *w, uint64_t conn, const char *b, const cha
     m.u.port.value = *v;
     m.u.port.group = ayl_s(group);
     return ayl_writer_add(w, &m);
+}
+
+static int add_port(ayl_writer *w, uint64_t conn, const char *b, const char *p, const ayl_value *v) {
+    return add_group_port(w, conn, b, p, v, NULL);
 }
 
 static int add_hello(ayl_writer *w) {

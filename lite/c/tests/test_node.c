@@ -251,9 +251,10 @@ static void test_port_writes_and_datagram_contents(void) {
     }
 }
 
-/* Send a PORT message from node 9 with a chosen (conn, seq, kind, period). */
-static void inject_port(uint8_t to, uint64_t dseq, uint64_t conn, uint64_t seq, ayl_conn_kind kind, uint64_t period,
-                        int64_t value) {
+/* Send a PORT message from node 9 with a chosen (conn, seq, kind, period), to `group` (NULL:
+ * node-addressed). */
+static void inject_group_port(uint8_t to, uint64_t dseq, uint64_t conn, uint64_t seq, ayl_conn_kind kind,
+                              uint64_t period, int64_t value, const char *group) {
     uint8_t buf[256];
     ayl_writer w;
     ayl_msg m;
@@ -267,10 +268,17 @@ static void inject_port(uint8_t to, uint64_t dseq, uint64_t conn, uint64_t seq, 
     m.u.port.behavior = ayl_s("B");
     m.u.port.port = ayl_s("P");
     m.u.port.value = ayl_int(value);
+    m.u.port.group = ayl_s(group);
     ayl_writer_begin(&w, buf, sizeof buf, 7, 9, dseq, 0);
     CHECK(ayl_writer_add(&w, &m) == 0);
     len = ayl_writer_finish(&w, NULL);
     net_inject(9, to, buf, (size_t)len);
+}
+
+/* Send a node-addressed PORT message from node 9 with a chosen (conn, seq, kind, period). */
+static void inject_port(uint8_t to, uint64_t dseq, uint64_t conn, uint64_t seq, ayl_conn_kind kind, uint64_t period,
+                        int64_t value) {
+    inject_group_port(to, dseq, conn, seq, kind, period, value, NULL);
 }
 
 /* D-S10.6: a PORT naming a group applies only on a member (cfg.groups); a non-member counts
@@ -284,22 +292,8 @@ static void test_group_membership(void) {
     tnode_init(&a, 1, 1, NULL);
     ayl_node_expose(&a.node, "B", "P", &v, NULL, 0, NULL, NULL);
     for (i = 0; i < 3; i++) {
-        uint8_t buf[256];
-        ayl_writer w;
-        ayl_msg m;
-        int len;
-        memset(&m, 0, sizeof m);
-        m.kind = AYL_KIND_PORT;
-        m.u.port.conn = 7;
-        m.u.port.seq = (uint64_t)i + 1;
-        m.u.port.behavior = ayl_s("B");
-        m.u.port.port = ayl_s("P");
-        m.u.port.value = ayl_int(i + 1);
-        m.u.port.group = ayl_s(i < 2 ? groups[i] : NULL); /* the last is node-addressed */
-        ayl_writer_begin(&w, buf, sizeof buf, 7, 9, (uint64_t)i + 1, 0);
-        CHECK(ayl_writer_add(&w, &m) == 0);
-        len = ayl_writer_finish(&w, NULL);
-        net_inject(9, 1, buf, (size_t)len);
+        /* The last is node-addressed. */
+        inject_group_port(1, (uint64_t)i + 1, 7, (uint64_t)i + 1, AYL_NORMAL, 0, i + 1, i < 2 ? groups[i] : NULL);
         ayl_node_poll(&a.node, 0);
         CHECK(a.node.counters[AYL_NOT_MEMBER] == 1);
         CHECK(ayl_node_get(&a.node, "B", "P")->u.i == (i == 0 ? 0 : i + 1));
