@@ -200,6 +200,16 @@ fn gauss_pair(rng: &mut fastrand::Rng) -> (f64, f64) {
     (r * c, r * s)
 }
 
+/// Advance `rng` as [`gauss_pair`] does, when its outputs would not change anything.
+fn skip_gauss_pair(rng: &mut fastrand::Rng) {
+    rng.f64();
+    rng.f64();
+}
+
+/// No output of [`gauss_pair`] is larger in size: its radius `sqrt(-2 ln u)` is largest at
+/// the smallest `u`, `f64::MIN_POSITIVE`, where it is 37.64, and sine and cosine are at most 1.
+const GAUSS_BOUND: f64 = 38.0;
+
 /// Euclidean length; `f64::hypot` guards against overflow we cannot have here, at several
 /// times the cost in the sonar's inner loop.
 #[inline]
@@ -469,12 +479,13 @@ impl World {
         let c = &self.config;
         let p = self.robots[i].pose;
         let [w, h] = c.arena;
+        let (rr, range, sn) = (c.robot_radius, c.sonar_range, c.sonar_noise);
         let beams = out.len();
         if self.beams.len() != beams {
             self.beams = (0..beams).map(|k| (k as f64 * TAU / beams as f64).sin_cos()).collect();
         }
         // The circles a beam can hit within range, once per sweep rather than once per beam.
-        let reach = c.sonar_range + c.robot_radius;
+        let reach = range + rr;
         let mut circles = std::mem::take(&mut self.circles);
         circles.clear();
         let mut consider = |x: f64, y: f64, r: f64| {
@@ -486,44 +497,66 @@ impl World {
         self.grid.near(p.x, p.y, |j| {
             if j != i {
                 let o = &self.robots[j].pose;
-                consider(o.x, o.y, c.robot_radius);
+                consider(o.x, o.y, rr);
             }
         });
         for t in &self.targets {
             consider(t.x, t.y, c.target_radius);
         }
-        let (s0, c0) = p.theta.sin_cos();
-        let mut noise = (0.0, 0.0);
-        for (k, slot) in out.iter_mut().enumerate() {
-            // Beam direction = heading rotated by the beam's fixed offset (one sin_cos a sweep).
-            let (sk, ck) = self.beams[k];
-            let (dx, dy) = (c0 * ck - s0 * sk, s0 * ck + c0 * sk);
-            // Walls: the arena box from the inside.
-            let mut best = f64::INFINITY;
-            if dx > 1e-12 {
-                best = best.min((w - p.x) / dx);
-            } else if dx < -1e-12 {
-                best = best.min(-p.x / dx);
-            }
-            if dy > 1e-12 {
-                best = best.min((h - p.y) / dy);
-            } else if dy < -1e-12 {
-                best = best.min(-p.y / dy);
-            }
-            for e in &circles {
-                if let Some(t) = e.hit(dx, dy) {
-                    best = best.min(t);
+        // A beam whose nearest echo is at `best` reads `best - rr + sn * n`, clamped to
+        // [0, range], for its noise draw n. No draw exceeds GAUSS_BOUND in size, and
+        // floating-point subtraction and addition are monotonic, so when `best - rr - margin`
+        // already reaches the range the beam reads exactly `range` whatever n is: its noise
+        // need not be computed (only drawn, so that the stream stays where it was).
+        let margin = sn.abs() * GAUSS_BOUND;
+        let saturated = |best: f64| best - rr - margin >= range;
+        // A wall at least `far` away (across) is, along any beam, saturated too (the 1 %
+        // covers the beam's length being 1 within rounding): such a robot's sweep skips the
+        // walls, which changes no reading.
+        let far = (range + rr + margin) * 1.01;
+        let walls = !(rr >= 0.0 && range > 0.0 && p.x >= far && w - p.x >= far && p.y >= far && h - p.y >= far);
+        if walls || !circles.is_empty() {
+            let (s0, c0) = p.theta.sin_cos();
+            for (slot, &(sk, ck)) in out.iter_mut().zip(&self.beams) {
+                // Beam direction = heading rotated by the beam's fixed offset (one sin_cos a
+                // sweep).
+                let (dx, dy) = (c0 * ck - s0 * sk, s0 * ck + c0 * sk);
+                let mut best = f64::INFINITY;
+                if walls {
+                    // The arena box from the inside.
+                    if dx > 1e-12 {
+                        best = best.min((w - p.x) / dx);
+                    } else if dx < -1e-12 {
+                        best = best.min(-p.x / dx);
+                    }
+                    if dy > 1e-12 {
+                        best = best.min((h - p.y) / dy);
+                    } else if dy < -1e-12 {
+                        best = best.min(-p.y / dy);
+                    }
                 }
+                for e in &circles {
+                    if let Some(t) = e.hit(dx, dy) {
+                        best = best.min(t);
+                    }
+                }
+                *slot = best;
             }
-            // Noise comes in pairs (Box-Muller): even beams draw, odd beams use the second.
-            let n = if k % 2 == 0 {
-                noise = gauss_pair(&mut self.noise_rng);
-                noise.0
-            } else {
-                noise.1
-            };
-            let r = best - c.robot_radius + c.sonar_noise * n;
-            *slot = r.clamp(0.0, c.sonar_range);
+        } else {
+            out.fill(f64::INFINITY);
+        }
+        // Noise comes in pairs (Box-Muller): an even beam and the next share one draw.
+        for pair in out.chunks_mut(2) {
+            if pair.iter().all(|&best| saturated(best)) {
+                skip_gauss_pair(&mut self.noise_rng);
+                pair.fill(range);
+                continue;
+            }
+            let noise = gauss_pair(&mut self.noise_rng);
+            for (slot, n) in pair.iter_mut().zip([noise.0, noise.1]) {
+                let r = *slot - rr + sn * n;
+                *slot = r.clamp(0.0, range);
+            }
         }
         self.circles = circles;
     }
@@ -605,6 +638,109 @@ mod tests {
             assert_eq!(wrap(a).to_bits(), wrap_by_remainder(a).to_bits(), "{a:e}");
         }
         assert!(wrap(f64::NAN).is_nan());
+    }
+
+    /// `World::sonar` as it was written before it skipped saturated beams' noise and far
+    /// walls: the same bits, and the same noise stream, are owed.
+    fn sonar_as_before(world: &mut World, i: usize, out: &mut [f64]) {
+        let c = &world.config;
+        let p = world.robots[i].pose;
+        let [w, h] = c.arena;
+        let beams = out.len();
+        let offsets: Vec<(f64, f64)> = (0..beams).map(|k| (k as f64 * TAU / beams as f64).sin_cos()).collect();
+        let reach = c.sonar_range + c.robot_radius;
+        let mut circles = Vec::new();
+        let mut consider = |x: f64, y: f64, r: f64| {
+            let (dx, dy) = (x - p.x, y - p.y);
+            if dx * dx + dy * dy <= (reach + r) * (reach + r) {
+                circles.push(Echo::new(p.x, p.y, x, y, r));
+            }
+        };
+        world.grid.near(p.x, p.y, |j| {
+            if j != i {
+                let o = &world.robots[j].pose;
+                consider(o.x, o.y, c.robot_radius);
+            }
+        });
+        for t in &world.targets {
+            consider(t.x, t.y, c.target_radius);
+        }
+        let (s0, c0) = p.theta.sin_cos();
+        let mut noise = (0.0, 0.0);
+        for (k, slot) in out.iter_mut().enumerate() {
+            let (sk, ck) = offsets[k];
+            let (dx, dy) = (c0 * ck - s0 * sk, s0 * ck + c0 * sk);
+            let mut best = f64::INFINITY;
+            if dx > 1e-12 {
+                best = best.min((w - p.x) / dx);
+            } else if dx < -1e-12 {
+                best = best.min(-p.x / dx);
+            }
+            if dy > 1e-12 {
+                best = best.min((h - p.y) / dy);
+            } else if dy < -1e-12 {
+                best = best.min(-p.y / dy);
+            }
+            for e in &circles {
+                if let Some(t) = e.hit(dx, dy) {
+                    best = best.min(t);
+                }
+            }
+            let n = if k % 2 == 0 {
+                noise = gauss_pair(&mut world.noise_rng);
+                noise.0
+            } else {
+                noise.1
+            };
+            let r = best - c.robot_radius + c.sonar_noise * n;
+            *slot = r.clamp(0.0, c.sonar_range);
+        }
+    }
+
+    #[test]
+    fn a_sweep_gives_the_bits_it_gave_before() {
+        let mut place = fastrand::Rng::with_seed(5);
+        let mut skipped = 0;
+        // Crowded and sparse rooms, small and large, even and odd beam counts, noise large
+        // enough that the margin matters and none at all.
+        for (case, (side, robots, beams, noise)) in
+            [(8.0, 4, 8, 0.02), (40.0, 100, 8, 0.02), (12.0, 60, 7, 0.3), (30.0, 20, 8, 0.0), (6.0, 30, 5, 0.02)]
+                .into_iter()
+                .enumerate()
+        {
+            let mut config = WorldConfig::lab(&[3.0, 2.0, 1.0]);
+            config.arena = [side, side];
+            config.sonar_noise = noise;
+            let mut new = World::new(config.clone(), robots, case as u64);
+            let mut old = World::new(config, robots, case as u64);
+            for _ in 0..50 {
+                for world in [&mut new, &mut old] {
+                    // The same poses in both, anywhere (walls, overlaps and corners included).
+                    let mut poses = place.clone();
+                    for r in &mut world.robots {
+                        r.pose = Pose { x: poses.f64() * side, y: poses.f64() * side, theta: wrap(poses.f64() * TAU) };
+                    }
+                    world.index();
+                }
+                place.f64();
+                for i in 0..robots {
+                    let (mut a, mut b) = (vec![0.0; beams], vec![0.0; beams]);
+                    new.sonar(i, &mut a);
+                    sonar_as_before(&mut old, i, &mut b);
+                    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                    assert_eq!(bits(&a), bits(&b), "case {case}, robot {i}");
+                    skipped += a.iter().filter(|&&r| r == new.config.sonar_range).count();
+                }
+                assert_eq!(new.noise_rng.u64(..), old.noise_rng.u64(..), "the noise stream moved alike");
+            }
+        }
+        assert!(skipped > 1000, "saturated beams were tested: {skipped}");
+    }
+
+    #[test]
+    fn no_gaussian_draw_exceeds_the_bound() {
+        let largest = (-2.0 * f64::MIN_POSITIVE.ln()).sqrt();
+        assert!(largest < GAUSS_BOUND, "{largest}");
     }
 
     #[test]
