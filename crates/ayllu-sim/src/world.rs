@@ -181,8 +181,6 @@ pub struct World {
     beams: Vec<(f64, f64)>,
     /// Scratch of `sonar`: circles within its reach, as [`Echo`]s from the sweeping robot.
     circles: Vec<Echo>,
-    /// Scratch of `resolve_contacts`: robots near the one being resolved.
-    near: Vec<usize>,
 }
 
 /// A standard normal draw (Box-Muller), from a stream that only this module uses.
@@ -314,7 +312,6 @@ impl World {
             view: Vec::new(),
             beams: Vec::new(),
             circles: Vec::new(),
-            near: Vec::new(),
         }
     }
 
@@ -389,33 +386,32 @@ impl World {
         let tr = self.config.target_radius;
         let [w, h] = self.config.arena;
         self.grid.fill_robots(&self.robots);
-        let mut near = std::mem::take(&mut self.near);
-        for i in 0..self.robots.len() {
-            near.clear();
-            let (x, y) = (self.robots[i].pose.x, self.robots[i].pose.y);
+        let (grid, robots) = (&self.grid, &mut self.robots);
+        for i in 0..robots.len() {
+            let (x, y) = (robots[i].pose.x, robots[i].pose.y);
+            let mi = robots[i].alive as u8 as f64;
             let mut push = (0.0, 0.0);
-            self.grid.near(x, y, |j| near.push(j));
-            for &j in &near {
+            grid.near(x, y, |j| {
                 if j <= i {
-                    continue;
+                    return;
                 }
-                let o = &self.robots[j].pose;
-                let (dx, dy) = (o.x - x, o.y - y);
+                let o = &mut robots[j];
+                let (dx, dy) = (o.pose.x - x, o.pose.y - y);
                 let d = dist(dx, dy);
                 let overlap = 2.0 * rr - d;
                 if overlap > 0.0 {
                     // Coincident centres separate along x, deterministically.
                     let (ux, uy) = if d > 1e-12 { (dx / d, dy / d) } else { (1.0, 0.0) };
-                    let (mi, mj) = (self.robots[i].alive as u8 as f64, self.robots[j].alive as u8 as f64);
+                    let mj = o.alive as u8 as f64;
                     let total = (mi + mj).max(1.0);
                     let (si, sj) = (overlap * mi / total, overlap * mj / total);
                     push.0 -= ux * si;
                     push.1 -= uy * si;
-                    self.robots[j].pose.x += ux * sj;
-                    self.robots[j].pose.y += uy * sj;
+                    o.pose.x += ux * sj;
+                    o.pose.y += uy * sj;
                 }
-            }
-            let p = &mut self.robots[i].pose;
+            });
+            let p = &mut robots[i].pose;
             p.x += push.0;
             p.y += push.1;
             for t in &self.targets {
@@ -431,7 +427,6 @@ impl World {
             p.x = p.x.clamp(rr, w - rr);
             p.y = p.y.clamp(rr, h - rr);
         }
-        self.near = near;
     }
 
     /// Noise-free: targets robot `i` sees, with their true distance (for metrics and the
@@ -569,18 +564,25 @@ impl World {
 
 /// A uniform grid over the arena holding robot indices, so that contacts and sonar look only
 /// at nearby robots: cost per robot stays constant as the team grows at constant density.
+/// The cells' indices lie in one array, cell after cell in row-major order, so the three
+/// neighbouring cells of a row are one contiguous run.
 struct Grid {
     cell: f64,
     cols: usize,
     rows: usize,
-    cells: Vec<Vec<usize>>,
+    /// Robot indices, by cell (row-major), each cell's in increasing order.
+    items: Vec<u32>,
+    /// Cell k holds `items[starts[k]..starts[k + 1]]`.
+    starts: Vec<u32>,
+    /// Scratch of `fill_robots`: each robot's cell.
+    home: Vec<u32>,
 }
 
 impl Grid {
     fn new(arena: [f64; 2], cell: f64) -> Grid {
         let cols = ((arena[0] / cell).ceil() as usize).max(1);
         let rows = ((arena[1] / cell).ceil() as usize).max(1);
-        Grid { cell, cols, rows, cells: vec![Vec::new(); cols * rows] }
+        Grid { cell, cols, rows, items: Vec::new(), starts: vec![0; cols * rows + 1], home: Vec::new() }
     }
 
     fn cell_of(&self, x: f64, y: f64) -> (usize, usize) {
@@ -590,12 +592,30 @@ impl Grid {
     }
 
     fn fill_robots(&mut self, robots: &[Robot]) {
-        for c in &mut self.cells {
-            c.clear();
-        }
-        for (i, r) in robots.iter().enumerate() {
+        // A counting sort: count per cell, sum into each cell's end, then place the robots
+        // from the last so each cell lists its robots in increasing order.
+        let cells = self.cols * self.rows;
+        self.starts.clear();
+        self.starts.resize(cells + 1, 0);
+        self.home.clear();
+        for r in robots {
             let (c, row) = self.cell_of(r.pose.x, r.pose.y);
-            self.cells[row * self.cols + c].push(i);
+            let k = row * self.cols + c;
+            self.home.push(k as u32);
+            self.starts[k] += 1;
+        }
+        let mut end = 0;
+        for s in &mut self.starts[..cells] {
+            end += *s;
+            *s = end;
+        }
+        self.starts[cells] = end;
+        self.items.clear();
+        self.items.resize(robots.len(), 0);
+        for (i, &k) in self.home.iter().enumerate().rev() {
+            let s = &mut self.starts[k as usize];
+            *s -= 1;
+            self.items[*s as usize] = i as u32;
         }
     }
 
@@ -603,11 +623,12 @@ impl Grid {
     /// increasing index order: a fixed order, so results are reproducible.
     fn near(&self, x: f64, y: f64, mut f: impl FnMut(usize)) {
         let (c, r) = self.cell_of(x, y);
-        for row in r.saturating_sub(1)..=(r + 1).min(self.rows - 1) {
-            for col in c.saturating_sub(1)..=(c + 1).min(self.cols - 1) {
-                for &j in &self.cells[row * self.cols + col] {
-                    f(j);
-                }
+        let (first, last) = (c.saturating_sub(1), (c + 1).min(self.cols - 1));
+        for row in r.saturating_sub(1)..(r + 2).min(self.rows) {
+            let k = row * self.cols;
+            let run = self.starts[k + first] as usize..self.starts[k + last + 1] as usize;
+            for &j in &self.items[run] {
+                f(j as usize);
             }
         }
     }
@@ -735,6 +756,36 @@ mod tests {
             }
         }
         assert!(skipped > 1000, "saturated beams were tested: {skipped}");
+    }
+
+    #[test]
+    fn the_grid_lists_neighbours_cell_by_cell_in_index_order() {
+        let mut rng = fastrand::Rng::with_seed(3);
+        for (side, n) in [(8.0, 5), (40.0, 100), (20.0, 300), (2.0, 7)] {
+            let mut grid = Grid::new([side, side], 3.0);
+            let robots: Vec<Robot> = (0..n)
+                .map(|_| Robot {
+                    pose: Pose { x: (rng.f64() * 1.2 - 0.1) * side, y: (rng.f64() * 1.2 - 0.1) * side, theta: 0.0 },
+                    alive: true,
+                })
+                .collect();
+            grid.fill_robots(&robots);
+            for _ in 0..200 {
+                let (x, y) = ((rng.f64() * 1.2 - 0.1) * side, (rng.f64() * 1.2 - 0.1) * side);
+                let mut got = Vec::new();
+                grid.near(x, y, |j| got.push(j));
+                // As the grid of one list per cell gave them: 3 x 3 cells row-major, each
+                // cell's robots in increasing index.
+                let (c, r) = grid.cell_of(x, y);
+                let mut want = Vec::new();
+                for row in r.saturating_sub(1)..=(r + 1).min(grid.rows - 1) {
+                    for col in c.saturating_sub(1)..=(c + 1).min(grid.cols - 1) {
+                        want.extend((0..n).filter(|&j| grid.cell_of(robots[j].pose.x, robots[j].pose.y) == (col, row)));
+                    }
+                }
+                assert_eq!(got, want);
+            }
+        }
     }
 
     #[test]
