@@ -224,6 +224,8 @@ pub struct Sim {
     drives: Vec<u32>,
     stations: Vec<Station>,
     hash: Sha256,
+    /// Scratch of `frame`: the bytes it hashes.
+    frame_bytes: Vec<u8>,
     coverage: CoverageSeries,
     frames: Vec<Frame>,
     events: Vec<Event>,
@@ -301,6 +303,7 @@ impl Sim {
             drives: vec![0; n],
             stations: Vec::with_capacity(n),
             hash: Sha256::new(),
+            frame_bytes: Vec::new(),
             coverage: CoverageSeries::default(),
             frames: Vec::new(),
             events: Vec::new(),
@@ -499,20 +502,24 @@ impl Sim {
 
     fn frame(&mut self, observed: u32, weighted: f64) {
         let t = self.now().as_secs_f64();
-        let h = &mut self.hash;
-        h.update(t.to_bits().to_le_bytes());
-        for (i, r) in self.world.robots.iter().enumerate() {
+        // The frame's bytes gathered first and hashed in one update: the same bytes in the
+        // same order (so the same hash) without the hasher's bookkeeping per field.
+        let b = &mut self.frame_bytes;
+        b.clear();
+        b.extend_from_slice(&t.to_bits().to_le_bytes());
+        for (r, drive) in self.world.robots.iter().zip(&self.drives) {
             for v in [r.pose.x, r.pose.y, r.pose.theta] {
-                h.update(v.to_bits().to_le_bytes());
+                b.extend_from_slice(&v.to_bits().to_le_bytes());
             }
-            h.update([r.alive as u8]);
-            h.update(self.drives[i].to_le_bytes());
+            b.push(r.alive as u8);
+            b.extend_from_slice(&drive.to_le_bytes());
         }
         for tg in &self.world.targets {
-            h.update(tg.x.to_bits().to_le_bytes());
-            h.update(tg.y.to_bits().to_le_bytes());
+            b.extend_from_slice(&tg.x.to_bits().to_le_bytes());
+            b.extend_from_slice(&tg.y.to_bits().to_le_bytes());
         }
-        h.update(self.radio.sent.iter().sum::<u64>().to_le_bytes());
+        b.extend_from_slice(&self.radio.sent.iter().sum::<u64>().to_le_bytes());
+        self.hash.update(&*b);
         self.coverage.t.push(t);
         self.coverage.observed.push(observed);
         self.coverage.weighted.push(weighted);

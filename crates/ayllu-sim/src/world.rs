@@ -431,6 +431,7 @@ impl World {
 
     /// Noise-free: targets robot `i` sees, with their true distance (for metrics and the
     /// omniscient baseline).
+    #[inline]
     pub fn in_view(&self, i: usize, range: f64, mut f: impl FnMut(usize, f64, f64)) {
         let p = self.robots[i].pose;
         let half = 0.5 * self.config.camera_fov;
@@ -570,6 +571,8 @@ struct Grid {
     cell: f64,
     cols: usize,
     rows: usize,
+    /// The last column and row, as floats.
+    last: (f64, f64),
     /// Robot indices, by cell (row-major), each cell's in increasing order.
     items: Vec<u32>,
     /// Cell k holds `items[starts[k]..starts[k + 1]]`.
@@ -582,12 +585,24 @@ impl Grid {
     fn new(arena: [f64; 2], cell: f64) -> Grid {
         let cols = ((arena[0] / cell).ceil() as usize).max(1);
         let rows = ((arena[1] / cell).ceil() as usize).max(1);
-        Grid { cell, cols, rows, items: Vec::new(), starts: vec![0; cols * rows + 1], home: Vec::new() }
+        Grid {
+            cell,
+            cols,
+            rows,
+            last: ((cols - 1) as f64, (rows - 1) as f64),
+            items: Vec::new(),
+            starts: vec![0; cols * rows + 1],
+            home: Vec::new(),
+        }
     }
 
+    #[inline]
     fn cell_of(&self, x: f64, y: f64) -> (usize, usize) {
-        let c = ((x / self.cell).max(0.0) as usize).min(self.cols - 1);
-        let r = ((y / self.cell).max(0.0) as usize).min(self.rows - 1);
+        // Capped as a float before the cast (the last column and row are whole numbers, so
+        // the floor of the capped quotient is the capped floor): the cast then needs no
+        // saturation beyond u32's, and NaN still lands in cell 0.
+        let c = (x / self.cell).max(0.0).min(self.last.0) as u32 as usize;
+        let r = (y / self.cell).max(0.0).min(self.last.1) as u32 as usize;
         (c, r)
     }
 
@@ -785,6 +800,26 @@ mod tests {
                 }
                 assert_eq!(got, want);
             }
+        }
+    }
+
+    #[test]
+    fn a_cell_is_the_one_the_saturating_cast_gave() {
+        let grid = Grid::new([40.0, 25.0], 3.0);
+        let as_before = |x: f64, y: f64| {
+            (
+                ((x / grid.cell).max(0.0) as usize).min(grid.cols - 1),
+                ((y / grid.cell).max(0.0) as usize).min(grid.rows - 1),
+            )
+        };
+        let mut rng = fastrand::Rng::with_seed(9);
+        let edges = [0.0, -0.0, -1.0, 2.999999999, 3.0, 3.0000001, 38.9999, 39.0, 42.0, 1e300, -1e300];
+        let special = [f64::NAN, f64::INFINITY, f64::NEG_INFINITY, f64::MAX, f64::MIN_POSITIVE];
+        let random = (0..10_000).map(|_| rng.f64() * 60.0 - 10.0);
+        let xs: Vec<f64> = edges.into_iter().chain(special).chain(random).collect();
+        for (k, &x) in xs.iter().enumerate() {
+            let y = xs[(k * 7 + 3) % xs.len()];
+            assert_eq!(grid.cell_of(x, y), as_before(x, y), "({x}, {y})");
         }
     }
 
