@@ -215,6 +215,16 @@ fn dist(dx: f64, dy: f64) -> f64 {
     (dx * dx + dy * dy).sqrt()
 }
 
+/// True if `dist(dx, dy)` is certainly above `r`, seen from one coordinate alone: the length
+/// is at least the larger coordinate within a few units of rounding, far inside the margin.
+/// False for NaN, and for radii so small that squares could underflow, so a caller then
+/// computes the length as it did before.
+#[inline]
+fn surely_beyond(dx: f64, dy: f64, r: f64) -> bool {
+    let r = r * (1.0 + 1e-9);
+    r > 1e-150 && (dx.abs() > r || dy.abs() > r)
+}
+
 /// Wrap an angle into (-π, π].
 pub fn wrap(a: f64) -> f64 {
     // `rem_euclid` is `a % TAU`, plus TAU if negative; for |a| < TAU the remainder is `a`
@@ -257,6 +267,11 @@ impl Echo {
     /// of the origin.
     fn hit(&self, dx: f64, dy: f64) -> Option<f64> {
         let b = self.fx * dx + self.fy * dy;
+        if b > 0.0 {
+            // Facing away from the centre: `-b - sqrt(..)` is negative, so no hit ahead, and
+            // the square root can wait for a beam that may hit.
+            return None;
+        }
         let disc = b * b - self.c;
         if disc < 0.0 {
             return None;
@@ -397,6 +412,9 @@ impl World {
                 }
                 let o = &mut robots[j];
                 let (dx, dy) = (o.pose.x - x, o.pose.y - y);
+                if surely_beyond(dx, dy, 2.0 * rr) {
+                    return;
+                }
                 let d = dist(dx, dy);
                 let overlap = 2.0 * rr - d;
                 if overlap > 0.0 {
@@ -416,6 +434,9 @@ impl World {
             p.y += push.1;
             for t in &self.targets {
                 let (dx, dy) = (p.x - t.x, p.y - t.y);
+                if surely_beyond(dx, dy, rr + tr) {
+                    continue;
+                }
                 let d = dist(dx, dy);
                 let overlap = rr + tr - d;
                 if overlap > 0.0 {
@@ -437,6 +458,9 @@ impl World {
         let half = 0.5 * self.config.camera_fov;
         for (j, t) in self.targets.iter().enumerate() {
             let (dx, dy) = (t.x - p.x, t.y - p.y);
+            if surely_beyond(dx, dy, range) {
+                continue;
+            }
             let d = dist(dx, dy);
             if d > range {
                 continue;
@@ -821,6 +845,25 @@ mod tests {
             let y = xs[(k * 7 + 3) % xs.len()];
             assert_eq!(grid.cell_of(x, y), as_before(x, y), "({x}, {y})");
         }
+    }
+
+    #[test]
+    fn surely_beyond_is_beyond() {
+        let mut rng = fastrand::Rng::with_seed(13);
+        let radii = [0.45, 0.5, 2.0, 5.0, 1e-300, 1e300];
+        for _ in 0..200_000 {
+            let r = radii[rng.usize(..radii.len())];
+            // Around the radius, where rounding decides.
+            let dx = r * (1.0 + (rng.f64() - 0.5) * 1e-8) * if rng.bool() { 1.0 } else { -1.0 };
+            let dy = r * (rng.f64() - 0.5) * if rng.bool() { 1e-9 } else { 2.0 };
+            for (a, b) in [(dx, dy), (dy, dx)] {
+                if surely_beyond(a, b, r) {
+                    assert!(dist(a, b) > r, "({a:e}, {b:e}) against {r:e}");
+                    assert!(r - dist(a, b) <= 0.0);
+                }
+            }
+        }
+        assert!(!surely_beyond(f64::NAN, 0.0, 1.0) && !surely_beyond(0.0, f64::NAN, 1.0));
     }
 
     #[test]
