@@ -189,7 +189,9 @@ fn gauss(rng: &mut fastrand::Rng) -> f64 {
 }
 
 /// Two independent standard normal draws: both outputs of one Box-Muller transform (one
-/// logarithm, one square root and one sin_cos for two draws).
+/// logarithm, one square root and one sin_cos for two draws). Not inlined: in a caller's
+/// loop the compiler called `sin` and `cos` apart, where on its own it makes one `sincos`.
+#[inline(never)]
 fn gauss_pair(rng: &mut fastrand::Rng) -> (f64, f64) {
     let u = rng.f64().max(f64::MIN_POSITIVE);
     let v = rng.f64();
