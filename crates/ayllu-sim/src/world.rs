@@ -530,7 +530,8 @@ impl World {
         // floating-point subtraction and addition are monotonic, so when `best - rr - margin`
         // already reaches the range the beam reads exactly `range` whatever n is: its noise
         // need not be computed (only drawn, so that the stream stays where it was).
-        let margin = sn.abs() * GAUSS_BOUND;
+        // (A negative range makes the clamp panic, as it did before: nothing is saturated.)
+        let margin = if range >= 0.0 { sn.abs() * GAUSS_BOUND } else { f64::NAN };
         let saturated = |best: f64| best - rr - margin >= range;
         // A wall at least `far` away (across) is, along any beam, saturated too (the 1 %
         // covers the beam's length being 1 within rounding): such a robot's sweep skips the
