@@ -200,6 +200,18 @@ impl Radio {
 
     /// Station `from` emits `out` at `now`.
     pub fn send(&mut self, now: Instant, from: usize, out: Outgoing, stations: &[Station]) {
+        self.emit(now, from, out, stations, false);
+    }
+
+    /// [`Radio::send`] by a caller that knows every station in `stations` is alive (the
+    /// simulator's tick before any robot died): a broadcast on an open, lossless radio then
+    /// lists its receivers (every member but the sender) without reading each station.
+    pub fn send_all_alive(&mut self, now: Instant, from: usize, out: Outgoing, stations: &[Station]) {
+        debug_assert!(stations.iter().all(|s| s.alive), "a station is dead");
+        self.emit(now, from, out, stations, true);
+    }
+
+    fn emit(&mut self, now: Instant, from: usize, out: Outgoing, stations: &[Station], all_alive: bool) {
         self.sent[from] += 1;
         self.bytes[from] += wire_len(&out.message);
         let src = stations[from];
@@ -222,7 +234,14 @@ impl Radio {
                 // Teams have a handful of groups: a scan beats hashing the name.
                 if let Some(gi) = self.groups.iter().position(|(name, _)| name == g) {
                     let members = std::mem::take(&mut self.groups[gi].1);
-                    if self.config.loss == 0.0 && self.open() {
+                    if self.config.loss == 0.0 && self.open() && all_alive {
+                        // Nothing to draw, nothing to cut: the members (sorted) around the
+                        // sender, as the pass below would keep them.
+                        let k = members.partition_point(|&i| i < from);
+                        to.extend_from_slice(&members[..k]);
+                        let rest = if members.get(k) == Some(&from) { k + 1 } else { k };
+                        to.extend_from_slice(&members[rest..]);
+                    } else if self.config.loss == 0.0 && self.open() {
                         // Nothing to draw, nothing to cut but the dead: what `reaches` decides,
                         // in one pass without its checks per receiver.
                         to.reserve(members.len());
@@ -332,5 +351,50 @@ impl Radio {
         }
         self.due.clear();
         self.cursor.clear();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ayllu_core::{ControlBody, ControlMessage};
+
+    #[test]
+    fn a_send_among_live_stations_reaches_whom_a_send_reaches() {
+        let stations: Vec<Station> =
+            (0..7).map(|i| Station { node: NodeId(i as u32 + 1), x: i as f64, y: 0.0, alive: true }).collect();
+        let (peers, odd): (Arc<str>, Arc<str>) = (Arc::from("Peers"), Arc::from("Odd"));
+        let build = || {
+            let mut r = Radio::new(RadioConfig::default(), stations.len(), 4);
+            // Station 3 is in no group; the odd stations are in a second one.
+            for i in (0..stations.len()).filter(|&i| i != 3) {
+                r.set_groups(i, std::slice::from_ref(&peers));
+            }
+            for i in (1..stations.len()).step_by(2) {
+                r.set_groups(i, std::slice::from_ref(&odd));
+            }
+            r
+        };
+        let (mut a, mut b) = (build(), build());
+        for (k, from) in [0, 3, 6, 1, 5, 2].into_iter().enumerate() {
+            for g in [&peers, &odd] {
+                let out = || Outgoing {
+                    to: Destination::Group(g.clone()),
+                    message: Message::Control(ControlMessage { id: k as u64, body: ControlBody::List }),
+                };
+                let now = Instant::from_nanos(k as u64 * 1_000_000);
+                a.send(now, from, out(), &stations);
+                b.send_all_alive(now, from, out(), &stations);
+            }
+        }
+        let drain = |r: &mut Radio| {
+            let mut got = Vec::new();
+            r.deliver_shared(Instant::from_nanos(1_000_000_000), |to, from, _| got.push((to, from.0)));
+            got
+        };
+        let (x, y) = (drain(&mut a), drain(&mut b));
+        assert!(!x.is_empty());
+        assert_eq!(x, y);
+        assert_eq!((a.delivered, a.cut), (b.delivered, b.cut));
     }
 }

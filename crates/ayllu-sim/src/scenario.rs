@@ -396,6 +396,7 @@ impl Sim {
         if let Some((_, station)) = &self.planner {
             self.stations.push(*station);
         }
+        let all_alive = self.stations.iter().all(|s| s.alive);
         // One visit per robot: its messages, its senses, its node's poll. Robots interact only
         // through the world (which moves after the loop) and the radio (whose deliveries were
         // set aside above), so this is the same as doing each step for all robots in turn —
@@ -427,7 +428,11 @@ impl Sim {
             // The next tick comes at its time whatever is due: no `poll_at` scan.
             r.core.run_due(now);
             while let Some(out) = r.core.pop_outgoing() {
-                self.radio.send(now, i, out, &self.stations);
+                if all_alive {
+                    self.radio.send_all_alive(now, i, out, &self.stations);
+                } else {
+                    self.radio.send(now, i, out, &self.stations);
+                }
             }
             self.commands[i] = r.body.command(&r.core);
             self.drives[i] = r.brain.drive(&r.core);
@@ -437,7 +442,11 @@ impl Sim {
             self.radio.deliver_due(station, |from, msg| core.receive_shared(now, from, msg));
             core.run_due(now);
             while let Some(out) = core.pop_outgoing() {
-                self.radio.send(now, station, out, &self.stations);
+                if all_alive {
+                    self.radio.send_all_alive(now, station, out, &self.stations);
+                } else {
+                    self.radio.send(now, station, out, &self.stations);
+                }
             }
         }
         self.radio.release_due();
