@@ -70,9 +70,14 @@ impl Default for RadioConfig {
 /// headers included, datagram headers, MACs and HELLOs not; 0 if it cannot be encoded (the
 /// transport would drop it too). How `bytes_per_robot_s` counts, in-process and distributed.
 pub fn wire_len(message: &Message) -> u64 {
-    ayllu_wire::WireMessage::from_core(message, ayllu_wire::DEFAULT_MTU, false)
-        .map(|parts| parts.iter().map(|p| ayllu_wire::encoded_len(p).unwrap_or(0) as u64).sum())
-        .unwrap_or(0)
+    match message {
+        // A PORT is one wire message whatever the MTU (`WireMessage::from_core`): measured
+        // without building the list of parts.
+        Message::Port(p) => ayllu_wire::encoded_len(&ayllu_wire::WireMessage::Port(p.clone())).map_or(0, |n| n as u64),
+        _ => ayllu_wire::WireMessage::from_core(message, ayllu_wire::DEFAULT_MTU, false)
+            .map(|parts| parts.iter().map(|p| ayllu_wire::encoded_len(p).unwrap_or(0) as u64).sum())
+            .unwrap_or(0),
+    }
 }
 
 /// What the radio needs to know about a robot when it routes.
@@ -358,6 +363,37 @@ impl Radio {
 mod tests {
     use super::*;
     use ayllu_core::{ControlBody, ControlMessage};
+
+    #[test]
+    fn a_port_message_weighs_what_its_one_wire_part_weighs() {
+        use ayllu_core::{ConnectionId, ConnectionKind, PortMessage, Value};
+        let port = |behavior: &str, kind, value| {
+            Message::Port(PortMessage {
+                conn: ConnectionId(7),
+                seq: 3,
+                behavior: Arc::from(behavior),
+                port: Arc::from("Eligibility"),
+                kind,
+                priority: 2,
+                value,
+            })
+        };
+        let by_parts = |m: &Message| {
+            ayllu_wire::WireMessage::from_core(m, ayllu_wire::DEFAULT_MTU, false)
+                .map(|parts| parts.iter().map(|p| ayllu_wire::encoded_len(p).unwrap_or(0) as u64).sum())
+                .unwrap_or(0)
+        };
+        let window = ConnectionKind::Inhibit(Duration::from_millis(500));
+        for m in [
+            port("OBS1", ConnectionKind::Normal, Value::Float(0.25)),
+            port("OBS2", window, Value::Int(-4)),
+            port("OBS3", ConnectionKind::Normal, Value::vector(&[1.0, 2.0, 3.0])),
+            port("", ConnectionKind::Normal, Value::Bool(true)),
+            port(&"B".repeat(300), ConnectionKind::Normal, Value::Float(1.0)),
+        ] {
+            assert_eq!(wire_len(&m), by_parts(&m), "{m:?}");
+        }
+    }
 
     #[test]
     fn a_send_among_live_stations_reaches_whom_a_send_reaches() {
