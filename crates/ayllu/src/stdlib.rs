@@ -208,8 +208,11 @@ pub fn observer_class_with(policy: Eligibility) -> Result<BehaviorClass, Error> 
     let offered = c.slot("Offered", 0.0)?;
     let offered_at = c.slot("OfferedAt", -1.0)?;
     c.every_hz("TurnToTarget", 20.0, move |ctx| {
-        // Errata: no output when the target is not seen.
-        if let (Some(bearing), Some(height)) = (ctx.float(x), ctx.float(y)) {
+        // Errata: no output when the target is not seen. `TargetY` is read only once
+        // `TargetX` is fresh: most activations do not see their target, and each read is a
+        // cold port on a node coming back from memory.
+        if let Some(bearing) = ctx.float(x) {
+            let Some(height) = ctx.float(y) else { return };
             let _ = ctx.write(rotate, -bearing);
             let offer = match policy {
                 Eligibility::EveryActivation => true,
