@@ -678,11 +678,14 @@ impl NodeCore {
         Ok(BehaviorRef { b, id: self.behavior(b).expect("indexed behavior exists").id })
     }
 
+    /// The port a handle names, if its behavior still lives. Inlined into the readers below
+    /// (which a body calls for every robot each tick), its error built out of line.
+    #[inline]
     pub(crate) fn resolve(&self, r: PortRef) -> Result<&PortState, Error> {
-        self.behavior(r.b)
-            .filter(|beh| beh.id == r.id)
-            .and_then(|beh| beh.ports.get(usize::from(r.port.0)))
-            .ok_or_else(|| Error::UnknownBehavior { behavior: format!("(removed behavior #{})", r.id) })
+        match self.behavior(r.b).filter(|beh| beh.id == r.id).and_then(|beh| beh.ports.get(usize::from(r.port.0))) {
+            Some(ps) => Ok(ps),
+            None => Err(stale_handle(r)),
+        }
     }
 
     fn local_port(&self, behavior: &str, port: &str) -> Result<(u32, u16), Error> {
@@ -1751,23 +1754,34 @@ impl NodeCore {
     /// The port's value, or its default while empty (aggregating ports) — see `get` for
     /// freshness. Answers at the latest time the node was told ([`NodeCore::now`]); use
     /// [`NodeCore::read_at`] to ask about a later instant without polling (D8.2).
+    #[inline]
     pub fn read(&self, port: PortRef) -> Result<Value, Error> {
         self.read_at(self.now, port)
     }
 
     /// [`NodeCore::read`] as of `now` (never before the node's own time: time does not go
     /// backwards). Windows and lifespans that ended by `now` count as ended.
+    #[inline]
     pub fn read_at(&self, now: Instant, port: PortRef) -> Result<Value, Error> {
         let now = now.max(self.now);
         self.resolve(port).map(|ps| current(&ps.cell, now).clone())
     }
 
+    /// What `f` makes of the value [`NodeCore::read`] would return, without copying it out:
+    /// e.g. `read_with(p, Value::as_float)` for a body's motor command each tick.
+    #[inline]
+    pub fn read_with<R>(&self, port: PortRef, f: impl FnOnce(&Value) -> R) -> Result<R, Error> {
+        self.resolve(port).map(|ps| f(current(&ps.cell, self.now)))
+    }
+
     /// The port's value if fresh (rule S4), else `None`.
+    #[inline]
     pub fn get(&self, port: PortRef) -> Result<Option<Value>, Error> {
         self.get_at(self.now, port)
     }
 
     /// [`NodeCore::get`] as of `now` (see [`NodeCore::read_at`]).
+    #[inline]
     pub fn get_at(&self, now: Instant, port: PortRef) -> Result<Option<Value>, Error> {
         let now = now.max(self.now);
         self.resolve(port).map(|ps| ps.cell.get(now).cloned())
@@ -1775,11 +1789,13 @@ impl NodeCore {
 
     /// Whether the port holds a fresh value (rule S4) at [`NodeCore::now`]; errors for a handle
     /// to a removed behavior.
+    #[inline]
     pub fn fresh(&self, port: PortRef) -> Result<bool, Error> {
         self.fresh_at(self.now, port)
     }
 
     /// [`NodeCore::fresh`] as of `now` (see [`NodeCore::read_at`]).
+    #[inline]
     pub fn fresh_at(&self, now: Instant, port: PortRef) -> Result<bool, Error> {
         let now = now.max(self.now);
         self.resolve(port).map(|ps| ps.cell.fresh(now))
@@ -1787,6 +1803,7 @@ impl NodeCore {
 
     /// When the port last accepted a value (refused writes do not count), if ever — e.g. to
     /// tell which subsumption layer is driving without allocating a report.
+    #[inline]
     pub fn last_accepted(&self, port: PortRef) -> Result<Option<Instant>, Error> {
         self.resolve(port).map(|ps| ps.cell.last_accepted)
     }
@@ -1972,9 +1989,18 @@ fn journal_accepted(
     j.push(now, event);
 }
 
+/// The error for a handle whose behavior was removed (or whose slot was reused).
+#[cold]
+#[inline(never)]
+fn stale_handle(r: PortRef) -> Error {
+    Error::UnknownBehavior { behavior: format!("(removed behavior #{})", r.id) }
+}
+
 /// The readable value of a cell at `now`: its value, or its default once it released it.
+/// Inlined with the readers; a Normal port (never empty) is answered without a call.
+#[inline]
 pub(crate) fn current(cell: &PortCell, now: Instant) -> &Value {
-    if cell.is_empty(now) {
+    if cell.kind.is_aggregating() && cell.is_empty(now) {
         &cell.default
     } else {
         &cell.value
