@@ -17,7 +17,7 @@ use std::sync::Arc;
 use crate::access::{Access, Limits};
 use crate::address::{ConnectionId, Endpoint, NodeId, Source};
 use crate::arbitration::{Origin, WindowKind, Windows};
-use crate::behavior::{validate_process, BehaviorClass, Mono, Port, ProcessSpec, Slot, Trigger};
+use crate::behavior::{validate_process, BehaviorClass, Mono, Port, ProcessFn, ProcessSpec, Slot, Trigger};
 use crate::ble::BleState;
 use crate::change::{Change, ChangeOutcome};
 use crate::connection::{ConnectOptions, ConnectionInfo, ConnectionKind};
@@ -618,7 +618,7 @@ impl NodeCore {
         let trigger = spec.trigger;
         beh.processes.push(ProcState::new(spec));
         if matches!(trigger, Trigger::Periodic(_)) {
-            self.schedule.add_process(b, ix, now);
+            self.schedule.add_process(b, ix, beh.processes.last().expect("just pushed"), now);
             self.debug_check_schedule();
         }
         self.journal(|| Event::AddProcess { behavior: behavior.to_owned(), name: name.to_owned(), trigger });
@@ -1583,27 +1583,30 @@ impl NodeCore {
         let slots = self.behaviors.len() as u32;
         let mut generation = self.schedule.generation;
         let mut i = 0;
-        while let Some(&Periodic { b, pi, next_due }) = self.schedule.periodic.get(i) {
+        while let Some(entry) = self.schedule.periodic.get_mut(i) {
+            let (b, pi) = (entry.b, entry.pi);
             if b >= slots {
                 break;
             }
             i += 1;
-            if next_due > now {
+            if entry.next_due > now {
                 continue;
             }
-            let Some(proc_) = self.behaviors[b as usize].as_mut().map(|beh| &mut beh.processes[usize::from(pi)]) else {
-                debug_assert!(false, "the schedule lists a removed behavior's process");
-                continue;
-            };
-            let Trigger::Periodic(period) = proc_.spec.trigger else { continue };
-            let mut next = next_due + period;
-            if next <= now {
-                let missed = (now - next).as_nanos() / period.as_nanos() + 1;
-                proc_.overruns += missed;
-                next += period * missed;
+            let period = entry.period;
+            let mut next = entry.next_due + period;
+            let missed = if next <= now { (now - next).as_nanos() / period.as_nanos() + 1 } else { 0 };
+            next += period * missed;
+            entry.next_due = next;
+            entry.runs += 1;
+            // What the run needs is in the entry: the process's state is touched only to count
+            // skipped activations (and, in `run_body`, on a node that keeps change outcomes).
+            let body = entry.body.clone();
+            if missed > 0 {
+                if let Some(beh) = self.behaviors[b as usize].as_mut() {
+                    beh.processes[usize::from(pi)].overruns += missed;
+                }
             }
-            self.schedule.periodic[i - 1].next_due = next;
-            self.run_process(b, pi);
+            self.run_body(b, pi, body);
             self.run_triggered();
             if self.schedule.generation != generation {
                 generation = self.schedule.generation;
@@ -1650,14 +1653,21 @@ impl NodeCore {
         }
     }
 
+    /// Run a triggered process (a periodic one's run count and body are in the schedule).
     fn run_process(&mut self, b: u32, pi: u16) {
-        let outcomes_kept = self.outcomes_kept;
         let Some(beh) = self.behavior_mut(b) else { return };
         let proc_ = &mut beh.processes[usize::from(pi)];
         proc_.runs += 1;
-        // Only this process's own activations set its outcomes, and they do not nest.
-        let had_outcomes = outcomes_kept && !proc_.outcomes.is_empty();
         let body = proc_.spec.body.clone();
+        self.run_body(b, pi, body);
+    }
+
+    /// Run process `pi` of the behavior in slot `b`, whose body is `body`, and apply the
+    /// structure changes it asked for.
+    fn run_body(&mut self, b: u32, pi: u16, body: ProcessFn) {
+        // Only this process's own activations set its outcomes, and they do not nest.
+        let had_outcomes = self.outcomes_kept
+            && self.behavior(b).is_some_and(|beh| !beh.processes[usize::from(pi)].outcomes.is_empty());
         if let Some(j) = self.journal.as_mut() {
             let beh = self.behaviors[b as usize].as_ref().expect("running behavior exists");
             let spec = &beh.processes[usize::from(pi)].spec;
@@ -1711,10 +1721,10 @@ impl NodeCore {
         }
     }
 
-    /// When periodic process `pi` of the behavior in slot `b` is next due; `None` for a
-    /// process that is not periodic (or not there).
-    pub(crate) fn next_due(&self, b: u32, pi: u16) -> Option<Instant> {
-        self.schedule.next_due(b, pi)
+    /// The schedule's entry for process `pi` of the behavior in slot `b` (its next due time
+    /// and run count); `None` for a process that is not periodic (or not there).
+    pub(crate) fn periodic(&self, b: u32, pi: u16) -> Option<&Periodic> {
+        self.schedule.entry(b, pi)
     }
 
     /// When `poll` next has work: the earliest periodic activation, monostable edge or
