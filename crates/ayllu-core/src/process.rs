@@ -68,6 +68,12 @@ impl Ctx<'_> {
         let now = self.now();
         self.cell(p).and_then(|c| c.get(now).cloned())
     }
+    /// [`Ctx::get`] without copying the value out (a vector's or text's `Arc` is not
+    /// cloned): borrowed from the node, so it ends before the process's next write.
+    pub fn get_ref(&self, p: Port) -> Option<&Value> {
+        let now = self.now();
+        self.cell(p).and_then(|c| c.get(now))
+    }
     /// The port's integer value if fresh and an int.
     pub fn int(&self, p: Port) -> Option<i64> {
         let now = self.now();

@@ -127,6 +127,8 @@ fn ctx_accessors_return_none_when_stale() {
     c.every_hz("Look", 10.0, move |ctx| {
         let row = (ctx.now().as_nanos() / 1_000_000, ctx.int(i), ctx.float(f), ctx.bool(b), ctx.fresh(i), ctx.read(i));
         assert_eq!(ctx.get(i), row.1.map(Value::Int));
+        assert_eq!(ctx.get_ref(i), ctx.get(i).as_ref());
+        assert_eq!(ctx.get_ref(f).and_then(Value::as_float), ctx.float(f));
         log.lock().unwrap().push(row);
     })
     .unwrap();

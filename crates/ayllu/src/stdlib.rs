@@ -97,19 +97,31 @@ pub fn safe_velocity_class(cfg: SafeVelocity) -> Result<BehaviorClass, Error> {
     let mut c = BehaviorClass::new("SafeVelocity");
     let ranges = c.port(PortSpec::new("Ranges", Vec::<f64>::new()).lifespan(SONAR_LIFESPAN))?;
     let translate = c.port(PortSpec::new("Translate", 0.0))?;
+    // Which beams are in the front sector depends only on how many there are: worked out for
+    // the first sweep and kept beside the body, as a mask (a sweep of another length, or of
+    // more than 64 beams, works them out again).
+    let in_front = move |k: usize, beams: usize| {
+        let a = k as f64 * (std::f64::consts::TAU / beams as f64);
+        a.min(std::f64::consts::TAU - a) <= cfg.sector + 1e-9
+    };
+    let front_mask = std::sync::OnceLock::<(usize, u64)>::new();
     c.every_hz("SafeVel", 10.0, move |ctx| {
-        let speed = match ctx.get(ranges) {
+        let speed = match ctx.get_ref(ranges) {
             Some(ayllu_core::Value::Vector(r)) if !r.is_empty() => {
-                let step = std::f64::consts::TAU / r.len() as f64;
-                let front = r
-                    .iter()
-                    .enumerate()
-                    .filter(|(k, _)| {
-                        let a = *k as f64 * step;
-                        a.min(std::f64::consts::TAU - a) <= cfg.sector + 1e-9
-                    })
-                    .map(|(_, d)| *d)
-                    .fold(f64::INFINITY, f64::min);
+                let n = r.len();
+                let mask = |n: usize| (0..n).filter(|&k| in_front(k, n)).fold(0u64, |m, k| m | 1 << k);
+                let &(beams, mut front) = front_mask.get_or_init(|| (n, if n <= 64 { mask(n) } else { 0 }));
+                let front = if beams == n && n <= 64 {
+                    // The same beams in the same order as the filter below: the same minimum.
+                    let mut nearest = f64::INFINITY;
+                    while front != 0 {
+                        nearest = nearest.min(r[front.trailing_zeros() as usize]);
+                        front &= front - 1;
+                    }
+                    nearest
+                } else {
+                    (0..n).filter(|&k| in_front(k, n)).map(|k| r[k]).fold(f64::INFINITY, f64::min)
+                };
                 cfg.speed * ((front - cfg.stop) / (cfg.slow - cfg.stop)).clamp(0.0, 1.0)
             }
             _ => 0.0,
