@@ -144,7 +144,8 @@ pub fn random_wander_class(hz: f64, seed: u64) -> Result<BehaviorClass, Error> {
     let until = c.slot("Until", 0i64)?;
     c.every_hz("Wander", hz, move |ctx| {
         let now = ctx.now().as_nanos() as i64;
-        let mut s = match ctx.slot(state) {
+        let stored = ctx.slot(state);
+        let mut s = match stored {
             ayllu_core::Value::Int(0) => seed ^ (u64::from(ctx.node().0).wrapping_mul(0x9E37_79B9_7F4A_7C15)),
             ayllu_core::Value::Int(x) => x as u64,
             _ => seed,
@@ -159,7 +160,10 @@ pub fn random_wander_class(hz: f64, seed: u64) -> Result<BehaviorClass, Error> {
             let _ = ctx.set_slot(turn, w);
             let _ = ctx.set_slot(until, now + leg);
         }
-        let _ = ctx.set_slot(state, s as i64);
+        // Between legs the state does not change: not stored again.
+        if stored != ayllu_core::Value::Int(s as i64) {
+            let _ = ctx.set_slot(state, s as i64);
+        }
         let w = match ctx.slot(turn) {
             ayllu_core::Value::Float(w) => w,
             _ => 0.0,
