@@ -1664,6 +1664,7 @@ impl NodeCore {
 
     /// Run process `pi` of the behavior in slot `b`, whose body is `body`, and apply the
     /// structure changes it asked for.
+    #[inline(always)]
     fn run_body(&mut self, b: u32, pi: u16, body: ProcessFn) {
         // Only this process's own activations set its outcomes, and they do not nest.
         let had_outcomes = self.outcomes_kept
