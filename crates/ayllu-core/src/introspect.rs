@@ -14,6 +14,7 @@ use crate::counters::{Counters, DropCause};
 use crate::error::Error;
 use crate::node::{current, NodeCore, ProcState, Target};
 use crate::port::PortKind;
+use crate::schedule::Periodic;
 use crate::time::{Duration, Instant};
 use crate::value::{Value, ValueType};
 
@@ -233,7 +234,7 @@ impl NodeCore {
         let triggers = ps
             .triggers
             .iter()
-            .map(|&pi| process_report(&beh.processes[usize::from(pi)], self.next_due(r.b, pi)))
+            .map(|&pi| process_report(&beh.processes[usize::from(pi)], self.periodic(r.b, pi)))
             .collect();
         Ok(PortReport {
             node: me,
@@ -302,7 +303,7 @@ impl NodeCore {
                     .processes
                     .iter()
                     .enumerate()
-                    .map(|(pi, p)| process_report(p, self.next_due(b, pi as u16)))
+                    .map(|(pi, p)| process_report(p, self.periodic(b, pi as u16)))
                     .collect(),
             })
             .collect();
@@ -326,14 +327,15 @@ impl NodeCore {
     }
 }
 
-fn process_report(p: &ProcState, next_due: Option<Instant>) -> ProcessReport {
+/// A process's report; a periodic one's due time and run count are in the node's schedule.
+fn process_report(p: &ProcState, periodic: Option<&Periodic>) -> ProcessReport {
     ProcessReport {
         name: p.spec.name.clone(),
         trigger: p.spec.trigger,
-        runs: p.runs,
+        runs: periodic.map_or(p.runs, |e| e.runs),
         overruns: p.overruns,
         retriggered: p.retriggers,
-        next_due,
+        next_due: periodic.map(|e| e.next_due),
     }
 }
 

@@ -17,7 +17,7 @@ use std::sync::Arc;
 use crate::access::{Access, Limits};
 use crate::address::{ConnectionId, Endpoint, NodeId, Source};
 use crate::arbitration::{Origin, WindowKind, Windows};
-use crate::behavior::{validate_process, BehaviorClass, Mono, Port, ProcessSpec, Slot, Trigger};
+use crate::behavior::{validate_process, BehaviorClass, Mono, Port, ProcessFn, ProcessSpec, Slot, Trigger};
 use crate::ble::BleState;
 use crate::change::{Change, ChangeOutcome};
 use crate::connection::{ConnectOptions, ConnectionInfo, ConnectionKind};
@@ -618,7 +618,7 @@ impl NodeCore {
         let trigger = spec.trigger;
         beh.processes.push(ProcState::new(spec));
         if matches!(trigger, Trigger::Periodic(_)) {
-            self.schedule.add_process(b, ix, now);
+            self.schedule.add_process(b, ix, beh.processes.last().expect("just pushed"), now);
             self.debug_check_schedule();
         }
         self.journal(|| Event::AddProcess { behavior: behavior.to_owned(), name: name.to_owned(), trigger });
@@ -678,11 +678,14 @@ impl NodeCore {
         Ok(BehaviorRef { b, id: self.behavior(b).expect("indexed behavior exists").id })
     }
 
+    /// The port a handle names, if its behavior still lives. Inlined into the readers below
+    /// (which a body calls for every robot each tick), its error built out of line.
+    #[inline]
     pub(crate) fn resolve(&self, r: PortRef) -> Result<&PortState, Error> {
-        self.behavior(r.b)
-            .filter(|beh| beh.id == r.id)
-            .and_then(|beh| beh.ports.get(usize::from(r.port.0)))
-            .ok_or_else(|| Error::UnknownBehavior { behavior: format!("(removed behavior #{})", r.id) })
+        match self.behavior(r.b).filter(|beh| beh.id == r.id).and_then(|beh| beh.ports.get(usize::from(r.port.0))) {
+            Some(ps) => Ok(ps),
+            None => Err(stale_handle(r)),
+        }
     }
 
     fn local_port(&self, behavior: &str, port: &str) -> Result<(u32, u16), Error> {
@@ -1580,27 +1583,30 @@ impl NodeCore {
         let slots = self.behaviors.len() as u32;
         let mut generation = self.schedule.generation;
         let mut i = 0;
-        while let Some(&Periodic { b, pi, next_due }) = self.schedule.periodic.get(i) {
+        while let Some(entry) = self.schedule.periodic.get_mut(i) {
+            let (b, pi) = (entry.b, entry.pi);
             if b >= slots {
                 break;
             }
             i += 1;
-            if next_due > now {
+            if entry.next_due > now {
                 continue;
             }
-            let Some(proc_) = self.behaviors[b as usize].as_mut().map(|beh| &mut beh.processes[usize::from(pi)]) else {
-                debug_assert!(false, "the schedule lists a removed behavior's process");
-                continue;
-            };
-            let Trigger::Periodic(period) = proc_.spec.trigger else { continue };
-            let mut next = next_due + period;
-            if next <= now {
-                let missed = (now - next).as_nanos() / period.as_nanos() + 1;
-                proc_.overruns += missed;
-                next += period * missed;
+            let period = entry.period;
+            let mut next = entry.next_due + period;
+            let missed = if next <= now { (now - next).as_nanos() / period.as_nanos() + 1 } else { 0 };
+            next += period * missed;
+            entry.next_due = next;
+            entry.runs += 1;
+            // What the run needs is in the entry: the process's state is touched only to count
+            // skipped activations (and, in `run_body`, on a node that keeps change outcomes).
+            let body = entry.body.clone();
+            if missed > 0 {
+                if let Some(beh) = self.behaviors[b as usize].as_mut() {
+                    beh.processes[usize::from(pi)].overruns += missed;
+                }
             }
-            self.schedule.periodic[i - 1].next_due = next;
-            self.run_process(b, pi);
+            self.run_body(b, pi, body);
             self.run_triggered();
             if self.schedule.generation != generation {
                 generation = self.schedule.generation;
@@ -1647,14 +1653,22 @@ impl NodeCore {
         }
     }
 
+    /// Run a triggered process (a periodic one's run count and body are in the schedule).
     fn run_process(&mut self, b: u32, pi: u16) {
-        let outcomes_kept = self.outcomes_kept;
         let Some(beh) = self.behavior_mut(b) else { return };
         let proc_ = &mut beh.processes[usize::from(pi)];
         proc_.runs += 1;
-        // Only this process's own activations set its outcomes, and they do not nest.
-        let had_outcomes = outcomes_kept && !proc_.outcomes.is_empty();
         let body = proc_.spec.body.clone();
+        self.run_body(b, pi, body);
+    }
+
+    /// Run process `pi` of the behavior in slot `b`, whose body is `body`, and apply the
+    /// structure changes it asked for.
+    #[inline(always)]
+    fn run_body(&mut self, b: u32, pi: u16, body: ProcessFn) {
+        // Only this process's own activations set its outcomes, and they do not nest.
+        let had_outcomes = self.outcomes_kept
+            && self.behavior(b).is_some_and(|beh| !beh.processes[usize::from(pi)].outcomes.is_empty());
         if let Some(j) = self.journal.as_mut() {
             let beh = self.behaviors[b as usize].as_ref().expect("running behavior exists");
             let spec = &beh.processes[usize::from(pi)].spec;
@@ -1708,10 +1722,10 @@ impl NodeCore {
         }
     }
 
-    /// When periodic process `pi` of the behavior in slot `b` is next due; `None` for a
-    /// process that is not periodic (or not there).
-    pub(crate) fn next_due(&self, b: u32, pi: u16) -> Option<Instant> {
-        self.schedule.next_due(b, pi)
+    /// The schedule's entry for process `pi` of the behavior in slot `b` (its next due time
+    /// and run count); `None` for a process that is not periodic (or not there).
+    pub(crate) fn periodic(&self, b: u32, pi: u16) -> Option<&Periodic> {
+        self.schedule.entry(b, pi)
     }
 
     /// When `poll` next has work: the earliest periodic activation, monostable edge or
@@ -1751,23 +1765,34 @@ impl NodeCore {
     /// The port's value, or its default while empty (aggregating ports) — see `get` for
     /// freshness. Answers at the latest time the node was told ([`NodeCore::now`]); use
     /// [`NodeCore::read_at`] to ask about a later instant without polling (D8.2).
+    #[inline]
     pub fn read(&self, port: PortRef) -> Result<Value, Error> {
         self.read_at(self.now, port)
     }
 
     /// [`NodeCore::read`] as of `now` (never before the node's own time: time does not go
     /// backwards). Windows and lifespans that ended by `now` count as ended.
+    #[inline]
     pub fn read_at(&self, now: Instant, port: PortRef) -> Result<Value, Error> {
         let now = now.max(self.now);
         self.resolve(port).map(|ps| current(&ps.cell, now).clone())
     }
 
+    /// What `f` makes of the value [`NodeCore::read`] would return, without copying it out:
+    /// e.g. `read_with(p, Value::as_float)` for a body's motor command each tick.
+    #[inline]
+    pub fn read_with<R>(&self, port: PortRef, f: impl FnOnce(&Value) -> R) -> Result<R, Error> {
+        self.resolve(port).map(|ps| f(current(&ps.cell, self.now)))
+    }
+
     /// The port's value if fresh (rule S4), else `None`.
+    #[inline]
     pub fn get(&self, port: PortRef) -> Result<Option<Value>, Error> {
         self.get_at(self.now, port)
     }
 
     /// [`NodeCore::get`] as of `now` (see [`NodeCore::read_at`]).
+    #[inline]
     pub fn get_at(&self, now: Instant, port: PortRef) -> Result<Option<Value>, Error> {
         let now = now.max(self.now);
         self.resolve(port).map(|ps| ps.cell.get(now).cloned())
@@ -1775,11 +1800,13 @@ impl NodeCore {
 
     /// Whether the port holds a fresh value (rule S4) at [`NodeCore::now`]; errors for a handle
     /// to a removed behavior.
+    #[inline]
     pub fn fresh(&self, port: PortRef) -> Result<bool, Error> {
         self.fresh_at(self.now, port)
     }
 
     /// [`NodeCore::fresh`] as of `now` (see [`NodeCore::read_at`]).
+    #[inline]
     pub fn fresh_at(&self, now: Instant, port: PortRef) -> Result<bool, Error> {
         let now = now.max(self.now);
         self.resolve(port).map(|ps| ps.cell.fresh(now))
@@ -1787,6 +1814,7 @@ impl NodeCore {
 
     /// When the port last accepted a value (refused writes do not count), if ever — e.g. to
     /// tell which subsumption layer is driving without allocating a report.
+    #[inline]
     pub fn last_accepted(&self, port: PortRef) -> Result<Option<Instant>, Error> {
         self.resolve(port).map(|ps| ps.cell.last_accepted)
     }
@@ -1972,9 +2000,18 @@ fn journal_accepted(
     j.push(now, event);
 }
 
+/// The error for a handle whose behavior was removed (or whose slot was reused).
+#[cold]
+#[inline(never)]
+fn stale_handle(r: PortRef) -> Error {
+    Error::UnknownBehavior { behavior: format!("(removed behavior #{})", r.id) }
+}
+
 /// The readable value of a cell at `now`: its value, or its default once it released it.
+/// Inlined with the readers; a Normal port (never empty) is answered without a call.
+#[inline]
 pub(crate) fn current(cell: &PortCell, now: Instant) -> &Value {
-    if cell.is_empty(now) {
+    if cell.kind.is_aggregating() && cell.is_empty(now) {
         &cell.default
     } else {
         &cell.value

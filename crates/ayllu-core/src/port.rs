@@ -278,6 +278,7 @@ impl PortCell {
 
     /// Whether the port holds a value that is not stale (rule S4): it has accepted a value,
     /// its aggregating window (if any) is still open, and its lifespan (if any) has not run out.
+    #[inline]
     pub fn fresh(&self, now: Instant) -> bool {
         let Some(t) = self.last_accepted else { return false };
         if self.kind.is_aggregating() {
@@ -313,6 +314,7 @@ impl PortCell {
     }
 
     /// The value if fresh, else `None` ("absent").
+    #[inline]
     pub fn get(&self, now: Instant) -> Option<&Value> {
         self.fresh(now).then_some(&self.value)
     }

@@ -37,10 +37,12 @@ pub struct Ctx<'a> {
 
 impl Ctx<'_> {
     /// The node's time: the `now` of the poll running this process (node clock, ns).
+    #[inline]
     pub fn now(&self) -> Instant {
         self.core.now()
     }
     /// This node's id, e.g. to break ties the way BLE does (lower wins).
+    #[inline]
     pub fn node(&self) -> NodeId {
         self.core.id()
     }
@@ -53,6 +55,7 @@ impl Ctx<'_> {
         self.core.behavior(self.b).map_or("", |beh| beh.class.name())
     }
 
+    #[inline]
     fn cell(&self, p: Port) -> Option<&crate::port::PortCell> {
         self.core.behavior(self.b).and_then(|beh| beh.ports.get(usize::from(p.0))).map(|ps| &ps.cell)
     }
@@ -68,22 +71,33 @@ impl Ctx<'_> {
         let now = self.now();
         self.cell(p).and_then(|c| c.get(now).cloned())
     }
+    /// [`Ctx::get`] without copying the value out (a vector's or text's `Arc` is not
+    /// cloned): borrowed from the node, so it ends before the process's next write.
+    #[inline]
+    pub fn get_ref(&self, p: Port) -> Option<&Value> {
+        let now = self.now();
+        self.cell(p).and_then(|c| c.get(now))
+    }
     /// The port's integer value if fresh and an int.
+    #[inline]
     pub fn int(&self, p: Port) -> Option<i64> {
         let now = self.now();
         self.cell(p).and_then(|c| c.get(now)).and_then(Value::as_int)
     }
     /// The port's float value if fresh and a float.
+    #[inline]
     pub fn float(&self, p: Port) -> Option<f64> {
         let now = self.now();
         self.cell(p).and_then(|c| c.get(now)).and_then(Value::as_float)
     }
     /// The port's bool value if fresh and a bool.
+    #[inline]
     pub fn bool(&self, p: Port) -> Option<bool> {
         let now = self.now();
         self.cell(p).and_then(|c| c.get(now)).and_then(Value::as_bool)
     }
     /// Whether the port holds a fresh value (rule S4); false for an empty aggregating port.
+    #[inline]
     pub fn fresh(&self, p: Port) -> bool {
         let now = self.now();
         self.cell(p).is_some_and(|c| c.fresh(now))
@@ -121,6 +135,7 @@ impl Ctx<'_> {
     }
 
     /// The slot's value. Slots have no freshness; a handle from another class reads as `false`.
+    #[inline]
     pub fn slot(&self, s: Slot) -> Value {
         self.core
             .behavior(self.b)

@@ -127,6 +127,8 @@ fn ctx_accessors_return_none_when_stale() {
     c.every_hz("Look", 10.0, move |ctx| {
         let row = (ctx.now().as_nanos() / 1_000_000, ctx.int(i), ctx.float(f), ctx.bool(b), ctx.fresh(i), ctx.read(i));
         assert_eq!(ctx.get(i), row.1.map(Value::Int));
+        assert_eq!(ctx.get_ref(i), ctx.get(i).as_ref());
+        assert_eq!(ctx.get_ref(f).and_then(Value::as_float), ctx.float(f));
         log.lock().unwrap().push(row);
     })
     .unwrap();
@@ -197,4 +199,27 @@ fn a_behavior_stops_its_output_when_its_input_is_stale() {
     node.poll(ms(600));
     assert_eq!(commands(&node), 3);
     assert_eq!(node.read(node.port("Motor", "Cmd").unwrap()).unwrap(), Value::Float(-2.0));
+}
+
+#[test]
+fn read_with_sees_what_read_returns() {
+    // Normal (never empty) and Max (released to its default when stale), before a write,
+    // while fresh and after the lifespan; then a handle to a removed behavior.
+    for kind in [PortKind::Normal, PortKind::Max] {
+        let mut node = wired(kind);
+        let src = node.port("Src", "Out").unwrap();
+        let dst = node.port("Dst", "In").unwrap();
+        let check = |node: &NodeCore| {
+            assert_eq!(node.read_with(dst, Value::clone).unwrap(), node.read(dst).unwrap());
+            assert_eq!(node.read_with(dst, Value::as_int).unwrap(), node.read(dst).unwrap().as_int());
+        };
+        check(&node);
+        node.write(ms(10), src, 7i64).unwrap();
+        check(&node);
+        assert_eq!(node.read_with(dst, Value::as_int).unwrap(), Some(7));
+        node.poll(ms(200));
+        check(&node);
+        node.remove("Dst").unwrap();
+        assert!(node.read_with(dst, Value::clone).is_err() && node.read(dst).is_err());
+    }
 }

@@ -9,7 +9,7 @@
 //! stale after the stdlib's lifespan (the observer then stays silent, rule S4).
 
 use ayllu::stdlib::{base_class, sonar_class, vision_class, BASE, SONAR, VISION};
-use ayllu_core::{Error, Instant, NodeCore, PortRef};
+use ayllu_core::{Error, Instant, NodeCore, PortRef, Value};
 
 use crate::world::{Command, Sighting, World, WorldConfig};
 
@@ -67,7 +67,7 @@ impl Body {
 
     /// What the controller asks of the motors now.
     pub fn command(&self, core: &NodeCore) -> Command {
-        let f = |p| core.read(p).ok().and_then(|v| v.as_float()).unwrap_or(0.0);
+        let f = |p| core.read_with(p, Value::as_float).ok().flatten().unwrap_or(0.0);
         Command { translate: f(self.translate), rotate: f(self.rotate) }
     }
 

@@ -97,19 +97,31 @@ pub fn safe_velocity_class(cfg: SafeVelocity) -> Result<BehaviorClass, Error> {
     let mut c = BehaviorClass::new("SafeVelocity");
     let ranges = c.port(PortSpec::new("Ranges", Vec::<f64>::new()).lifespan(SONAR_LIFESPAN))?;
     let translate = c.port(PortSpec::new("Translate", 0.0))?;
+    // Which beams are in the front sector depends only on how many there are: worked out for
+    // the first sweep and kept beside the body, as a mask (a sweep of another length, or of
+    // more than 64 beams, works them out again).
+    let in_front = move |k: usize, beams: usize| {
+        let a = k as f64 * (std::f64::consts::TAU / beams as f64);
+        a.min(std::f64::consts::TAU - a) <= cfg.sector + 1e-9
+    };
+    let front_mask = std::sync::OnceLock::<(usize, u64)>::new();
     c.every_hz("SafeVel", 10.0, move |ctx| {
-        let speed = match ctx.get(ranges) {
+        let speed = match ctx.get_ref(ranges) {
             Some(ayllu_core::Value::Vector(r)) if !r.is_empty() => {
-                let step = std::f64::consts::TAU / r.len() as f64;
-                let front = r
-                    .iter()
-                    .enumerate()
-                    .filter(|(k, _)| {
-                        let a = *k as f64 * step;
-                        a.min(std::f64::consts::TAU - a) <= cfg.sector + 1e-9
-                    })
-                    .map(|(_, d)| *d)
-                    .fold(f64::INFINITY, f64::min);
+                let n = r.len();
+                let mask = |n: usize| (0..n).filter(|&k| in_front(k, n)).fold(0u64, |m, k| m | 1 << k);
+                let &(beams, mut front) = front_mask.get_or_init(|| (n, if n <= 64 { mask(n) } else { 0 }));
+                let front = if beams == n && n <= 64 {
+                    // The same beams in the same order as the filter below: the same minimum.
+                    let mut nearest = f64::INFINITY;
+                    while front != 0 {
+                        nearest = nearest.min(r[front.trailing_zeros() as usize]);
+                        front &= front - 1;
+                    }
+                    nearest
+                } else {
+                    (0..n).filter(|&k| in_front(k, n)).map(|k| r[k]).fold(f64::INFINITY, f64::min)
+                };
                 cfg.speed * ((front - cfg.stop) / (cfg.slow - cfg.stop)).clamp(0.0, 1.0)
             }
             _ => 0.0,
@@ -132,7 +144,8 @@ pub fn random_wander_class(hz: f64, seed: u64) -> Result<BehaviorClass, Error> {
     let until = c.slot("Until", 0i64)?;
     c.every_hz("Wander", hz, move |ctx| {
         let now = ctx.now().as_nanos() as i64;
-        let mut s = match ctx.slot(state) {
+        let stored = ctx.slot(state);
+        let mut s = match stored {
             ayllu_core::Value::Int(0) => seed ^ (u64::from(ctx.node().0).wrapping_mul(0x9E37_79B9_7F4A_7C15)),
             ayllu_core::Value::Int(x) => x as u64,
             _ => seed,
@@ -147,7 +160,10 @@ pub fn random_wander_class(hz: f64, seed: u64) -> Result<BehaviorClass, Error> {
             let _ = ctx.set_slot(turn, w);
             let _ = ctx.set_slot(until, now + leg);
         }
-        let _ = ctx.set_slot(state, s as i64);
+        // Between legs the state does not change: not stored again.
+        if stored != ayllu_core::Value::Int(s as i64) {
+            let _ = ctx.set_slot(state, s as i64);
+        }
         let w = match ctx.slot(turn) {
             ayllu_core::Value::Float(w) => w,
             _ => 0.0,
@@ -208,8 +224,11 @@ pub fn observer_class_with(policy: Eligibility) -> Result<BehaviorClass, Error> 
     let offered = c.slot("Offered", 0.0)?;
     let offered_at = c.slot("OfferedAt", -1.0)?;
     c.every_hz("TurnToTarget", 20.0, move |ctx| {
-        // Errata: no output when the target is not seen.
-        if let (Some(bearing), Some(height)) = (ctx.float(x), ctx.float(y)) {
+        // Errata: no output when the target is not seen. `TargetY` is read only once
+        // `TargetX` is fresh: most activations do not see their target, and each read is a
+        // cold port on a node coming back from memory.
+        if let Some(bearing) = ctx.float(x) {
+            let Some(height) = ctx.float(y) else { return };
             let _ = ctx.write(rotate, -bearing);
             let offer = match policy {
                 Eligibility::EveryActivation => true,
