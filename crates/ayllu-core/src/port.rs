@@ -222,9 +222,11 @@ impl PortCell {
     pub fn kind(&self) -> PortKind {
         self.kind
     }
-    /// The port's value type (rule S1).
+    /// The port's value type (rule S1). Read from the value, which always has the default's
+    /// type (every merge checks it, a reset copies the default): the default sits at the far
+    /// end of the cell, one more cache line for every merge that checks a type.
     pub fn ty(&self) -> ValueType {
-        self.default.ty()
+        self.value.ty()
     }
 
     /// When the value an aggregating port holds is released (D3.2, D3.7): at the end of its
