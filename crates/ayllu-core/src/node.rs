@@ -238,22 +238,28 @@ pub(crate) struct Edge {
 /// number applied (N1), and the port its last message was applied to, so that the next message
 /// needs no name lookups. The names each message carries are still checked against that port,
 /// since a sender may reuse a connection id.
+///
+/// 32 bytes, so that with its 16-byte key a bucket of the table is 48 bytes, not 80: a node
+/// hears about a thousand (sender, connection) pairs, and the bucket is the first cold load of
+/// every message received.
+#[derive(Copy, Clone)]
 struct Incoming {
     newest: u64,
-    target: Option<Resolved>,
-}
-
-/// A port an incoming connection resolved to, and the very name strings (`Arc`s) the message
-/// carried: a message carrying the same `Arc`s (the sender's connection shares them among its
-/// messages, e.g. in-process transports) names the same port, so it skips comparing strings.
-/// Holding the `Arc`s keeps their addresses from being reused for other names.
-struct Resolved {
+    /// The addresses of the name strings (`Arc<str>`) the message that resolved the port
+    /// carried (0: no port resolved): a message carrying the same `Arc`s (the sender's
+    /// connection shares them among its messages, e.g. in-process transports) names the same
+    /// port, so it skips comparing strings. Those `Arc`s are held in `NodeCore::held_names` for
+    /// as long as this entry may compare against them, so their addresses cannot be reused for
+    /// other names meanwhile.
+    behavior: usize,
+    port: usize,
+    /// The port: behavior slot and port index...
     b: u32,
-    /// The behavior's id: a behavior removed and re-created in the same slot gets another.
-    id: u64,
     p: u16,
-    behavior: Arc<str>,
-    port: Arc<str>,
+    /// ...valid while `NodeCore::removals` (as 16 bits) is this: no behavior was removed since,
+    /// so slot `b` still holds the behavior it was resolved to (a slot is reused only after a
+    /// removal). Names never change while a behavior lives.
+    epoch: u16,
 }
 
 #[derive(Copy, Clone)]
@@ -380,7 +386,13 @@ pub struct NodeCore {
     outbox: VecDeque<Outgoing>,
     pub(crate) counters: Counters,
     /// Keyed by `incoming_key(sender, connection)`; looked up for every message received.
-    newest_seq: HashMap<u128, Incoming, foldhash::fast::RandomState>,
+    newest_seq: HashMap<IncomingKey, Incoming, foldhash::fast::RandomState>,
+    /// Behaviors removed, wrapping at 16 bits: the epoch of `newest_seq`'s resolved ports
+    /// ([`Incoming::epoch`]).
+    removals: u16,
+    /// The name strings whose addresses `newest_seq` entries compare against
+    /// ([`Incoming::behavior`]), kept alive until no entry can compare against them.
+    held_names: Vec<(Arc<str>, Arc<str>)>,
     seq_table_resets: u64,
     requests: Vec<Request>,
     /// How many of `requests` are finished (see `FINISHED_REQUESTS_KEPT`).
@@ -434,6 +446,8 @@ impl NodeCore {
             outbox: VecDeque::new(),
             counters: Counters::default(),
             newest_seq: HashMap::default(),
+            removals: 0,
+            held_names: Vec::new(),
             seq_table_resets: 0,
             requests: Vec::new(),
             finished_requests: 0,
@@ -596,6 +610,7 @@ impl NodeCore {
         }
         self.names.remove(name);
         self.behaviors[b as usize] = None;
+        self.behavior_removed();
         self.schedule.remove_behavior(b);
         self.debug_check_schedule();
         self.free_behaviors.push(b);
@@ -1345,51 +1360,101 @@ impl NodeCore {
                     return;
                 }
                 incoming.newest = m.seq;
-                incoming.target.as_ref().map(|r| (r.b, r.id, r.p, same_names(r, m)))
+                // The port stands if no behavior was removed since it was resolved and the
+                // message carries the very names it was resolved from.
+                (incoming.epoch == self.removals && same_names(incoming, m)).then_some((incoming.b, incoming.p))
             }
             None => {
                 if self.newest_seq.len() >= SEQ_TABLE_MAX {
-                    self.newest_seq.clear();
-                    self.seq_table_resets += 1;
+                    self.forget_incoming();
                 }
-                self.newest_seq.insert(key, Incoming { newest: m.seq, target: None });
+                let unresolved = Incoming { newest: m.seq, behavior: 0, port: 0, b: 0, p: 0, epoch: 0 };
+                self.newest_seq.insert(key, unresolved);
                 None
             }
         };
-        // The cached port still stands if its behavior does (same slot, same id: names never
-        // change while a behavior lives) and the message names it.
-        let still_there = |&(b, id, p, same): &(u32, u64, u16, bool)| {
-            self.behavior(b).is_some_and(|beh| {
-                beh.id == id && (same || (*beh.name == *m.behavior && beh.class.ports[usize::from(p)].name == *m.port))
-            })
-        };
-        let (b, p) = match cached.filter(still_there) {
-            Some((b, _, p, _)) => (b, p),
-            None => {
-                let Some(&b) = self.names.get(&*m.behavior) else {
-                    self.counters.add(DropCause::UnknownBehavior);
-                    return;
-                };
-                let Some(beh) = self.behavior(b) else {
-                    self.counters.add(DropCause::UnknownBehavior);
-                    return;
-                };
-                let id = beh.id;
-                let Some(port) = beh.class.port_handle(&m.port) else {
-                    self.counters.add(DropCause::UnknownPort);
-                    return;
-                };
-                if let Some(incoming) = self.newest_seq.get_mut(&key) {
-                    incoming.target =
-                        Some(Resolved { b, id, p: port.0, behavior: m.behavior.clone(), port: m.port.clone() });
-                }
-                (b, port.0)
-            }
+        let (b, p) = match cached {
+            Some(bp) => bp,
+            None => match self.resolve_incoming(key, m) {
+                Some(bp) => bp,
+                None => return,
+            },
         };
         self.wave += 1;
         let source = Source::connection(from, m.conn);
         if self.deliver(b, p, m.kind, source, m.priority, &m.value) {
             self.propagate_from(b, p);
+        }
+    }
+
+    /// Resolve the port message `m` names, for the sequence table's entry `key` (which exists)
+    /// whose remembered port does not stand as it is (a behavior was removed since, or the
+    /// message carries other name strings). If the behavior now in the remembered slot has the
+    /// names the message carries, that is the port the names resolve to (names are unique on
+    /// a node), and the entry keeps it and the strings it holds. Otherwise the names are looked
+    /// up and the port and the message's name strings remembered. `None`, counted, if there is
+    /// no such port.
+    #[cold]
+    #[inline(never)]
+    fn resolve_incoming(&mut self, key: IncomingKey, m: &PortMessage) -> Option<(u32, u16)> {
+        let incoming = *self.newest_seq.get(&key).expect("entered by the caller");
+        if incoming.behavior != 0 {
+            let named = self.behavior(incoming.b).is_some_and(|beh| {
+                *beh.name == *m.behavior
+                    && beh.class.ports.get(usize::from(incoming.p)).is_some_and(|p| p.name == *m.port)
+            });
+            if named {
+                if let Some(entry) = self.newest_seq.get_mut(&key) {
+                    entry.epoch = self.removals;
+                }
+                return Some((incoming.b, incoming.p));
+            }
+        }
+        let Some(&b) = self.names.get(&*m.behavior) else {
+            self.counters.add(DropCause::UnknownBehavior);
+            return None;
+        };
+        let Some(beh) = self.behavior(b) else {
+            self.counters.add(DropCause::UnknownBehavior);
+            return None;
+        };
+        let Some(port) = beh.class.port_handle(&m.port) else {
+            self.counters.add(DropCause::UnknownPort);
+            return None;
+        };
+        let p = port.0;
+        // The names held are bounded like the entries (N1): a sender that keeps re-pointing
+        // a connection id clears the table as one that invents connection ids does.
+        if self.held_names.len() >= SEQ_TABLE_MAX {
+            self.forget_incoming();
+            self.newest_seq.insert(key, Incoming { behavior: 0, port: 0, ..incoming });
+        }
+        let Some(incoming) = self.newest_seq.get_mut(&key) else { return Some((b, p)) };
+        incoming.behavior = name_address(&m.behavior);
+        incoming.port = name_address(&m.port);
+        (incoming.b, incoming.p, incoming.epoch) = (b, p, self.removals);
+        self.held_names.push((m.behavior.clone(), m.port.clone()));
+        Some((b, p))
+    }
+
+    /// Clear the sequence table (N1) and the names its entries held; counted.
+    fn forget_incoming(&mut self) {
+        self.newest_seq.clear();
+        self.held_names.clear();
+        self.seq_table_resets += 1;
+    }
+
+    /// A behavior was removed: the sequence table's resolved ports are no longer trusted as
+    /// they are ([`Incoming::epoch`]). When the 16-bit epoch wraps, an entry resolved 65 536
+    /// removals ago would look current: every entry forgets its port instead (and with it
+    /// the names it held).
+    fn behavior_removed(&mut self) {
+        self.removals = self.removals.wrapping_add(1);
+        if self.removals == 0 {
+            for incoming in self.newest_seq.values_mut() {
+                (incoming.behavior, incoming.port) = (0, 0);
+            }
+            self.held_names.clear();
         }
     }
 
@@ -1618,8 +1683,9 @@ impl NodeCore {
         self.flush_requests();
     }
 
-    /// Run the processes triggered so far (most calls find none: checked here, inlined).
-    #[inline]
+    /// Run the processes triggered so far (most calls find none: checked here, inlined; a
+    /// plain `#[inline]` was left out of `run_due` when the receive path changed).
+    #[inline(always)]
     fn run_triggered(&mut self) {
         if !self.pending.is_empty() {
             self.run_pending();
@@ -1986,10 +2052,24 @@ pub(crate) fn current(cell: &PortCell, now: Instant) -> &Value {
     }
 }
 
-/// The sequence table's key for connection `conn` of node `from`: one integer, hashed in one
-/// piece (a tuple is hashed field by field, which costs more on every message received).
-fn incoming_key(from: NodeId, conn: ConnectionId) -> u128 {
-    (u128::from(from.0) << 64) | u128::from(conn.0)
+/// The sequence table's key for connection `conn` of node `from`.
+fn incoming_key(from: NodeId, conn: ConnectionId) -> IncomingKey {
+    IncomingKey { node: u64::from(from.0), conn: conn.0 }
+}
+
+/// A (sender, connection) pair, hashed in one piece as one 128-bit integer (a tuple is hashed
+/// field by field, which costs more on every message received), but aligned to 8 bytes, not
+/// 16: a `u128` key would pad every bucket of the table to a multiple of 16 bytes.
+#[derive(Copy, Clone, PartialEq, Eq)]
+struct IncomingKey {
+    node: u64,
+    conn: u64,
+}
+
+impl std::hash::Hash for IncomingKey {
+    fn hash<H: std::hash::Hasher>(&self, state: &mut H) {
+        state.write_u128((u128::from(self.node) << 64) | u128::from(self.conn));
+    }
 }
 
 /// A cheap upper estimate of what a remembered answer holds in memory, for the byte bound of
@@ -2029,9 +2109,15 @@ fn answer_bytes(result: &Result<ReplyBody, String>) -> usize {
     }
 }
 
-/// Whether `m` carries the very name strings `r` was resolved from (pointer comparison).
-fn same_names(r: &Resolved, m: &PortMessage) -> bool {
-    Arc::ptr_eq(&r.behavior, &m.behavior) && Arc::ptr_eq(&r.port, &m.port)
+/// Whether `m` carries the very name strings `incoming`'s port was resolved from (address
+/// comparison; those strings are held in `NodeCore::held_names`).
+fn same_names(incoming: &Incoming, m: &PortMessage) -> bool {
+    incoming.behavior == name_address(&m.behavior) && incoming.port == name_address(&m.port)
+}
+
+/// The address of a name string, which identifies it while it lives (never 0).
+fn name_address(name: &Arc<str>) -> usize {
+    Arc::as_ptr(name).cast::<u8>() as usize
 }
 
 fn queue(pending: &mut VecDeque<(u32, u64, u16)>, proc_: &mut ProcState, b: u32, id: u64, pi: u16) {
