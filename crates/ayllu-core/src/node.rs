@@ -91,11 +91,15 @@ pub enum RequestStatus {
     Failed(String),
 }
 
-/// Laid out in declaration order (`repr(C)`), what every accepted value touches first and the
-/// drop counters (136 bytes, touched only when something is refused) last: a port that takes a
-/// message from cold memory (a simulator stepping hundreds of nodes) then costs two cache
-/// lines, not the four or five the compiler's own order spread them over.
-#[repr(C)]
+/// Laid out in declaration order (`repr(C)`) on whole cache lines (`align(64)`, 384 bytes):
+/// the first line holds what every message into the port reads or writes of the port's own
+/// state (the plain flag, the wave mark, the acceptance counts, whether windows are open, the
+/// outgoing connections), the second what a merge reads of the cell (`PortCell`'s order), the
+/// supplier and the triggers after it, and the drop counters (touched only when something is
+/// refused) last. A message into an aggregating port that absorbs it then costs two or three
+/// cache lines, a plain hop three, where the compiler's order and an unaligned 376-byte slot
+/// spread them over four or five.
+#[repr(C, align(64))]
 pub(crate) struct PortState {
     /// Whether a value accepted here needs none of the general path's checks (see
     /// [`PortState::is_plain`]); kept up to date wherever the triggers or windows change.
@@ -107,13 +111,13 @@ pub(crate) struct PortState {
     /// aggregating port absorbs most of what it is offered (a Max port of eligibilities) and
     /// the far end is one more cache line per message. `counters` holds every other cause.
     pub(crate) absorbed: u64,
+    pub(crate) windows: Windows,
     /// Outgoing connections, with what a hop needs copied in so that a local hop never
     /// touches the connection table (see [`Edge`]).
     pub(crate) out: Vec<Edge>,
+    pub(crate) cell: PortCell,
     /// Processes of this behavior triggered when the port accepts a value.
     pub(crate) triggers: Vec<u16>,
-    pub(crate) windows: Windows,
-    pub(crate) cell: PortCell,
     pub(crate) counters: Counters,
 }
 

@@ -184,8 +184,11 @@ impl PortSpec {
 
 /// A live port's value state. Arbitration windows live beside it (see `arbitration`).
 #[derive(Clone, Debug)]
-// In declaration order (`repr(C)`): what a merge reads and writes first, the default (read
-// only by a reset) last, so that a merge from cold memory touches as few cache lines as it can.
+// In declaration order (`repr(C)`): what a merge into an aggregating port reads (kind, value,
+// time of the last acceptance, window end, whether it has a lifespan) in the first 64 bytes,
+// which the node places on a cache line of their own (`crate::node::PortState`); then the
+// lifespan's length, the supplier (written on acceptance), and what only opening a window or
+// a reset reads (window, default) last.
 #[repr(C)]
 pub struct PortCell {
     pub(crate) kind: PortKind,
@@ -193,10 +196,10 @@ pub struct PortCell {
     pub(crate) empty: bool,
     pub(crate) supplier_priority: i32,
     pub(crate) value: Value,
-    pub(crate) supplier: Option<Source>,
     pub(crate) last_accepted: Option<Instant>,
     pub(crate) window_end: Instant,
     pub(crate) lifespan: Option<Duration>,
+    pub(crate) supplier: Option<Source>,
     pub(crate) window: Option<Duration>,
     pub(crate) default: Value,
 }
