@@ -352,6 +352,30 @@ impl PortCell {
 
     #[inline(never)]
     fn merge_any(&mut self, now: Instant, m: &Value, from: Source, priority: i32) -> Result<(), DropCause> {
+        // A number offered to a Max or Min port that holds one (an eligibility into BLE's
+        // `Best`, most of what aggregating ports are offered): the `Max | Min` arm below with
+        // what `check` and `expire` decide for this case (not NaN, nothing to release) taken
+        // first. The same comparisons on the same values, so the same outcome.
+        let holds = !self.empty && now < self.release_at();
+        if let (PortKind::Max | PortKind::Min, Value::Float(x), Value::Float(c)) = (self.kind, m, &mut self.value) {
+            if holds && !x.is_nan() {
+                let better = if self.kind == PortKind::Max { Ordering::Greater } else { Ordering::Less };
+                match x.total_cmp(c) {
+                    ord if ord == better => {
+                        *c = *x;
+                        self.supplier = Some(from);
+                    }
+                    Ordering::Equal => {
+                        if self.supplier.is_none_or(|s| from < s) {
+                            self.supplier = Some(from);
+                        }
+                    }
+                    _ => return Err(DropCause::Absorbed),
+                }
+                self.last_accepted = Some(now);
+                return Ok(());
+            }
+        }
         self.check(m)?;
         self.expire(now);
         match self.kind {
