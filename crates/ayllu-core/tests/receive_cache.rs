@@ -159,3 +159,11 @@ fn a_connection_id_re_pointed_without_end_clears_the_table_as_new_ids_do() {
     assert_eq!(n.counters().get(DropCause::Stale), 1);
     assert_eq!(read(&n, "A", "In"), Value::Int(16_384));
 }
+
+#[test]
+fn a_node_stays_send_and_sync() {
+    // The sequence table's entries change through shared references (atomics, not `Cell`s),
+    // which must not cost the node its `Sync` (an `RwLock<NodeCore>` needs it).
+    fn both<T: Send + Sync>() {}
+    both::<NodeCore>();
+}
