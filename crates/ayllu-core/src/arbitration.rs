@@ -70,22 +70,32 @@ pub enum Origin {
 }
 
 /// The windows of one port. Usually empty; checks on an empty set are a single branch.
+///
+/// One word (boxed, allocated by the first window), not a `Vec`'s three: a port's windows sit
+/// in the port's first cache line with what every message reads (`crate::node::PortState`).
 #[derive(Clone, Debug, Default)]
 pub struct Windows {
-    list: Vec<Window>,
+    // The box is the point: one word in the port, the `Vec` behind it only once a window opens.
+    #[allow(clippy::box_collection)]
+    list: Option<Box<Vec<Window>>>,
 }
 
 impl Windows {
     /// Whether no window was ever opened here (or every one was forgotten): expired windows
     /// still count, since their slots are kept for reuse.
     pub fn is_empty(&self) -> bool {
-        self.list.is_empty()
+        self.list.as_ref().is_none_or(|l| l.is_empty())
+    }
+
+    fn list(&self) -> &[Window] {
+        self.list.as_deref().map_or(&[], Vec::as_slice)
     }
 
     /// Open or refresh the (kind, holder) window to last at least until `end`.
     pub fn refresh(&mut self, now: Instant, kind: WindowKind, holder: Source, end: Instant) {
+        let list = self.list.get_or_insert_with(Box::default);
         let mut free = None;
-        for (i, w) in self.list.iter_mut().enumerate() {
+        for (i, w) in list.iter_mut().enumerate() {
             if w.kind == kind && w.holder == holder {
                 w.end = w.end.max(end);
                 return;
@@ -96,20 +106,20 @@ impl Windows {
         }
         let w = Window { kind, holder, end };
         match free {
-            Some(i) => self.list[i] = w,
-            None => self.list.push(w),
+            Some(i) => list[i] = w,
+            None => list.push(w),
         }
     }
 
     /// May a connection write from `by` be stored now?
     #[inline]
     pub fn admit_write(&self, now: Instant, by: Source) -> Result<(), DropCause> {
-        if self.list.is_empty() {
+        if self.is_empty() {
             return Ok(());
         }
         let mut overridden = false;
         let mut has_pass = false;
-        for w in &self.list {
+        for w in self.list() {
             if w.end <= now {
                 continue;
             }
@@ -131,13 +141,13 @@ impl Windows {
     /// May a value that was just stored, coming from `origin`, propagate out now?
     #[inline]
     pub fn admit_propagation(&self, now: Instant, origin: Origin) -> Result<(), DropCause> {
-        if self.list.is_empty() {
+        if self.is_empty() {
             return Ok(());
         }
         let mut overridden = false;
         let mut has_pass = false;
         let mut write_inhibited = false;
-        for w in &self.list {
+        for w in self.list() {
             if w.end <= now {
                 continue;
             }
@@ -162,18 +172,20 @@ impl Windows {
 
     /// The windows still open at `now`, soonest-ending first.
     pub fn active(&self, now: Instant) -> Vec<Window> {
-        let mut v: Vec<Window> = self.list.iter().copied().filter(|w| w.end > now).collect();
+        let mut v: Vec<Window> = self.list().iter().copied().filter(|w| w.end > now).collect();
         v.sort_by_key(|w| (w.end, w.kind, w.holder));
         v
     }
 
     /// The latest end of any open window: when this port will next be free.
     pub fn next_end(&self, now: Instant) -> Option<Instant> {
-        self.list.iter().filter(|w| w.end > now).map(|w| w.end).max()
+        self.list().iter().filter(|w| w.end > now).map(|w| w.end).max()
     }
 
     /// Forget windows held by a connection that has been removed.
     pub fn forget_holder(&mut self, holder: Source) {
-        self.list.retain(|w| w.holder != holder);
+        if let Some(list) = &mut self.list {
+            list.retain(|w| w.holder != holder);
+        }
     }
 }

@@ -11,7 +11,8 @@
 //! * Nothing that arrives from outside can make it panic; what cannot be applied is dropped
 //!   and counted by cause.
 
-use std::collections::{HashMap, VecDeque};
+use std::collections::{HashMap, HashSet, VecDeque};
+use std::sync::atomic::{AtomicU16, AtomicU32, AtomicU64, AtomicUsize, Ordering::Relaxed};
 use std::sync::Arc;
 
 use crate::access::{Access, Limits};
@@ -91,11 +92,15 @@ pub enum RequestStatus {
     Failed(String),
 }
 
-/// Laid out in declaration order (`repr(C)`), what every accepted value touches first and the
-/// drop counters (136 bytes, touched only when something is refused) last: a port that takes a
-/// message from cold memory (a simulator stepping hundreds of nodes) then costs two cache
-/// lines, not the four or five the compiler's own order spread them over.
-#[repr(C)]
+/// Laid out in declaration order (`repr(C)`) on whole cache lines (`align(64)`, 384 bytes):
+/// the first line holds what every message into the port reads or writes of the port's own
+/// state (the plain flag, the wave mark, the acceptance counts, whether windows are open, the
+/// outgoing connections), the second what a merge reads of the cell (`PortCell`'s order), the
+/// supplier and the triggers after it, and the drop counters (touched only when something is
+/// refused) last. A message into an aggregating port that absorbs it then costs two or three
+/// cache lines, a plain hop three, where the compiler's order and an unaligned 376-byte slot
+/// spread them over four or five.
+#[repr(C, align(64))]
 pub(crate) struct PortState {
     /// Whether a value accepted here needs none of the general path's checks (see
     /// [`PortState::is_plain`]); kept up to date wherever the triggers or windows change.
@@ -107,13 +112,13 @@ pub(crate) struct PortState {
     /// aggregating port absorbs most of what it is offered (a Max port of eligibilities) and
     /// the far end is one more cache line per message. `counters` holds every other cause.
     pub(crate) absorbed: u64,
+    pub(crate) windows: Windows,
     /// Outgoing connections, with what a hop needs copied in so that a local hop never
     /// touches the connection table (see [`Edge`]).
     pub(crate) out: Vec<Edge>,
+    pub(crate) cell: PortCell,
     /// Processes of this behavior triggered when the port accepts a value.
     pub(crate) triggers: Vec<u16>,
-    pub(crate) windows: Windows,
-    pub(crate) cell: PortCell,
     pub(crate) counters: Counters,
 }
 
@@ -184,14 +189,19 @@ pub const RATE_BUCKETS: usize = 1_024;
 /// Warnings kept in a node's report, at most (see [`NodeCore::warn`]).
 pub const MAX_WARNINGS: usize = 64;
 
+/// In declaration order (`repr(C)`) and on a cache line of its own (`align(64)`): what a
+/// message arriving at one of its ports reads (the id a cached target is checked against, the
+/// ports, the processes it may trigger, the name) in the first line, the rest after. The
+/// compiler's own order put those four in three lines of a 248-byte slot.
+#[repr(C, align(64))]
 pub(crate) struct Behavior {
     pub(crate) id: u64,
+    pub(crate) ports: Vec<PortState>,
+    pub(crate) processes: Vec<ProcState>,
     pub(crate) name: Arc<str>,
     pub(crate) class: Arc<BehaviorClass>,
-    pub(crate) ports: Vec<PortState>,
     pub(crate) slots: Vec<Value>,
     pub(crate) monos: Vec<MonoState>,
-    pub(crate) processes: Vec<ProcState>,
     pub(crate) ble: Option<BleState>,
 }
 
@@ -233,22 +243,28 @@ pub(crate) struct Edge {
 /// number applied (N1), and the port its last message was applied to, so that the next message
 /// needs no name lookups. The names each message carries are still checked against that port,
 /// since a sender may reuse a connection id.
+///
+/// 32 bytes, so that with its 16-byte key a bucket of the table fits one cache line
+/// ([`SeqEntry`]), where it took 80 bytes over two: a node hears about a thousand (sender,
+/// connection) pairs, and the bucket is the first cold load of every message received.
+#[derive(Copy, Clone)]
 struct Incoming {
     newest: u64,
-    target: Option<Resolved>,
-}
-
-/// A port an incoming connection resolved to, and the very name strings (`Arc`s) the message
-/// carried: a message carrying the same `Arc`s (the sender's connection shares them among its
-/// messages, e.g. in-process transports) names the same port, so it skips comparing strings.
-/// Holding the `Arc`s keeps their addresses from being reused for other names.
-struct Resolved {
+    /// The addresses of the name strings (`Arc<str>`) the message that resolved the port
+    /// carried (0: no port resolved): a message carrying the same `Arc`s (the sender's
+    /// connection shares them among its messages, e.g. in-process transports) names the same
+    /// port, so it skips comparing strings. Those `Arc`s are held in `NodeCore::held_names` for
+    /// as long as this entry may compare against them, so their addresses cannot be reused for
+    /// other names meanwhile.
+    behavior: usize,
+    port: usize,
+    /// The port: behavior slot and port index...
     b: u32,
-    /// The behavior's id: a behavior removed and re-created in the same slot gets another.
-    id: u64,
     p: u16,
-    behavior: Arc<str>,
-    port: Arc<str>,
+    /// ...valid while `NodeCore::removals` (as 16 bits) is this: no behavior was removed since,
+    /// so slot `b` still holds the behavior it was resolved to (a slot is reused only after a
+    /// removal). Names never change while a behavior lives.
+    epoch: u16,
 }
 
 #[derive(Copy, Clone)]
@@ -345,11 +361,44 @@ pub(crate) fn connect_request(
 /// assert!(matches!(err, Error::TypeMismatch { .. }));
 /// # Ok::<(), Error>(())
 /// ```
+// In declaration order (`repr(C)`) on whole cache lines (`align(64)`): what every visit of a
+// robot touches (a message received, a write, a poll) in the first seven lines, what only
+// structure operations, control requests and reports touch after them. A simulator steps
+// hundreds of nodes, each cold by the time its turn comes back: the compiler's order spread
+// the fields a message reads over eight lines of the node's eighteen.
+#[repr(C, align(64))]
 pub struct NodeCore {
-    pub(crate) id: NodeId,
     pub(crate) now: Instant,
-    classes: HashMap<String, Arc<BehaviorClass>>,
+    pub(crate) wave: u64,
+    /// The flight recorder's tap (crate::journal); `None`, and then free, unless started.
+    pub(crate) journal: Option<Box<Journal>>,
     pub(crate) behaviors: Vec<Option<Behavior>>,
+    pub(crate) id: NodeId,
+    /// Behaviors removed, wrapping at 16 bits: the epoch of `newest_seq`'s resolved ports
+    /// ([`Incoming::epoch`]).
+    removals: u16,
+    /// Whether a process of this node ever kept change outcomes (R2): until then a run need
+    /// not read its process's outcomes to know there are none to clear.
+    outcomes_kept: bool,
+    /// Keyed by `incoming_key(sender, connection)`; looked up for every message received.
+    newest_seq: HashSet<SeqEntry, foldhash::fast::RandomState>,
+    access: Access,
+    pending: VecDeque<(u32, u64, u16)>,
+    stack: Vec<Frame>,
+    poll_epoch: u64,
+    /// When the processes in `deferred` may run (`Instant::MAX` while there are none).
+    deferred_due: Instant,
+    deferred: Vec<(u32, u64, u16)>,
+    /// The periodic processes and the next monostable edge, so that a poll need not walk
+    /// every process (crate::schedule).
+    schedule: Schedule,
+    outbox: VecDeque<Outgoing>,
+    requests: Vec<Request>,
+    /// This node's part in transactions (crate::transaction).
+    pub(crate) txns: crate::transaction::Transactions,
+    pub(crate) counters: Counters,
+    limits: Limits,
+    classes: HashMap<String, Arc<BehaviorClass>>,
     free_behaviors: Vec<u32>,
     names: HashMap<Arc<str>, u32>,
     next_behavior_id: u64,
@@ -359,25 +408,10 @@ pub struct NodeCore {
     next_conn_id: u64,
     groups: Vec<Arc<str>>,
     groups_generation: u64,
-    pub(crate) wave: u64,
-    stack: Vec<Frame>,
-    pending: VecDeque<(u32, u64, u16)>,
-    /// The periodic processes and the next monostable edge, so that a poll need not walk
-    /// every process (crate::schedule).
-    schedule: Schedule,
-    /// Whether a process of this node ever kept change outcomes (R2): until then a run need
-    /// not read its process's outcomes to know there are none to clear.
-    outcomes_kept: bool,
-    deferred: Vec<(u32, u64, u16)>,
-    /// When the processes in `deferred` may run (`Instant::MAX` while there are none).
-    deferred_due: Instant,
-    poll_epoch: u64,
-    outbox: VecDeque<Outgoing>,
-    pub(crate) counters: Counters,
-    /// Keyed by `incoming_key(sender, connection)`; looked up for every message received.
-    newest_seq: HashMap<u128, Incoming, foldhash::fast::RandomState>,
+    /// The name strings whose addresses `newest_seq` entries compare against
+    /// ([`Incoming::behavior`]), kept alive until no entry can compare against them.
+    held_names: Vec<(Arc<str>, Arc<str>)>,
     seq_table_resets: u64,
-    requests: Vec<Request>,
     /// How many of `requests` are finished (see `FINISHED_REQUESTS_KEPT`).
     finished_requests: usize,
     next_request: u64,
@@ -389,14 +423,8 @@ pub struct NodeCore {
     answered_bytes: usize,
     pub(crate) warnings: Vec<String>,
     pub(crate) transport_counters: Vec<(String, u64)>,
-    access: Access,
-    limits: Limits,
     /// Control-request token buckets by sender: tokens left and when last refilled.
     request_buckets: HashMap<NodeId, (f64, Instant)>,
-    /// The flight recorder's tap (crate::journal); `None`, and then free, unless started.
-    pub(crate) journal: Option<Box<Journal>>,
-    /// This node's part in transactions (crate::transaction).
-    pub(crate) txns: crate::transaction::Transactions,
 }
 
 impl NodeCore {
@@ -428,7 +456,9 @@ impl NodeCore {
             poll_epoch: 0,
             outbox: VecDeque::new(),
             counters: Counters::default(),
-            newest_seq: HashMap::default(),
+            newest_seq: HashSet::default(),
+            removals: 0,
+            held_names: Vec::new(),
             seq_table_resets: 0,
             requests: Vec::new(),
             finished_requests: 0,
@@ -591,6 +621,7 @@ impl NodeCore {
         }
         self.names.remove(name);
         self.behaviors[b as usize] = None;
+        self.behavior_removed();
         self.schedule.remove_behavior(b);
         self.debug_check_schedule();
         self.free_behaviors.push(b);
@@ -1325,6 +1356,10 @@ impl NodeCore {
         }
     }
 
+    // Inlined into its two callers (a plain `#[inline]` was not taken): a broadcast in a
+    // simulator reaches each receiver through `receive_shared`, and one call less per delivery
+    // is one register save and restore less (24 instructions).
+    #[inline(always)]
     fn receive_port(&mut self, from: NodeId, m: &PortMessage) {
         if !self.access.ports.admits(from) {
             self.counters.add(DropCause::NotAllowed);
@@ -1336,58 +1371,108 @@ impl NodeCore {
         }
         let key = incoming_key(from, m.conn);
         // One hash lookup per message from a known connection: this runs for every message.
-        let cached = match self.newest_seq.get_mut(&key) {
-            Some(incoming) => {
+        let cached = match self.newest_seq.get(&key) {
+            Some(entry) => {
+                let incoming = entry.get();
                 if m.seq <= incoming.newest {
                     self.counters.add(DropCause::Stale);
                     return;
                 }
-                incoming.newest = m.seq;
-                incoming.target.as_ref().map(|r| (r.b, r.id, r.p, same_names(r, m)))
+                entry.newest.store(m.seq, Relaxed);
+                // The port stands if no behavior was removed since it was resolved and the
+                // message carries the very names it was resolved from.
+                (incoming.epoch == self.removals && same_names(&incoming, m)).then_some((incoming.b, incoming.p))
             }
             None => {
                 if self.newest_seq.len() >= SEQ_TABLE_MAX {
-                    self.newest_seq.clear();
-                    self.seq_table_resets += 1;
+                    self.forget_incoming();
                 }
-                self.newest_seq.insert(key, Incoming { newest: m.seq, target: None });
+                let unresolved = Incoming { newest: m.seq, behavior: 0, port: 0, b: 0, p: 0, epoch: 0 };
+                self.newest_seq.insert(SeqEntry::new(key, unresolved));
                 None
             }
         };
-        // The cached port still stands if its behavior does (same slot, same id: names never
-        // change while a behavior lives) and the message names it.
-        let still_there = |&(b, id, p, same): &(u32, u64, u16, bool)| {
-            self.behavior(b).is_some_and(|beh| {
-                beh.id == id && (same || (*beh.name == *m.behavior && beh.class.ports[usize::from(p)].name == *m.port))
-            })
-        };
-        let (b, p) = match cached.filter(still_there) {
-            Some((b, _, p, _)) => (b, p),
-            None => {
-                let Some(&b) = self.names.get(&*m.behavior) else {
-                    self.counters.add(DropCause::UnknownBehavior);
-                    return;
-                };
-                let Some(beh) = self.behavior(b) else {
-                    self.counters.add(DropCause::UnknownBehavior);
-                    return;
-                };
-                let id = beh.id;
-                let Some(port) = beh.class.port_handle(&m.port) else {
-                    self.counters.add(DropCause::UnknownPort);
-                    return;
-                };
-                if let Some(incoming) = self.newest_seq.get_mut(&key) {
-                    incoming.target =
-                        Some(Resolved { b, id, p: port.0, behavior: m.behavior.clone(), port: m.port.clone() });
-                }
-                (b, port.0)
-            }
+        let (b, p) = match cached {
+            Some(bp) => bp,
+            None => match self.resolve_incoming(key, m) {
+                Some(bp) => bp,
+                None => return,
+            },
         };
         self.wave += 1;
         let source = Source::connection(from, m.conn);
         if self.deliver(b, p, m.kind, source, m.priority, &m.value) {
             self.propagate_from(b, p);
+        }
+    }
+
+    /// Resolve the port message `m` names, for the sequence table's entry `key` (which exists)
+    /// whose remembered port does not stand as it is (a behavior was removed since, or the
+    /// message carries other name strings). If the behavior now in the remembered slot has the
+    /// names the message carries, that is the port the names resolve to (names are unique on
+    /// a node), and the entry keeps it and the strings it holds. Otherwise the names are looked
+    /// up and the port and the message's name strings remembered. `None`, counted, if there is
+    /// no such port.
+    #[cold]
+    #[inline(never)]
+    fn resolve_incoming(&mut self, key: IncomingKey, m: &PortMessage) -> Option<(u32, u16)> {
+        let incoming = self.newest_seq.get(&key).expect("entered by the caller").get();
+        if incoming.behavior != 0 {
+            let named = self.behavior(incoming.b).is_some_and(|beh| {
+                *beh.name == *m.behavior
+                    && beh.class.ports.get(usize::from(incoming.p)).is_some_and(|p| p.name == *m.port)
+            });
+            if named {
+                if let Some(entry) = self.newest_seq.get(&key) {
+                    entry.epoch.store(self.removals, Relaxed);
+                }
+                return Some((incoming.b, incoming.p));
+            }
+        }
+        let Some(&b) = self.names.get(&*m.behavior) else {
+            self.counters.add(DropCause::UnknownBehavior);
+            return None;
+        };
+        let Some(beh) = self.behavior(b) else {
+            self.counters.add(DropCause::UnknownBehavior);
+            return None;
+        };
+        let Some(port) = beh.class.port_handle(&m.port) else {
+            self.counters.add(DropCause::UnknownPort);
+            return None;
+        };
+        let p = port.0;
+        // The names held are bounded like the entries (N1): a sender that keeps re-pointing
+        // a connection id clears the table as one that invents connection ids does.
+        if self.held_names.len() >= SEQ_TABLE_MAX {
+            self.forget_incoming();
+            self.newest_seq.insert(SeqEntry::new(key, incoming));
+        }
+        let Some(entry) = self.newest_seq.get(&key) else { return Some((b, p)) };
+        let (behavior, port) = (name_address(&m.behavior), name_address(&m.port));
+        entry.set(Incoming { behavior, port, b, p, epoch: self.removals, ..incoming });
+        self.held_names.push((m.behavior.clone(), m.port.clone()));
+        Some((b, p))
+    }
+
+    /// Clear the sequence table (N1) and the names its entries held; counted.
+    fn forget_incoming(&mut self) {
+        self.newest_seq.clear();
+        self.held_names.clear();
+        self.seq_table_resets += 1;
+    }
+
+    /// A behavior was removed: the sequence table's resolved ports are no longer trusted as
+    /// they are ([`Incoming::epoch`]). When the 16-bit epoch wraps, an entry resolved 65 536
+    /// removals ago would look current: every entry forgets its port instead (and with it
+    /// the names it held).
+    fn behavior_removed(&mut self) {
+        self.removals = self.removals.wrapping_add(1);
+        if self.removals == 0 {
+            for entry in &self.newest_seq {
+                entry.set(Incoming { behavior: 0, port: 0, ..entry.get() });
+            }
+            self.held_names.clear();
         }
     }
 
@@ -1619,8 +1704,9 @@ impl NodeCore {
         self.flush_requests();
     }
 
-    /// Run the processes triggered so far (most calls find none: checked here, inlined).
-    #[inline]
+    /// Run the processes triggered so far (most calls find none: checked here, inlined; a
+    /// plain `#[inline]` was left out of `run_due` when the receive path changed).
+    #[inline(always)]
     fn run_triggered(&mut self) {
         if !self.pending.is_empty() {
             self.run_pending();
@@ -2018,10 +2104,94 @@ pub(crate) fn current(cell: &PortCell, now: Instant) -> &Value {
     }
 }
 
-/// The sequence table's key for connection `conn` of node `from`: one integer, hashed in one
-/// piece (a tuple is hashed field by field, which costs more on every message received).
-fn incoming_key(from: NodeId, conn: ConnectionId) -> u128 {
-    (u128::from(from.0) << 64) | u128::from(conn.0)
+/// The sequence table's key for connection `conn` of node `from`.
+fn incoming_key(from: NodeId, conn: ConnectionId) -> IncomingKey {
+    IncomingKey { node: u64::from(from.0), conn: conn.0 }
+}
+
+/// One entry of the sequence table: a bucket is one whole cache line (the table is allocated
+/// at the entry's alignment), the first cold load of every message received. A set hands out
+/// its elements by shared reference, so the state ([`Incoming`]) is kept in atomics, read and
+/// written `Relaxed` (plain loads and stores): it changes only under `&mut NodeCore`, and
+/// atomics, unlike a `Cell`, leave the node `Sync`. The key never changes.
+#[repr(C, align(64))]
+struct SeqEntry {
+    key: IncomingKey,
+    newest: AtomicU64,
+    behavior: AtomicUsize,
+    port: AtomicUsize,
+    b: AtomicU32,
+    p: AtomicU16,
+    epoch: AtomicU16,
+}
+
+impl SeqEntry {
+    fn new(key: IncomingKey, i: Incoming) -> SeqEntry {
+        SeqEntry {
+            key,
+            newest: AtomicU64::new(i.newest),
+            behavior: AtomicUsize::new(i.behavior),
+            port: AtomicUsize::new(i.port),
+            b: AtomicU32::new(i.b),
+            p: AtomicU16::new(i.p),
+            epoch: AtomicU16::new(i.epoch),
+        }
+    }
+
+    fn get(&self) -> Incoming {
+        Incoming {
+            newest: self.newest.load(Relaxed),
+            behavior: self.behavior.load(Relaxed),
+            port: self.port.load(Relaxed),
+            b: self.b.load(Relaxed),
+            p: self.p.load(Relaxed),
+            epoch: self.epoch.load(Relaxed),
+        }
+    }
+
+    fn set(&self, i: Incoming) {
+        self.newest.store(i.newest, Relaxed);
+        self.behavior.store(i.behavior, Relaxed);
+        self.port.store(i.port, Relaxed);
+        self.b.store(i.b, Relaxed);
+        self.p.store(i.p, Relaxed);
+        self.epoch.store(i.epoch, Relaxed);
+    }
+}
+
+impl PartialEq for SeqEntry {
+    fn eq(&self, other: &Self) -> bool {
+        self.key == other.key
+    }
+}
+
+impl Eq for SeqEntry {}
+
+impl std::hash::Hash for SeqEntry {
+    fn hash<H: std::hash::Hasher>(&self, state: &mut H) {
+        self.key.hash(state);
+    }
+}
+
+impl std::borrow::Borrow<IncomingKey> for SeqEntry {
+    fn borrow(&self) -> &IncomingKey {
+        &self.key
+    }
+}
+
+/// A (sender, connection) pair, hashed in one piece as one 128-bit integer (a tuple is hashed
+/// field by field, which costs more on every message received), but aligned to 8 bytes, not
+/// 16: a `u128` key would pad every bucket of the table to a multiple of 16 bytes.
+#[derive(Copy, Clone, PartialEq, Eq)]
+struct IncomingKey {
+    node: u64,
+    conn: u64,
+}
+
+impl std::hash::Hash for IncomingKey {
+    fn hash<H: std::hash::Hasher>(&self, state: &mut H) {
+        state.write_u128((u128::from(self.node) << 64) | u128::from(self.conn));
+    }
 }
 
 /// A cheap upper estimate of what a remembered answer holds in memory, for the byte bound of
@@ -2061,9 +2231,15 @@ fn answer_bytes(result: &Result<ReplyBody, String>) -> usize {
     }
 }
 
-/// Whether `m` carries the very name strings `r` was resolved from (pointer comparison).
-fn same_names(r: &Resolved, m: &PortMessage) -> bool {
-    Arc::ptr_eq(&r.behavior, &m.behavior) && Arc::ptr_eq(&r.port, &m.port)
+/// Whether `m` carries the very name strings `incoming`'s port was resolved from (address
+/// comparison; those strings are held in `NodeCore::held_names`).
+fn same_names(incoming: &Incoming, m: &PortMessage) -> bool {
+    incoming.behavior == name_address(&m.behavior) && incoming.port == name_address(&m.port)
+}
+
+/// The address of a name string, which identifies it while it lives (never 0).
+fn name_address(name: &Arc<str>) -> usize {
+    Arc::as_ptr(name).cast::<u8>() as usize
 }
 
 fn queue(pending: &mut VecDeque<(u32, u64, u16)>, proc_: &mut ProcState, b: u32, id: u64, pi: u16) {

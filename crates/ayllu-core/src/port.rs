@@ -184,8 +184,11 @@ impl PortSpec {
 
 /// A live port's value state. Arbitration windows live beside it (see `arbitration`).
 #[derive(Clone, Debug)]
-// In declaration order (`repr(C)`): what a merge reads and writes first, the default (read
-// only by a reset) last, so that a merge from cold memory touches as few cache lines as it can.
+// In declaration order (`repr(C)`): what a merge into an aggregating port reads (kind, value,
+// time of the last acceptance, window end, whether it has a lifespan) in the first 64 bytes,
+// which the node places on a cache line of their own (`crate::node::PortState`); then the
+// lifespan's length, the supplier (written on acceptance), and what only opening a window or
+// a reset reads (window, default) last.
 #[repr(C)]
 pub struct PortCell {
     pub(crate) kind: PortKind,
@@ -193,10 +196,10 @@ pub struct PortCell {
     pub(crate) empty: bool,
     pub(crate) supplier_priority: i32,
     pub(crate) value: Value,
-    pub(crate) supplier: Option<Source>,
     pub(crate) last_accepted: Option<Instant>,
     pub(crate) window_end: Instant,
     pub(crate) lifespan: Option<Duration>,
+    pub(crate) supplier: Option<Source>,
     pub(crate) window: Option<Duration>,
     pub(crate) default: Value,
 }
@@ -222,9 +225,11 @@ impl PortCell {
     pub fn kind(&self) -> PortKind {
         self.kind
     }
-    /// The port's value type (rule S1).
+    /// The port's value type (rule S1). Read from the value, which always has the default's
+    /// type (every merge checks it, a reset copies the default): the default sits at the far
+    /// end of the cell, one more cache line for every merge that checks a type.
     pub fn ty(&self) -> ValueType {
-        self.default.ty()
+        self.value.ty()
     }
 
     /// When the value an aggregating port holds is released (D3.2, D3.7): at the end of its
@@ -349,6 +354,30 @@ impl PortCell {
 
     #[inline(never)]
     fn merge_any(&mut self, now: Instant, m: &Value, from: Source, priority: i32) -> Result<(), DropCause> {
+        // A number offered to a Max or Min port that holds one (an eligibility into BLE's
+        // `Best`, most of what aggregating ports are offered): the `Max | Min` arm below with
+        // what `check` and `expire` decide for this case (not NaN, nothing to release) taken
+        // first. The same comparisons on the same values, so the same outcome.
+        let holds = !self.empty && now < self.release_at();
+        if let (PortKind::Max | PortKind::Min, Value::Float(x), Value::Float(c)) = (self.kind, m, &mut self.value) {
+            if holds && !x.is_nan() {
+                let better = if self.kind == PortKind::Max { Ordering::Greater } else { Ordering::Less };
+                match x.total_cmp(c) {
+                    ord if ord == better => {
+                        *c = *x;
+                        self.supplier = Some(from);
+                    }
+                    Ordering::Equal => {
+                        if self.supplier.is_none_or(|s| from < s) {
+                            self.supplier = Some(from);
+                        }
+                    }
+                    _ => return Err(DropCause::Absorbed),
+                }
+                self.last_accepted = Some(now);
+                return Ok(());
+            }
+        }
         self.check(m)?;
         self.expire(now);
         match self.kind {

@@ -74,3 +74,96 @@ fn a_removed_and_recreated_behavior_is_found_again() {
     assert_eq!(read(&n, "C", "In"), Value::Int(0));
     assert_eq!(n.counters().get(DropCause::UnknownBehavior), 2);
 }
+
+/// A message whose name strings are the very `Arc`s of earlier ones (as a sender's connection
+/// shares them among its messages): the receiver trusts the port it remembers for them only
+/// while no behavior was removed, and then finds it again by name.
+fn shared(seq: u64, behavior: &std::sync::Arc<str>, port: &std::sync::Arc<str>, v: i64) -> Message {
+    Message::Port(PortMessage {
+        conn: ConnectionId(1),
+        seq,
+        behavior: behavior.clone(),
+        port: port.clone(),
+        kind: ConnectionKind::Normal,
+        priority: 0,
+        value: Value::Int(v),
+    })
+}
+
+#[test]
+fn the_same_name_strings_find_a_recreated_behavior_and_not_its_successor() {
+    let mut n = node();
+    let (a, b, input) = ("A".into(), "B".into(), "In".into());
+    n.receive(at(1), PEER, shared(1, &a, &input, 1));
+    assert_eq!(read(&n, "A", "In"), Value::Int(1));
+    // Removed, and another behavior takes its slot: the remembered port is not A's any more.
+    n.remove("A").unwrap();
+    n.create("Rx", "C").unwrap();
+    n.receive(at(2), PEER, shared(2, &a, &input, 2));
+    assert_eq!(read(&n, "C", "In"), Value::Int(0));
+    assert_eq!(n.counters().get(DropCause::UnknownBehavior), 1);
+    // A again (in another slot): found by name with the same strings.
+    n.create("Rx", "A").unwrap();
+    n.receive(at(3), PEER, shared(3, &a, &input, 3));
+    assert_eq!(read(&n, "A", "In"), Value::Int(3));
+    // Re-created in the slot it had: found again, and C is untouched.
+    n.remove("C").unwrap();
+    n.remove("A").unwrap();
+    n.create("Rx", "A").unwrap();
+    n.receive(at(4), PEER, shared(4, &a, &input, 4));
+    assert_eq!(read(&n, "A", "In"), Value::Int(4));
+    // The same connection id re-pointed with other strings.
+    n.receive(at(5), PEER, shared(5, &b, &input, 5));
+    assert_eq!(read(&n, "B", "In"), Value::Int(5));
+    n.receive(at(6), PEER, shared(6, &a, &input, 6));
+    assert_eq!(read(&n, "A", "In"), Value::Int(6));
+    assert_eq!(n.counters().get(DropCause::UnknownBehavior), 1);
+    assert_eq!(n.seq_table_resets(), 0);
+}
+
+#[test]
+fn a_remembered_port_is_not_trusted_after_65536_removals() {
+    // The receiver counts removals in 16 bits: after exactly 65 536 of them the count is what
+    // it was when the port was remembered, and the slot holds another behavior.
+    let mut n = node();
+    let (a, input) = ("A".into(), "In".into());
+    n.receive(at(1), PEER, shared(1, &a, &input, 1));
+    n.remove("A").unwrap();
+    n.create("Rx", "C").unwrap();
+    for _ in 1..65_536 {
+        n.remove("B").unwrap();
+        n.create("Rx", "B").unwrap();
+    }
+    n.receive(at(2), PEER, shared(2, &a, &input, 2));
+    assert_eq!(read(&n, "C", "In"), Value::Int(0));
+    assert_eq!(n.counters().get(DropCause::UnknownBehavior), 1);
+}
+
+#[test]
+fn a_connection_id_re_pointed_without_end_clears_the_table_as_new_ids_do() {
+    // Each re-pointing keeps the message's name strings alive; they are bounded like the
+    // table's entries (16 384), and the table is cleared and counted when they are full.
+    let mut n = node();
+    let (a, b, input) = (std::sync::Arc::<str>::from("A"), std::sync::Arc::<str>::from("B"), "In".into());
+    for seq in 1..=16_384u64 {
+        // Fresh strings each time, so that every message re-points the connection.
+        let name = if seq % 2 == 0 { a.to_string() } else { b.to_string() };
+        n.receive(at(seq), PEER, shared(seq, &name.as_str().into(), &input, seq as i64));
+    }
+    assert_eq!(n.seq_table_resets(), 0);
+    n.receive(at(16_385), PEER, shared(16_385, &b, &input, -1));
+    assert_eq!(n.seq_table_resets(), 1);
+    assert_eq!(read(&n, "B", "In"), Value::Int(-1));
+    // The connection's newest number survived the clearing.
+    n.receive(at(16_386), PEER, shared(16_384, &a, &input, -2));
+    assert_eq!(n.counters().get(DropCause::Stale), 1);
+    assert_eq!(read(&n, "A", "In"), Value::Int(16_384));
+}
+
+#[test]
+fn a_node_stays_send_and_sync() {
+    // The sequence table's entries change through shared references (atomics, not `Cell`s),
+    // which must not cost the node its `Sync` (an `RwLock<NodeCore>` needs it).
+    fn both<T: Send + Sync>() {}
+    both::<NodeCore>();
+}
