@@ -18,7 +18,7 @@ use std::sync::Arc;
 use crate::access::{Access, Limits};
 use crate::address::{ConnectionId, Endpoint, NodeId, Source};
 use crate::arbitration::{Origin, WindowKind, Windows};
-use crate::behavior::{validate_process, BehaviorClass, Mono, Port, ProcessFn, ProcessSpec, Slot, Trigger};
+use crate::behavior::{validate_process, BehaviorClass, Mono, Port, ProcessSpec, Slot, Trigger};
 use crate::ble::BleState;
 use crate::change::{Change, ChangeOutcome};
 use crate::connection::{ConnectOptions, ConnectionInfo, ConnectionKind};
@@ -31,6 +31,16 @@ use crate::process::Ctx;
 use crate::schedule::{Periodic, Schedule};
 use crate::time::{Duration, Instant};
 use crate::value::Value;
+
+/// Whether a process body is running, for `run_body`'s borrowed body: a behavior removed
+/// while one runs is parked, not dropped, since the body running may be one of its processes'.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+enum Running {
+    Idle,
+    Body,
+    /// A body runs and `NodeCore::parked` holds behaviors removed meanwhile.
+    Parked,
+}
 
 /// How many (sender, connection) sequence numbers a node remembers (N1). Bounded so a peer
 /// inventing connection ids cannot grow memory; when full the table is cleared and counted.
@@ -380,6 +390,9 @@ pub struct NodeCore {
     /// Whether a process of this node ever kept change outcomes (R2): until then a run need
     /// not read its process's outcomes to know there are none to clear.
     outcomes_kept: bool,
+    /// Whether a process body is running (`run_body`), and whether a behavior removed
+    /// meanwhile waits in `parked` (see `Running`).
+    running: Running,
     /// Keyed by `incoming_key(sender, connection)`; looked up for every message received.
     newest_seq: HashSet<SeqEntry, foldhash::fast::RandomState>,
     access: Access,
@@ -398,6 +411,8 @@ pub struct NodeCore {
     pub(crate) txns: crate::transaction::Transactions,
     pub(crate) counters: Counters,
     limits: Limits,
+    /// Behaviors removed while a process body ran, kept until it returns (see `Running`).
+    parked: Vec<Behavior>,
     classes: HashMap<String, Arc<BehaviorClass>>,
     free_behaviors: Vec<u32>,
     names: HashMap<Arc<str>, u32>,
@@ -451,6 +466,8 @@ impl NodeCore {
             pending: VecDeque::with_capacity(64),
             schedule: Schedule::default(),
             outcomes_kept: false,
+            running: Running::Idle,
+            parked: Vec::new(),
             deferred: Vec::new(),
             deferred_due: Instant::MAX,
             poll_epoch: 0,
@@ -620,7 +637,12 @@ impl NodeCore {
             self.disconnect(ConnectionId(id))?;
         }
         self.names.remove(name);
-        self.behaviors[b as usize] = None;
+        let gone = self.behaviors[b as usize].take();
+        if self.running != Running::Idle {
+            // The running body may be among the removed behavior's (see `Running`).
+            self.parked.extend(gone);
+            self.running = Running::Parked;
+        }
         self.behavior_removed();
         self.schedule.remove_behavior(b);
         self.debug_check_schedule();
@@ -1685,7 +1707,7 @@ impl NodeCore {
             entry.runs += 1;
             // What the run needs is in the entry: the process's state is touched only to count
             // skipped activations (and, in `run_body`, on a node that keeps change outcomes).
-            let body = entry.body.clone();
+            let body = Arc::as_ptr(&entry.body);
             if missed > 0 {
                 if let Some(beh) = self.behaviors[b as usize].as_mut() {
                     beh.processes[usize::from(pi)].overruns += missed;
@@ -1744,14 +1766,20 @@ impl NodeCore {
         let Some(beh) = self.behavior_mut(b) else { return };
         let proc_ = &mut beh.processes[usize::from(pi)];
         proc_.runs += 1;
-        let body = proc_.spec.body.clone();
+        let body = Arc::as_ptr(&proc_.spec.body);
         self.run_body(b, pi, body);
     }
 
     /// Run process `pi` of the behavior in slot `b`, whose body is `body`, and apply the
     /// structure changes it asked for.
+    ///
+    /// `body` points into the `ProcessFn` (an `Arc`) of that process's state or schedule
+    /// entry, borrowed, not cloned: a clone and its drop were two locked instructions a run,
+    /// each a full barrier that waited for the cold node's outstanding misses (most of
+    /// `run_due`'s own samples). Callers pass `Arc::as_ptr` of a live `ProcessFn` of process
+    /// `pi` of slot `b`.
     #[inline(always)]
-    fn run_body(&mut self, b: u32, pi: u16, body: ProcessFn) {
+    fn run_body(&mut self, b: u32, pi: u16, body: *const (dyn Fn(&mut Ctx<'_>) + Send + Sync)) {
         // Only this process's own activations set its outcomes, and they do not nest.
         let had_outcomes = self.outcomes_kept
             && self.behavior(b).is_some_and(|beh| !beh.processes[usize::from(pi)].outcomes.is_empty());
@@ -1762,7 +1790,24 @@ impl NodeCore {
             j.push(self.now, Event::Run { behavior: beh.name.clone(), process: spec.name.clone(), native });
         }
         let mut ctx = Ctx { core: self, b, pi, changes: Vec::new() };
-        body(&mut ctx);
+        ctx.core.running = Running::Body;
+        // SAFETY: `body` came from `Arc::as_ptr` of a `ProcessFn` held by the process's state
+        // (and, for a periodic process, the same `Arc` by its schedule entry), so it is
+        // valid while that state lives. The state lives until this call returns: the only
+        // place a process state is dropped is `remove_behavior` (a behavior's processes are
+        // never removed or replaced one by one, and the node cannot be dropped while `ctx`
+        // borrows it), and while `running` is not `Idle` that parks the removed behavior in
+        // `parked` instead of dropping it, until the body has returned (below). A body asks
+        // for structure changes through `Ctx::change` (R1), applied only after it returns,
+        // so today nothing reaches `remove_behavior` during a run at all; the parking keeps
+        // this sound should that change. Moving the `Arc` (a schedule `Vec` that grows) does
+        // not move its pointee. The pointee is only ever shared (`Fn`), so the `&mut` the
+        // body receives does not alias it.
+        unsafe { (*body)(&mut ctx) };
+        if ctx.core.running == Running::Parked {
+            ctx.core.parked.clear();
+        }
+        ctx.core.running = Running::Idle;
         if ctx.changes.is_empty() && !had_outcomes {
             return;
         }

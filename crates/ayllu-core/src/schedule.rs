@@ -244,6 +244,70 @@ mod tests {
         assert_eq!(node.poll_at(), Some(Instant::from_millis(1020)));
     }
 
+    /// Sets its flag when dropped: tells when a process body (which owns one) is freed.
+    struct DropFlag(Arc<std::sync::atomic::AtomicBool>);
+    impl Drop for DropFlag {
+        fn drop(&mut self) {
+            self.0.store(true, std::sync::atomic::Ordering::SeqCst);
+        }
+    }
+
+    #[test]
+    fn a_body_that_removes_its_own_behavior_is_dropped_only_after_it_returns() {
+        // The poll calls a body through its process's `Arc` without cloning it (node.rs,
+        // `run_body`): removing the running behavior must not free the body under it. The
+        // instance-specific processes below are held by their state and schedule entry only
+        // (no class holds them), so the removal drops the last other owners.
+        use std::sync::atomic::{AtomicBool, Ordering::SeqCst};
+        let log: Log = Arc::default();
+        let mut node = NodeCore::new(NodeId(1));
+        let mut class = BehaviorClass::new("Host");
+        let out = class.port(PortSpec::new("Out", 0i64)).unwrap();
+        node.define(class).unwrap();
+        for name in ["Now", "Later", "Trig"] {
+            node.create("Host", name).unwrap();
+        }
+        // Removed at once, from inside the body, the way a future immediate change would:
+        // the behavior is parked until the body returns.
+        let now_dropped = Arc::new(AtomicBool::new(false));
+        let (flag, seen, l) = (DropFlag(now_dropped.clone()), now_dropped.clone(), log.clone());
+        node.add_process("Now", "Kill", Trigger::Periodic(Duration::from_millis(100)), move |ctx| {
+            ctx.core.remove("Now").unwrap();
+            let _owned = &flag;
+            l.lock().unwrap().push(format!("Now.Kill dropped {}", seen.load(SeqCst)));
+        })
+        .unwrap();
+        // Removed through the process's changes (R1): applied after it returns.
+        let later_dropped = Arc::new(AtomicBool::new(false));
+        let (flag, seen, l) = (DropFlag(later_dropped.clone()), later_dropped.clone(), log.clone());
+        node.add_process("Later", "Kill", Trigger::Periodic(Duration::from_millis(100)), move |ctx| {
+            ctx.remove("Later").unwrap();
+            let _owned = &flag;
+            l.lock().unwrap().push(format!("Later.Kill dropped {}", seen.load(SeqCst)));
+        })
+        .unwrap();
+        // A triggered process (run through `run_process`) that removes its behavior at once.
+        let trig_dropped = Arc::new(AtomicBool::new(false));
+        let (flag, seen, l) = (DropFlag(trig_dropped.clone()), trig_dropped.clone(), log.clone());
+        node.add_process("Trig", "Kill", Trigger::OnWrite(out), move |ctx| {
+            ctx.core.remove("Trig").unwrap();
+            let _owned = &flag;
+            l.lock().unwrap().push(format!("Trig.Kill dropped {}", seen.load(SeqCst)));
+        })
+        .unwrap();
+        let trig_out = node.port("Trig", "Out").unwrap();
+        node.write(Instant::ZERO, trig_out, 1i64).unwrap();
+        node.run_due(Instant::ZERO);
+        assert_eq!(
+            log.lock().unwrap().join(" "),
+            "Trig.Kill dropped false Now.Kill dropped false Later.Kill dropped false"
+        );
+        assert!(now_dropped.load(SeqCst) && later_dropped.load(SeqCst) && trig_dropped.load(SeqCst));
+        assert!(node.report().behaviors.is_empty());
+        node.run_due(Instant::from_millis(100));
+        assert_eq!(log.lock().unwrap().len(), 3, "removed processes do not run again");
+    }
+
     #[test]
     fn a_monostable_edge_is_found_whenever_it_falls() {
         let log: Log = Arc::default();
