@@ -11,6 +11,8 @@
 //! never shortened. Expired windows are simply ignored and their slots reused, so a port that
 //! is arbitrated steadily stops allocating after its first windows.
 
+use std::fmt;
+
 use crate::address::Source;
 use crate::counters::DropCause;
 use crate::time::Instant;
@@ -73,41 +75,85 @@ pub enum Origin {
 ///
 /// One word (boxed, allocated by the first window), not a `Vec`'s three: a port's windows sit
 /// in the port's first cache line with what every message reads (`crate::node::PortState`).
-#[derive(Clone, Debug, Default)]
+/// The box holds the first window itself, the others spilled behind it, so that a port with
+/// one window (a BLE claim's WriteInhibit) reads one line behind the port, not the `Vec`'s
+/// header and then its buffer: two dependent misses on every refresh of a cold port.
+#[derive(Clone, Default)]
 pub struct Windows {
-    // The box is the point: one word in the port, the `Vec` behind it only once a window opens.
-    #[allow(clippy::box_collection)]
-    list: Option<Box<Vec<Window>>>,
+    list: Option<Box<Set>>,
+}
+
+/// The windows, in the order a plain list would hold them: `first`, then `more`.
+#[derive(Clone)]
+#[repr(C, align(64))]
+struct Set {
+    first: Window,
+    more: Vec<Window>,
+}
+
+impl Set {
+    fn iter(&self) -> impl Iterator<Item = &Window> {
+        std::iter::once(&self.first).chain(self.more.iter())
+    }
+}
+
+impl fmt::Debug for Windows {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let list: Option<Vec<Window>> = self.list.as_ref().map(|s| s.iter().copied().collect());
+        f.debug_struct("Windows").field("list", &list).finish()
+    }
 }
 
 impl Windows {
     /// Whether no window was ever opened here (or every one was forgotten): expired windows
     /// still count, since their slots are kept for reuse.
     pub fn is_empty(&self) -> bool {
-        self.list.as_ref().is_none_or(|l| l.is_empty())
+        self.list.is_none()
     }
 
-    fn list(&self) -> &[Window] {
-        self.list.as_deref().map_or(&[], Vec::as_slice)
+    fn iter(&self) -> impl Iterator<Item = &Window> {
+        self.list.iter().flat_map(|s| s.iter())
+    }
+
+    /// The windows as two slices (`first`, then `more`): two plain loops where a chained
+    /// iterator tested which half it was in at every step.
+    fn parts(&self) -> [&[Window]; 2] {
+        match &self.list {
+            Some(s) => [std::slice::from_ref(&s.first), &s.more],
+            None => [&[], &[]],
+        }
     }
 
     /// Open or refresh the (kind, holder) window to last at least until `end`.
     pub fn refresh(&mut self, now: Instant, kind: WindowKind, holder: Source, end: Instant) {
-        let list = self.list.get_or_insert_with(Box::default);
+        let w = Window { kind, holder, end };
+        let Some(set) = self.list.as_mut() else {
+            self.list = Some(Box::new(Set { first: w, more: Vec::new() }));
+            return;
+        };
+        // The first expired slot (0: `first`, i + 1: `more[i]`) is reused.
         let mut free = None;
-        for (i, w) in list.iter_mut().enumerate() {
-            if w.kind == kind && w.holder == holder {
-                w.end = w.end.max(end);
+        let first = &mut set.first;
+        if first.kind == kind && first.holder == holder {
+            first.end = first.end.max(end);
+            return;
+        }
+        if first.end <= now {
+            free = Some(0);
+        }
+        for (i, x) in set.more.iter_mut().enumerate() {
+            if x.kind == kind && x.holder == holder {
+                x.end = x.end.max(end);
                 return;
             }
-            if w.end <= now && free.is_none() {
-                free = Some(i);
+            if x.end <= now && free.is_none() {
+                free = Some(i + 1);
             }
         }
-        let w = Window { kind, holder, end };
         match free {
-            Some(i) => list[i] = w,
-            None => list.push(w),
+            Some(0) => set.first = w,
+            Some(i) => set.more[i - 1] = w,
+            None => set.more.push(w),
         }
     }
 
@@ -119,7 +165,7 @@ impl Windows {
         }
         let mut overridden = false;
         let mut has_pass = false;
-        for w in self.list() {
+        for w in self.parts().into_iter().flatten() {
             if w.end <= now {
                 continue;
             }
@@ -147,7 +193,7 @@ impl Windows {
         let mut overridden = false;
         let mut has_pass = false;
         let mut write_inhibited = false;
-        for w in self.list() {
+        for w in self.parts().into_iter().flatten() {
             if w.end <= now {
                 continue;
             }
@@ -172,20 +218,69 @@ impl Windows {
 
     /// The windows still open at `now`, soonest-ending first.
     pub fn active(&self, now: Instant) -> Vec<Window> {
-        let mut v: Vec<Window> = self.list().iter().copied().filter(|w| w.end > now).collect();
+        let mut v: Vec<Window> = self.iter().copied().filter(|w| w.end > now).collect();
         v.sort_by_key(|w| (w.end, w.kind, w.holder));
         v
     }
 
     /// The latest end of any open window: when this port will next be free.
     pub fn next_end(&self, now: Instant) -> Option<Instant> {
-        self.list().iter().filter(|w| w.end > now).map(|w| w.end).max()
+        self.iter().filter(|w| w.end > now).map(|w| w.end).max()
     }
 
     /// Forget windows held by a connection that has been removed.
     pub fn forget_holder(&mut self, holder: Source) {
-        if let Some(list) = &mut self.list {
-            list.retain(|w| w.holder != holder);
+        let Some(set) = self.list.as_mut() else { return };
+        set.more.retain(|w| w.holder != holder);
+        if set.first.holder == holder {
+            // The list without its first: the next window moves up, in order.
+            if set.more.is_empty() {
+                self.list = None;
+            } else {
+                set.first = set.more.remove(0);
+            }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    //! The set's first window is held in the box, the others behind it: refreshing, reusing
+    //! expired slots and forgetting holders must behave as one list would.
+
+    use super::*;
+    use crate::address::NodeId;
+
+    fn src(conn: u64) -> Source {
+        Source { node: NodeId(1), conn }
+    }
+
+    #[test]
+    fn the_first_window_and_the_spilled_ones_behave_as_one_list() {
+        let t = Instant::from_millis;
+        let mut w = Windows::default();
+        assert!(w.is_empty());
+        w.refresh(t(0), WindowKind::WriteInhibit, src(1), t(10));
+        w.refresh(t(0), WindowKind::Inhibit, src(2), t(20));
+        w.refresh(t(0), WindowKind::OverrideOut, src(3), t(30));
+        // Refreshing never shortens; the first window is found like the others.
+        w.refresh(t(0), WindowKind::WriteInhibit, src(1), t(5));
+        w.refresh(t(0), WindowKind::OverrideOut, src(3), t(35));
+        let ends = |w: &Windows, now| w.active(now).iter().map(|x| (x.holder.conn, x.end)).collect::<Vec<_>>();
+        assert_eq!(ends(&w, t(0)), [(1, t(10)), (2, t(20)), (3, t(35))]);
+        assert_eq!(w.admit_propagation(t(0), Origin::Internal), Err(DropCause::Inhibited));
+        // The first expired slot is reused: here the first window's.
+        w.refresh(t(15), WindowKind::Suppress, src(4), t(40));
+        assert_eq!(ends(&w, t(15)), [(2, t(20)), (3, t(35)), (4, t(40))]);
+        assert_eq!(w.admit_write(t(15), src(9)), Err(DropCause::Suppressed));
+        // Forgetting the first holder moves the next window up; forgetting all empties.
+        w.forget_holder(src(4));
+        assert_eq!(ends(&w, t(15)), [(2, t(20)), (3, t(35))]);
+        assert_eq!(w.admit_write(t(15), src(9)), Ok(()));
+        w.forget_holder(src(2));
+        w.forget_holder(src(3));
+        assert!(w.is_empty());
+        assert_eq!(w.admit_propagation(t(15), Origin::Internal), Ok(()));
+        assert_eq!(w.next_end(t(15)), None);
     }
 }
