@@ -1789,6 +1789,9 @@ impl NodeCore {
             let native = beh.ble.is_some() && spec.name == crate::ble::BLE_SELECT;
             j.push(self.now, Event::Run { behavior: beh.name.clone(), process: spec.name.clone(), native });
         }
+        // The borrowed body's safety below rests on bodies never nesting: nothing a `Ctx` can
+        // reach runs another process.
+        debug_assert_eq!(self.running, Running::Idle, "process bodies do not nest");
         let mut ctx = Ctx { core: self, b, pi, changes: Vec::new() };
         ctx.core.running = Running::Body;
         // SAFETY: `body` came from `Arc::as_ptr` of a `ProcessFn` held by the process's state
