@@ -21,6 +21,8 @@ pub struct Body {
     translate: PortRef,
     sightings: Vec<Sighting>,
     sonar: Vec<f64>,
+    /// When this body last wrote each target's VISION ports (`None`: never).
+    seen: Vec<Option<Instant>>,
 }
 
 impl Body {
@@ -49,6 +51,7 @@ impl Body {
             translate: core.port(BASE, "Translate")?,
             sightings: Vec::new(),
             sonar: vec![0.0; beams],
+            seen: vec![None; targets],
         })
     }
 
@@ -59,6 +62,7 @@ impl Body {
             let (angle, bottom) = self.vision[s.target];
             core.write(now, angle, s.angle)?;
             core.write(now, bottom, s.height)?;
+            self.seen[s.target] = Some(now);
         }
         world.sonar(i, &mut self.sonar);
         core.write(now, self.ranges, self.sonar.as_slice())?;
@@ -69,6 +73,12 @@ impl Body {
     pub fn command(&self, core: &NodeCore) -> Command {
         let f = |p| core.read_with(p, Value::as_float).ok().flatten().unwrap_or(0.0);
         Command { translate: f(self.translate), rotate: f(self.rotate) }
+    }
+
+    /// When this body last wrote each target's VISION ports (index: target id - 1; `None`:
+    /// never), for [`crate::controller::Brain::drive_seen`].
+    pub fn seen(&self) -> &[Option<Instant>] {
+        &self.seen
     }
 
     /// The last camera frame (for the distributed server, which forwards it).
