@@ -23,6 +23,9 @@ pub struct Body {
     sonar: Vec<f64>,
     /// When this body last wrote each target's VISION ports (`None`: never).
     seen: Vec<Option<Instant>>,
+    /// The latest of `seen`, kept beside the port handles that every tick reads: most ticks
+    /// it alone says that no observer layer can drive.
+    latest: Option<Instant>,
 }
 
 impl Body {
@@ -52,6 +55,7 @@ impl Body {
             sightings: Vec::new(),
             sonar: vec![0.0; beams],
             seen: vec![None; targets],
+            latest: None,
         })
     }
 
@@ -63,9 +67,13 @@ impl Body {
             core.write(now, angle, s.angle)?;
             core.write(now, bottom, s.height)?;
             self.seen[s.target] = Some(now);
+            self.latest = Some(now);
         }
         world.sonar(i, &mut self.sonar);
-        core.write(now, self.ranges, self.sonar.as_slice())?;
+        match world.quiet_sweep(&self.sonar) {
+            Some(quiet) => core.write(now, self.ranges, quiet.clone())?,
+            None => core.write(now, self.ranges, self.sonar.as_slice())?,
+        }
         Ok(())
     }
 
@@ -79,6 +87,11 @@ impl Body {
     /// never), for [`crate::controller::Brain::drive_seen`].
     pub fn seen(&self) -> &[Option<Instant>] {
         &self.seen
+    }
+
+    /// When this body last wrote any target's VISION ports (the latest of [`Body::seen`]).
+    pub fn latest_seen(&self) -> Option<Instant> {
+        self.latest
     }
 
     /// The last camera frame (for the distributed server, which forwards it).

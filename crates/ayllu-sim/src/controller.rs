@@ -217,6 +217,13 @@ impl Brain {
     }
 }
 
+/// True if a robot whose body last wrote a target to VISION at `latest` (`None`: never) has
+/// no observer layer that can drive at `now`: a [`Brain::Chain`] then drives nothing
+/// ([`Brain::drive_seen`] says 0), which the harness can tell without reading the brain.
+pub fn chain_quiet(now: Instant, latest: Option<Instant>) -> bool {
+    latest.is_none_or(|s| now >= s + SEEN_WINDOW)
+}
+
 /// [`chain_drive`] reading only the layers whose target was written within [`SEEN_WINDOW`].
 fn chain_drive_seen(core: &NodeCore, layers: &[PortRef], seen: &[Option<Instant>]) -> u32 {
     let now = core.now();

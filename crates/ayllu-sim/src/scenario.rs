@@ -20,7 +20,7 @@ use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
 use crate::body::Body;
-use crate::controller::{build, build_planner, Brain, Controller, ControllerConfig, PLANNER_NODE};
+use crate::controller::{build, build_planner, chain_quiet, Brain, Controller, ControllerConfig, PLANNER_NODE};
 use crate::metrics::{Meter, Metrics};
 use crate::radio::{Radio, RadioConfig, Station};
 use crate::recording::{CoverageSeries, Event, Frame, Recording, RecordingMeta, RobotFrame, RobotInfo, TargetInfo};
@@ -397,6 +397,7 @@ impl Sim {
             self.stations.push(*station);
         }
         let all_alive = self.stations.iter().all(|s| s.alive);
+        let chain_only = matches!(self.scenario.controller, Controller::Ble | Controller::Local);
         // One visit per robot: its messages, its senses, its node's poll. Robots interact only
         // through the world (which moves after the loop) and the radio (whose deliveries were
         // set aside above), so this is the same as doing each step for all robots in turn —
@@ -435,7 +436,13 @@ impl Sim {
                 }
             }
             self.commands[i] = r.body.command(&r.core);
-            self.drives[i] = r.brain.drive_seen(&r.core, r.body.seen());
+            // Ble and Local build a bare chain: a robot that saw no target lately has no driver, and
+            // neither its brain nor its ports need reading.
+            self.drives[i] = if chain_only && chain_quiet(now, r.body.latest_seen()) {
+                0
+            } else {
+                r.brain.drive_seen(&r.core, r.body.seen())
+            };
         }
         if let Some((core, _)) = &mut self.planner {
             let station = self.robots.len();
@@ -686,6 +693,9 @@ mod tests {
                         }
                         let old = r.brain.drive(&r.core);
                         assert_eq!(r.brain.drive_seen(&r.core, r.body.seen()), old, "{controller:?} {seed} robot {i}");
+                        if matches!(r.brain, Brain::Chain(_)) && chain_quiet(r.core.now(), r.body.latest_seen()) {
+                            assert_eq!(old, 0, "{controller:?} {seed} robot {i}");
+                        }
                         assert_eq!(sim.drives[i], old);
                         driven += u64::from(old != 0);
                     }

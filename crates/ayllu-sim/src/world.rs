@@ -183,6 +183,9 @@ pub struct World {
     circles: Vec<Echo>,
     /// Scratch of `sonar`: each beam's direction this sweep (x and y components).
     dirs: (Vec<f64>, Vec<f64>),
+    /// A sweep that heard nothing (every beam at the range), as a port value shared by every
+    /// robot: see [`World::quiet_sweep`].
+    quiet: Option<ayllu_core::Value>,
 }
 
 /// A standard normal draw (Box-Muller), from a stream that only this module uses.
@@ -349,7 +352,24 @@ impl World {
             beams: Vec::new(),
             circles: Vec::new(),
             dirs: (Vec::new(), Vec::new()),
+            quiet: None,
         }
+    }
+
+    /// If `sweep` is one that heard nothing (every beam reads exactly the sonar range, as in
+    /// open space), the port value holding it, one for every robot: writing it bumps a count
+    /// on a line every sweep touches instead of allocating and copying a vector. `None` for
+    /// any other sweep.
+    pub fn quiet_sweep(&mut self, sweep: &[f64]) -> Option<&ayllu_core::Value> {
+        let range = self.config.sonar_range.to_bits();
+        if !sweep.iter().all(|r| r.to_bits() == range) {
+            return None;
+        }
+        let fits = |v: &ayllu_core::Value| matches!(v, ayllu_core::Value::Vector(q) if q.len() == sweep.len() && q.iter().all(|r| r.to_bits() == range));
+        if !self.quiet.as_ref().is_some_and(fits) {
+            self.quiet = Some(ayllu_core::Value::vector(sweep));
+        }
+        self.quiet.as_ref()
     }
 
     /// Advance by `dt` seconds: targets move, live robots follow `commands` (clamped to the
