@@ -190,7 +190,7 @@ impl Brain {
 /// an observer writes `Rotate` only while its `TargetX` is fresh (`VISION_LIFESPAN` after
 /// the write), and its layer drives for `OVERRIDE_PERIOD` after that. Doubled, as a margin
 /// that costs nothing.
-const SEEN_WINDOW: Duration =
+pub const SEEN_WINDOW: Duration =
     Duration::from_micros(2 * (VISION_LIFESPAN.as_nanos() + OVERRIDE_PERIOD.as_nanos()) / 1000);
 
 impl Brain {
