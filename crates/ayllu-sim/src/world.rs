@@ -581,14 +581,13 @@ impl World {
         if walls || !circles.is_empty() {
             let (s0, c0) = p.theta.sin_cos();
             let (mut xs, mut ys) = std::mem::take(&mut self.dirs);
-            xs.clear();
-            ys.clear();
-            for (slot, &(sk, ck)) in out.iter_mut().zip(&self.beams) {
+            xs.resize(beams, 0.0);
+            ys.resize(beams, 0.0);
+            for (((slot, &(sk, ck)), x), y) in out.iter_mut().zip(&self.beams).zip(&mut xs).zip(&mut ys) {
                 // Beam direction = heading rotated by the beam's fixed offset (one sin_cos a
                 // sweep).
                 let (dx, dy) = (c0 * ck - s0 * sk, s0 * ck + c0 * sk);
-                xs.push(dx);
-                ys.push(dy);
+                (*x, *y) = (dx, dy);
                 let mut best = f64::INFINITY;
                 if walls {
                     // The arena box from the inside.
