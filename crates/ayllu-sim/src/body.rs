@@ -21,6 +21,11 @@ pub struct Body {
     translate: PortRef,
     sightings: Vec<Sighting>,
     sonar: Vec<f64>,
+    /// When this body last wrote each target's VISION ports (`None`: never).
+    seen: Vec<Option<Instant>>,
+    /// The latest of `seen`, kept beside the port handles that every tick reads: most ticks
+    /// it alone says that no observer layer can drive.
+    latest: Option<Instant>,
 }
 
 impl Body {
@@ -49,6 +54,8 @@ impl Body {
             translate: core.port(BASE, "Translate")?,
             sightings: Vec::new(),
             sonar: vec![0.0; beams],
+            seen: vec![None; targets],
+            latest: None,
         })
     }
 
@@ -59,9 +66,14 @@ impl Body {
             let (angle, bottom) = self.vision[s.target];
             core.write(now, angle, s.angle)?;
             core.write(now, bottom, s.height)?;
+            self.seen[s.target] = Some(now);
+            self.latest = Some(now);
         }
         world.sonar(i, &mut self.sonar);
-        core.write(now, self.ranges, self.sonar.as_slice())?;
+        match world.quiet_sweep(&self.sonar) {
+            Some(quiet) => core.write(now, self.ranges, quiet.clone())?,
+            None => core.write(now, self.ranges, self.sonar.as_slice())?,
+        }
         Ok(())
     }
 
@@ -69,6 +81,17 @@ impl Body {
     pub fn command(&self, core: &NodeCore) -> Command {
         let f = |p| core.read_with(p, Value::as_float).ok().flatten().unwrap_or(0.0);
         Command { translate: f(self.translate), rotate: f(self.rotate) }
+    }
+
+    /// When this body last wrote each target's VISION ports (index: target id - 1; `None`:
+    /// never), for [`crate::controller::Brain::drive_seen`].
+    pub fn seen(&self) -> &[Option<Instant>] {
+        &self.seen
+    }
+
+    /// When this body last wrote any target's VISION ports (the latest of [`Body::seen`]).
+    pub fn latest_seen(&self) -> Option<Instant> {
+        self.latest
     }
 
     /// The last camera frame (for the distributed server, which forwards it).

@@ -29,8 +29,8 @@ use ayllu::stdlib::{
     SafeVelocity, BASE, OVERRIDE_PERIOD, SONAR, VEL, VISION, VISION_LIFESPAN, WANDER,
 };
 use ayllu_core::{
-    BehaviorClass, BleConfig, ConnectOptions, ConnectionKind, Duration, Endpoint, Error, NodeCore, NodeId, PortRef,
-    PortSpec, Value,
+    BehaviorClass, BleConfig, ConnectOptions, ConnectionKind, Duration, Endpoint, Error, Instant, NodeCore, NodeId,
+    PortRef, PortSpec, Value,
 };
 use serde::{Deserialize, Serialize};
 
@@ -184,6 +184,60 @@ impl Brain {
             Brain::Wander => 0,
         }
     }
+}
+
+/// How long after its target was last written to VISION an observer layer can still drive:
+/// an observer writes `Rotate` only while its `TargetX` is fresh (`VISION_LIFESPAN` after
+/// the write), and its layer drives for `OVERRIDE_PERIOD` after that. Doubled, as a margin
+/// that costs nothing.
+pub const SEEN_WINDOW: Duration =
+    Duration::from_micros(2 * (VISION_LIFESPAN.as_nanos() + OVERRIDE_PERIOD.as_nanos()) / 1000);
+
+impl Brain {
+    /// [`Brain::drive`] for a robot whose VISION ports only its body writes, `seen[n - 1]`
+    /// being when it last wrote target n's ([`crate::body::Body::seen`]). Same answer: a
+    /// layer's `Rotate` is accepted only when that layer's observer writes it (while its
+    /// target's port is fresh) or a higher layer's (or FOLLOW's) write overrides it, which
+    /// the scan meets first. So a layer whose target was not written within [`SEEN_WINDOW`]
+    /// cannot be the highest that drives, and its port — cold: most layers see nothing — is
+    /// not read. (A test compares both answers every tick, with kills, loss and partitions.)
+    pub fn drive_seen(&self, core: &NodeCore, seen: &[Option<Instant>]) -> u32 {
+        match self {
+            Brain::Chain(layers) => chain_drive_seen(core, layers, seen),
+            Brain::Follow { rotate, drive, chain, .. } => {
+                let now = core.now();
+                if core.last_accepted(*rotate).ok().flatten().is_some_and(|t| now < t + OVERRIDE_PERIOD) {
+                    core.read(*drive).ok().and_then(|v| v.as_int()).unwrap_or(0) as u32
+                } else {
+                    chain_drive_seen(core, chain, seen)
+                }
+            }
+            _ => self.drive(core),
+        }
+    }
+}
+
+/// True if a robot whose body last wrote a target to VISION at `latest` (`None`: never) has
+/// no observer layer that can drive at `now`: a [`Brain::Chain`] then drives nothing
+/// ([`Brain::drive_seen`] says 0), which the harness can tell without reading the brain.
+pub fn chain_quiet(now: Instant, latest: Option<Instant>) -> bool {
+    latest.is_none_or(|s| now >= s + SEEN_WINDOW)
+}
+
+/// [`chain_drive`] reading only the layers whose target was written within [`SEEN_WINDOW`].
+fn chain_drive_seen(core: &NodeCore, layers: &[PortRef], seen: &[Option<Instant>]) -> u32 {
+    let now = core.now();
+    for (n, p) in layers.iter().enumerate() {
+        if seen.get(n).copied().flatten().is_none_or(|s| now >= s + SEEN_WINDOW) {
+            continue;
+        }
+        if let Ok(Some(t)) = core.last_accepted(*p) {
+            if now < t + OVERRIDE_PERIOD {
+                return n as u32 + 1;
+            }
+        }
+    }
+    0
 }
 
 /// The highest observer layer that wrote within the override period (0: none).

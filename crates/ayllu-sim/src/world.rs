@@ -181,6 +181,11 @@ pub struct World {
     beams: Vec<(f64, f64)>,
     /// Scratch of `sonar`: circles within its reach, as [`Echo`]s from the sweeping robot.
     circles: Vec<Echo>,
+    /// Scratch of `sonar`: each beam's direction this sweep (x and y components).
+    dirs: (Vec<f64>, Vec<f64>),
+    /// A sweep that heard nothing (every beam at the range), as a port value shared by every
+    /// robot: see [`World::quiet_sweep`].
+    quiet: Option<ayllu_core::Value>,
 }
 
 /// A standard normal draw (Box-Muller), from a stream that only this module uses.
@@ -267,6 +272,7 @@ impl Echo {
 
     /// Distance along the ray in direction (dx, dy) (unit) to the circle, if it hits ahead
     /// of the origin.
+    #[cfg(test)]
     fn hit(&self, dx: f64, dy: f64) -> Option<f64> {
         let b = self.fx * dx + self.fy * dy;
         if b > 0.0 {
@@ -280,6 +286,22 @@ impl Echo {
         }
         let t = -b - disc.sqrt();
         (t >= 0.0).then_some(t)
+    }
+
+    /// [`Echo::hit`] as a distance, infinity for a miss, computed without a branch. `t >= 0`
+    /// alone decides: a negative discriminant makes `t` NaN, and when `b > 0`, `-b` is
+    /// negative and subtracting a square root (never negative) keeps it so, whatever the
+    /// rounding.
+    #[inline(always)]
+    fn hit_or_infinity(&self, dx: f64, dy: f64) -> f64 {
+        let b = self.fx * dx + self.fy * dy;
+        let disc = b * b - self.c;
+        let t = -b - disc.sqrt();
+        if t >= 0.0 {
+            t
+        } else {
+            f64::INFINITY
+        }
     }
 }
 
@@ -329,7 +351,25 @@ impl World {
             view: Vec::new(),
             beams: Vec::new(),
             circles: Vec::new(),
+            dirs: (Vec::new(), Vec::new()),
+            quiet: None,
         }
+    }
+
+    /// If `sweep` is one that heard nothing (every beam reads exactly the sonar range, as in
+    /// open space), the port value holding it, one for every robot: writing it bumps a count
+    /// on a line every sweep touches instead of allocating and copying a vector. `None` for
+    /// any other sweep.
+    pub fn quiet_sweep(&mut self, sweep: &[f64]) -> Option<&ayllu_core::Value> {
+        let range = self.config.sonar_range.to_bits();
+        if !sweep.iter().all(|r| r.to_bits() == range) {
+            return None;
+        }
+        let fits = |v: &ayllu_core::Value| matches!(v, ayllu_core::Value::Vector(q) if q.len() == sweep.len() && q.iter().all(|r| r.to_bits() == range));
+        if !self.quiet.as_ref().is_some_and(fits) {
+            self.quiet = Some(ayllu_core::Value::vector(sweep));
+        }
+        self.quiet.as_ref()
     }
 
     /// Advance by `dt` seconds: targets move, live robots follow `commands` (clamped to the
@@ -540,10 +580,14 @@ impl World {
         let walls = !(rr >= 0.0 && range > 0.0 && p.x >= far && w - p.x >= far && p.y >= far && h - p.y >= far);
         if walls || !circles.is_empty() {
             let (s0, c0) = p.theta.sin_cos();
-            for (slot, &(sk, ck)) in out.iter_mut().zip(&self.beams) {
+            let (mut xs, mut ys) = std::mem::take(&mut self.dirs);
+            xs.resize(beams, 0.0);
+            ys.resize(beams, 0.0);
+            for (((slot, &(sk, ck)), x), y) in out.iter_mut().zip(&self.beams).zip(&mut xs).zip(&mut ys) {
                 // Beam direction = heading rotated by the beam's fixed offset (one sin_cos a
                 // sweep).
                 let (dx, dy) = (c0 * ck - s0 * sk, s0 * ck + c0 * sk);
+                (*x, *y) = (dx, dy);
                 let mut best = f64::INFINITY;
                 if walls {
                     // The arena box from the inside.
@@ -558,13 +602,18 @@ impl World {
                         best = best.min(-p.y / dy);
                     }
                 }
-                for e in &circles {
-                    if let Some(t) = e.hit(dx, dy) {
-                        best = best.min(t);
-                    }
-                }
                 *slot = best;
             }
+            // Circle after circle, every beam at once and without a branch (which beams a
+            // circle hits is data, badly predicted): each beam still meets the circles in the
+            // same order after its walls, and `min` with infinity changes nothing, so each
+            // reading is the one the beam-by-beam test gave.
+            for e in &circles {
+                for ((slot, &dx), &dy) in out.iter_mut().zip(&xs).zip(&ys) {
+                    *slot = slot.min(e.hit_or_infinity(dx, dy));
+                }
+            }
+            self.dirs = (xs, ys);
         } else {
             out.fill(f64::INFINITY);
         }
@@ -882,5 +931,20 @@ mod tests {
         assert_eq!(e.hit(1.0, 0.0), Some(1.5));
         assert_eq!(e.hit(-1.0, 0.0), None);
         assert_eq!(e.hit(0.0, 1.0), None);
+    }
+
+    #[test]
+    fn the_branch_free_echo_gives_the_same_bits() {
+        let mut rng = fastrand::Rng::with_seed(13);
+        for k in 0..200_000 {
+            // Origins inside, on and outside the circle; rays touching it; tiny radii.
+            let (cx, cy) = (rng.f64() * 4.0 - 2.0, rng.f64() * 4.0 - 2.0);
+            let r = if k % 7 == 0 { 0.0 } else { rng.f64() * 2.0 };
+            let e = Echo::new(0.0, 0.0, cx, cy, r);
+            let a = if k % 5 == 0 { cy.atan2(cx) } else { rng.f64() * TAU };
+            let (dy, dx) = a.sin_cos();
+            let want = e.hit(dx, dy).unwrap_or(f64::INFINITY);
+            assert_eq!(e.hit_or_infinity(dx, dy).to_bits(), want.to_bits(), "{cx} {cy} {r} {a}");
+        }
     }
 }
