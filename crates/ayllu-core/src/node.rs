@@ -192,7 +192,10 @@ pub const MAX_WARNINGS: usize = 64;
 /// In declaration order (`repr(C)`) and on a cache line of its own (`align(64)`): what a
 /// message arriving at one of its ports reads (the id a cached target is checked against, the
 /// ports, the processes it may trigger, the name) in the first line, the rest after. The
-/// compiler's own order put those four in three lines of a 248-byte slot.
+/// compiler's own order put those four in three lines of a 248-byte slot. The BLE state is
+/// boxed: inline, its enum tag was the niche `Option<Behavior>` took (at byte 128), so every
+/// `behaviors[b]` check read a third line; boxed, the niche is the ports' capacity, in the
+/// first line, and the slot is 192 bytes instead of 256.
 #[repr(C, align(64))]
 pub(crate) struct Behavior {
     pub(crate) id: u64,
@@ -202,7 +205,7 @@ pub(crate) struct Behavior {
     pub(crate) class: Arc<BehaviorClass>,
     pub(crate) slots: Vec<Value>,
     pub(crate) monos: Vec<MonoState>,
-    pub(crate) ble: Option<BleState>,
+    pub(crate) ble: Option<Box<BleState>>,
 }
 
 #[derive(Clone, Debug)]
