@@ -105,6 +105,12 @@ pub(crate) struct PortState {
     /// Whether a value accepted here needs none of the general path's checks (see
     /// [`PortState::is_plain`]); kept up to date wherever the triggers or windows change.
     pub(crate) plain: bool,
+    /// `triggers` as a set of bits (bit `i`: process `i`) in the padding after `plain`, so
+    /// that an accepted value finds the processes to queue in this first line instead of the
+    /// far one `triggers` lives in (one cache line per accepted message). Exact while every
+    /// trigger is a process below 31 added in ascending order (the bits then iterate in the
+    /// list's order); otherwise [`TRIGGERS_LISTED`], and the list is read.
+    pub(crate) trigger_bits: u32,
     pub(crate) visited: u64,
     pub(crate) accepted: u64,
     /// Values this port absorbed (counted under [`DropCause::Absorbed`]): kept here, beside
@@ -122,7 +128,37 @@ pub(crate) struct PortState {
     pub(crate) counters: Counters,
 }
 
+/// [`PortState::trigger_bits`] when the bits cannot stand for the list: read `triggers`.
+pub(crate) const TRIGGERS_LISTED: u32 = 1 << 31;
+
 impl PortState {
+    /// Add process `ix` to the processes this port triggers.
+    fn add_trigger(&mut self, ix: u16) {
+        let bits = self.trigger_bits;
+        // Ascending below 31: the new bit is above every bit set (and the list bit is not).
+        self.trigger_bits = if ix < 31 && bits >> ix == 0 { bits | 1 << ix } else { TRIGGERS_LISTED };
+        self.triggers.push(ix);
+    }
+
+    /// Queue the processes this port triggers (in the order of `triggers`) that are not
+    /// pending yet. Inlined into its two callers (a plain `#[inline]` was not taken: 19
+    /// instructions a call).
+    #[inline(always)]
+    fn queue_triggered(&self, pending: &mut VecDeque<(u32, u64, u16)>, processes: &mut [ProcState], b: u32, id: u64) {
+        let mut bits = self.trigger_bits;
+        if bits & TRIGGERS_LISTED != 0 {
+            for &pi in &self.triggers {
+                queue(pending, &mut processes[usize::from(pi)], b, id, pi);
+            }
+            return;
+        }
+        while bits != 0 {
+            let pi = bits.trailing_zeros() as u16;
+            bits &= bits - 1;
+            queue(pending, &mut processes[usize::from(pi)], b, id, pi);
+        }
+    }
+
     /// Count a message this port blocked, refused or absorbed, by cause.
     #[inline]
     pub(crate) fn count(&mut self, cause: DropCause) {
@@ -557,6 +593,7 @@ impl NodeCore {
             .iter()
             .map(|spec| PortState {
                 plain: false,
+                trigger_bits: 0,
                 cell: PortCell::new(spec),
                 windows: Windows::default(),
                 out: Vec::new(),
@@ -1141,9 +1178,7 @@ impl NodeCore {
         if let Some(j) = self.journal.as_deref_mut() {
             journal_accepted(j, now, &beh.name, &beh.class, p, &port.cell.value);
         }
-        for &pi in &port.triggers {
-            queue(&mut self.pending, &mut beh.processes[usize::from(pi)], b, id, pi);
-        }
+        port.queue_triggered(&mut self.pending, &mut beh.processes, b, id);
         // A port with nowhere to send has nothing to block: only real blocks are counted.
         if port.out.is_empty() {
             return Ok(());
@@ -1315,9 +1350,7 @@ impl NodeCore {
         if let Some(j) = self.journal.as_deref_mut() {
             journal_accepted(j, now, &beh.name, &beh.class, p, &port.cell.value);
         }
-        for &pi in &port.triggers {
-            queue(&mut self.pending, &mut beh.processes[usize::from(pi)], b, id, pi);
-        }
+        port.queue_triggered(&mut self.pending, &mut beh.processes, b, id);
         if port.out.is_empty() {
             return false;
         }
@@ -2256,7 +2289,7 @@ fn attach_trigger(ports: &mut [PortState], monos: &mut [MonoState], trigger: Tri
     match trigger {
         Trigger::OnWrite(Port(p)) => {
             let port = &mut ports[usize::from(p)];
-            port.triggers.push(ix);
+            port.add_trigger(ix);
             port.refresh_plain();
         }
         Trigger::OnMonostable(Mono(m)) => monos[usize::from(m)].watchers.push(ix),
