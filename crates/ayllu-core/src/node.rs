@@ -159,13 +159,16 @@ impl PortState {
         }
     }
 
-    /// Count a message this port blocked, refused or absorbed, by cause.
+    /// Count a message this port blocked, refused or absorbed, on the port and, unless the
+    /// port absorbed it, in the node's counters `node` (the node's figure for
+    /// [`DropCause::Absorbed`] is summed from its ports when asked: `NodeCore::counters`).
     #[inline]
-    pub(crate) fn count(&mut self, cause: DropCause) {
+    pub(crate) fn count_both(&mut self, node: &mut Counters, cause: DropCause) {
         if cause == DropCause::Absorbed {
             self.absorbed = self.absorbed.saturating_add(1);
         } else {
             self.counters.add(cause);
+            node.add(cause);
         }
     }
 
@@ -660,7 +663,11 @@ impl NodeCore {
             self.disconnect(ConnectionId(id))?;
         }
         self.names.remove(name);
-        self.behaviors[b as usize] = None;
+        if let Some(gone) = self.behaviors[b as usize].take() {
+            // What its ports absorbed stays in the node-wide figure (see `counters`).
+            let absorbed = gone.ports.iter().fold(0u64, |a, p| a.saturating_add(p.absorbed));
+            self.counters.add_n(DropCause::Absorbed, absorbed);
+        }
         self.behavior_removed();
         self.schedule.remove_behavior(b);
         self.debug_check_schedule();
@@ -1169,8 +1176,7 @@ impl NodeCore {
             return Err(DropCause::UnknownPort);
         };
         if let Err(cause) = port.cell.merge(now, value, Source::internal(me), 0) {
-            port.count(cause);
-            self.counters.add(cause);
+            port.count_both(&mut self.counters, cause);
             return if cause == DropCause::Absorbed { Ok(()) } else { Err(cause) };
         }
         port.visited = wave;
@@ -1186,8 +1192,7 @@ impl NodeCore {
         match port.windows.admit_propagation(now, Origin::Internal) {
             Ok(()) => self.propagate_from(b, p),
             Err(cause) => {
-                port.count(cause);
-                self.counters.add(cause);
+                port.count_both(&mut self.counters, cause);
             }
         }
         Ok(())
@@ -1308,8 +1313,7 @@ impl NodeCore {
         // refused as invalid opens no window (D6.7). The blocking kinds carry no value to check.
         if matches!(kind, ConnectionKind::OverrideIn(_) | ConnectionKind::OverrideOut(_)) {
             if let Err(cause) = port.cell.check(value) {
-                port.count(cause);
-                self.counters.add(cause);
+                port.count_both(&mut self.counters, cause);
                 return false;
             }
         }
@@ -1341,8 +1345,7 @@ impl NodeCore {
             port.windows.admit_write(now, from).and_then(|()| port.cell.merge(now, value, from, priority))
         };
         if let Err(cause) = outcome {
-            port.count(cause);
-            self.counters.add(cause);
+            port.count_both(&mut self.counters, cause);
             return false;
         }
         port.visited = wave;
@@ -1357,8 +1360,7 @@ impl NodeCore {
         match port.windows.admit_propagation(now, Origin::Connection(from)) {
             Ok(()) => true,
             Err(cause) => {
-                port.count(cause);
-                self.counters.add(cause);
+                port.count_both(&mut self.counters, cause);
                 false
             }
         }
@@ -2024,8 +2026,17 @@ impl NodeCore {
     }
 
     /// Node-wide counters of dropped and blocked messages, by cause.
-    pub fn counters(&self) -> &Counters {
-        &self.counters
+    ///
+    /// [`DropCause::Absorbed`] is the sum of the live ports' own counts and of those of the
+    /// ports removed with their behaviors: a message that a port absorbs (most of what a Max
+    /// port of eligibilities is offered) is counted on the port only, in the line its wave mark
+    /// is in, not also in the node's far-off counters.
+    pub fn counters(&self) -> Counters {
+        let mut c = self.counters.clone();
+        let live =
+            self.behaviors.iter().flatten().flat_map(|b| &b.ports).fold(0u64, |a, p| a.saturating_add(p.absorbed));
+        c.add_n(DropCause::Absorbed, live);
+        c
     }
 
     /// How often the sequence table (N1) was full and had to be cleared.
