@@ -76,7 +76,7 @@ fn setup_relay(node: &mut Node) -> Result<(), Fail> {
 
 fn counters_json(node: &Node) -> Json {
     let transport: Map<String, Json> = node.transport_counters().into_iter().map(|(k, v)| (k, json!(v))).collect();
-    json!({"core": counted(node.core().counters()), "transport": transport})
+    json!({"core": counted(&node.core().counters()), "transport": transport})
 }
 
 fn relay_json(node: &Node, behavior: &str) -> Json {

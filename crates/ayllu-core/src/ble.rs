@@ -225,7 +225,7 @@ impl NodeCore {
         self.join(&config.group);
         self.add_process(behavior, BLE_SELECT, Trigger::Periodic(claim_period), select)?;
         let b = self.behavior_index(behavior)?;
-        self.behavior_mut(b).expect("indexed").ble = Some(BleState {
+        self.behavior_mut(b).expect("indexed").ble = Some(Box::new(BleState {
             group: Arc::from(config.group.as_str()),
             output,
             claim_period,
@@ -235,7 +235,7 @@ impl NodeCore {
             last_claim: None,
             last_best: None,
             last_local: None,
-        });
+        }));
         Ok(BleGroup { eligibility, inhibition, warnings })
     }
 

@@ -55,6 +55,29 @@ fn keeps_the_maximum_and_remembers_its_supplier() {
 }
 
 #[test]
+fn absorbed_values_stay_counted_on_the_node_when_the_port_goes() {
+    // The node's Absorbed figure is its ports' counts summed (they are kept on the ports
+    // only): what a removed behavior's ports absorbed stays in it, and other causes are
+    // counted on the node as before.
+    let mut r = max_int(2);
+    r.send(0, ms(1), 9i64);
+    r.send(1, ms(2), 4i64);
+    r.send(1, ms(3), 5i64);
+    r.own(ms(4), 1i64).unwrap(); // a behavior's own write is absorbed too
+    assert_eq!(r.dropped(DropCause::Absorbed), 3);
+    assert_eq!(r.node.counters().get(DropCause::Absorbed), 3);
+    assert_eq!(r.node.counters().total(), 3);
+    r.node.remove("Agg").unwrap();
+    assert_eq!(r.node.counters().get(DropCause::Absorbed), 3, "kept after the port is gone");
+    r.node.create("Agg", "Agg").unwrap();
+    let agg = r.node.port("Agg", "In").unwrap();
+    r.node.write(ms(5), agg, 8i64).unwrap();
+    r.node.write(ms(6), agg, 2i64).unwrap();
+    assert_eq!(r.node.counters().get(DropCause::Absorbed), 4, "the new port's count adds up");
+    assert_eq!(r.node.counters().total(), 4);
+}
+
+#[test]
 fn smaller_value_is_absorbed_counted_and_not_propagated() {
     // S3 Max + S5: a value below the maximum is absorbed (counted), nothing propagates.
     let mut r = max_int(2);

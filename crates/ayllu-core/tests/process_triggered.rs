@@ -247,3 +247,50 @@ fn triggered_process_of_a_removed_behavior_does_not_run() {
     assert!(entries(&log).is_empty());
     assert_eq!(runs(&n, "Rx", "Seen"), 0);
 }
+
+#[test]
+fn triggered_processes_run_in_declaration_order_however_many() {
+    // A port's triggers are kept as bits while they are processes below 31 in ascending order
+    // and as a list otherwise: both must queue them in declaration order, each once.
+    let log: Log = Arc::default();
+    let mut class = BehaviorClass::new("Many");
+    let a = class.port(PortSpec::new("A", 0i64)).unwrap();
+    let b = class.port(PortSpec::new("B", 0i64)).unwrap();
+    let c = class.port(PortSpec::new("C", 0i64)).unwrap();
+    // Process i: on A if i % 3 == 0 (up to 39: a list), on B if i % 3 == 1 below 31 (bits),
+    // on C otherwise.
+    let on = |i: usize| {
+        if i.is_multiple_of(3) {
+            a
+        } else if i % 3 == 1 && i < 31 {
+            b
+        } else {
+            c
+        }
+    };
+    for i in 0..40 {
+        let l = log.clone();
+        class.on_write(&format!("P{i}"), on(i), move |_| l.lock().unwrap().push(format!("P{i}"))).unwrap();
+    }
+    let mut n = NodeCore::new(NodeId(1));
+    n.define(class).unwrap();
+    n.create("Many", "M").unwrap();
+    let named = |pred: &dyn Fn(usize) -> bool| -> Vec<String> {
+        (0..40).filter(|&i| pred(i)).map(|i| format!("P{i}")).collect()
+    };
+    let run = |n: &mut NodeCore, t: u64, port: &str| {
+        log.lock().unwrap().clear();
+        n.write_named(ms(t), "M", port, 1i64).unwrap();
+        n.write_named(ms(t), "M", port, 2i64).unwrap(); // already pending: queued once
+        n.poll(ms(t));
+        entries(&log)
+    };
+    assert_eq!(run(&mut n, 1, "A"), named(&|i| on(i) == a));
+    assert_eq!(run(&mut n, 2, "B"), named(&|i| on(i) == b));
+    // Added after creation as process 40: B's triggers become a list.
+    let l = log.clone();
+    n.add_process("M", "Late", Trigger::OnWrite(b), move |_| l.lock().unwrap().push("Late".into())).unwrap();
+    let mut expected = named(&|i| on(i) == b);
+    expected.push("Late".into());
+    assert_eq!(run(&mut n, 3, "B"), expected);
+}
