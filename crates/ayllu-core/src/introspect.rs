@@ -246,7 +246,7 @@ impl NodeCore {
             value: current(&ps.cell, now).clone(),
             fresh: ps.cell.fresh(now),
             empty,
-            last_accepted: ps.cell.last_accepted,
+            last_accepted: ps.cell.last_accepted(),
             supplier: if empty { None } else { ps.cell.supplier() },
             accepted: ps.accepted,
             windows,

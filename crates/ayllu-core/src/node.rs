@@ -1989,7 +1989,7 @@ impl NodeCore {
     /// tell which subsumption layer is driving without allocating a report.
     #[inline]
     pub fn last_accepted(&self, port: PortRef) -> Result<Option<Instant>, Error> {
-        self.resolve(port).map(|ps| ps.cell.last_accepted)
+        self.resolve(port).map(|ps| ps.cell.last_accepted())
     }
 
     /// Whether monostable `mono` of `behavior` is high (rule S2), as of `now` (see

@@ -184,25 +184,33 @@ impl PortSpec {
 
 /// A live port's value state. Arbitration windows live beside it (see `arbitration`).
 #[derive(Clone, Debug)]
-// In declaration order (`repr(C)`): what a merge into an aggregating port reads (kind, value,
-// time of the last acceptance, window end, whether it has a lifespan) in the first 64 bytes,
+// In declaration order (`repr(C)`): what a merge into an aggregating port or a freshness read
+// reads (kind, value, time of the last acceptance, window end, lifespan) in the first 64 bytes,
 // which the node places on a cache line of their own (`crate::node::PortState`); then the
-// lifespan's length, the supplier (written on acceptance), and what only opening a window or
-// a reset reads (window, default) last.
+// supplier (written on acceptance), and what only opening a window or a reset reads (window,
+// default) last. The last acceptance is a flag in the padding after `empty` plus a bare
+// `Instant` rather than an `Option<Instant>` (16 bytes): that saving is what brings the
+// lifespan's length into the first line, so a freshness read touches one line, not two.
 #[repr(C)]
 pub struct PortCell {
     pub(crate) kind: PortKind,
     /// Aggregating ports: no value in the current window. Normal ports are never empty.
     pub(crate) empty: bool,
+    /// Whether the port ever accepted a value: `accepted_at` means something only then.
+    pub(crate) has_accepted: bool,
     pub(crate) supplier_priority: i32,
     pub(crate) value: Value,
-    pub(crate) last_accepted: Option<Instant>,
+    /// The time of the last acceptance, if `has_accepted`.
+    pub(crate) accepted_at: Instant,
     pub(crate) window_end: Instant,
     pub(crate) lifespan: Option<Duration>,
     pub(crate) supplier: Option<Source>,
     pub(crate) window: Option<Duration>,
     pub(crate) default: Value,
 }
+
+// What a freshness read needs ends within the first 64 bytes (see the layout note above).
+const _: () = assert!(std::mem::offset_of!(PortCell, lifespan) + std::mem::size_of::<Option<Duration>>() <= 64);
 
 impl PortCell {
     /// A live port as `spec` declares it; aggregating kinds start empty (D3.1).
@@ -214,11 +222,25 @@ impl PortCell {
             empty: spec.kind.is_aggregating(),
             supplier: None,
             supplier_priority: i32::MIN,
-            last_accepted: None,
+            has_accepted: false,
+            accepted_at: Instant::ZERO,
             window_end: Instant::MAX,
             lifespan: spec.lifespan,
             window: spec.window,
         }
+    }
+
+    /// When the port last accepted a value, if ever.
+    #[inline]
+    pub(crate) fn last_accepted(&self) -> Option<Instant> {
+        self.has_accepted.then_some(self.accepted_at)
+    }
+
+    /// Record an acceptance at `now`.
+    #[inline(always)]
+    fn accepted(&mut self, now: Instant) {
+        self.has_accepted = true;
+        self.accepted_at = now;
     }
 
     /// How the port merges values.
@@ -236,7 +258,7 @@ impl PortCell {
     /// window (for a Priority port the window is its holder's lease, renewed by every accepted
     /// write) or when it goes stale (lifespan), whichever comes first. `Instant::MAX`: never.
     pub(crate) fn release_at(&self) -> Instant {
-        match (self.lifespan, self.last_accepted) {
+        match (self.lifespan, self.last_accepted()) {
             (Some(l), Some(t)) => self.window_end.min(t + l),
             _ => self.window_end,
         }
@@ -285,7 +307,7 @@ impl PortCell {
     /// its aggregating window (if any) is still open, and its lifespan (if any) has not run out.
     #[inline]
     pub fn fresh(&self, now: Instant) -> bool {
-        let Some(t) = self.last_accepted else { return false };
+        let Some(t) = self.last_accepted() else { return false };
         if self.kind.is_aggregating() {
             return !self.is_empty(now);
         }
@@ -349,7 +371,7 @@ impl PortCell {
         debug_assert!(self.kind == PortKind::Normal && m.ty() == self.ty());
         assign(&mut self.value, m);
         self.supplier = Some(from);
-        self.last_accepted = Some(now);
+        self.accepted(now);
     }
 
     #[inline(never)]
@@ -374,7 +396,7 @@ impl PortCell {
                     }
                     _ => return Err(DropCause::Absorbed),
                 }
-                self.last_accepted = Some(now);
+                self.accepted(now);
                 return Ok(());
             }
         }
@@ -449,7 +471,7 @@ impl PortCell {
                 }
             }
         }
-        self.last_accepted = Some(now);
+        self.accepted(now);
         Ok(())
     }
 

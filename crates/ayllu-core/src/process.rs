@@ -109,7 +109,7 @@ impl Ctx<'_> {
     }
     /// When the port last accepted a value.
     pub fn last_accepted(&self, p: Port) -> Option<Instant> {
-        self.cell(p).and_then(|c| c.last_accepted)
+        self.cell(p).and_then(|c| c.last_accepted())
     }
 
     /// Write the behavior's own port. Never blocked by suppression; its propagation can be
