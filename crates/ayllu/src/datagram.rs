@@ -6,7 +6,9 @@
 //! On Linux, [`OsSocket`]'s wait of `BLOCKING_WAIT_MIN` (20 ms) or more *is* the receive (one
 //! `recvmmsg` that waits), and for a node on a real-time clock a receive that found the socket
 //! empty stands for [`RECHECK`] (20 µs, counted in the node's turn time, so a receive reads no
-//! clock), and a turn's datagrams for one address leave in one `sendmsg` (UDP GSO):
+//! clock; longer after empty findings in a row, up to 160 µs), a wait polls for up to [`SPIN`]
+//! before it sleeps while datagrams stream in, and a turn's datagrams for one address leave in
+//! one `sendmsg` (UDP GSO):
 //! see docs/performance.md for the system calls this saves.
 //! Errors from the OS are returned, never turned into panics.
 
@@ -97,6 +99,13 @@ pub struct OsSocket {
     /// Blocking waits read with a plain `recvfrom` since the last `recvmmsg`.
     #[cfg(target_os = "linux")]
     sparse_waits: u8,
+    /// When a read last found datagrams (wall clock), and how many reads in a row found them
+    /// less than [`SPIN`] after the read before: a stream, for which a wait polls first.
+    last_data: Option<std::time::Instant>,
+    streak: u8,
+    /// Empty findings in a row since a read last found datagrams: the next one stands for
+    /// `recheck` doubled this many times ([`RECHECK_DOUBLINGS`] at most).
+    quiet: u32,
     /// Whether the kernel takes segmented sends (UDP GSO, Linux 4.18 and later, and a route
     /// whose device can checksum them): false after the first refusal, and every train is
     /// then sent one datagram per call.
@@ -111,6 +120,13 @@ pub struct OsSocket {
 /// finds nothing is a system call as expensive as the send the turn makes; a sender stepping
 /// once per message paid two calls per message instead of raw UDP's one.
 pub const RECHECK: StdDuration = StdDuration::from_micros(20);
+/// An empty finding that follows empty findings stands longer: twice as long as the one before,
+/// up to `RECHECK` doubled this many times (160 µs); a read that finds datagrams starts again
+/// from `RECHECK`. Why: a node that only sends (a busy sender stepping once per message) found
+/// the socket empty every 20 µs, one wasted system call per few messages, about a tenth of its
+/// time per message on this kind of machine (docs/performance.md); a node that hears traffic
+/// keeps the 20 µs, and a node that waits reads in the wait, at once, whatever this says.
+pub const RECHECK_DOUBLINGS: u32 = 3;
 
 /// Waits at least this long block in the receive itself (`recvmmsg` bounded by `SO_RCVTIMEO`,
 /// one system call that waits and reads) instead of `ppoll` then a receive (two). Shorter
@@ -118,6 +134,17 @@ pub const RECHECK: StdDuration = StdDuration::from_micros(20);
 /// scheduler ticks (1-10 ms) and the kernel's timer wheel may fire it up to an eighth late.
 #[cfg(target_os = "linux")]
 const BLOCKING_WAIT_MIN: StdDuration = StdDuration::from_millis(20);
+/// How long a wait polls the socket before it sleeps, while datagrams stream in (each of the
+/// last [`STREAK`] reads found datagrams less than this after the one before) on a node with a
+/// real-time clock: a receiver asleep in the kernel must be woken by every datagram, which the
+/// sender pays for in its send (on this kind of machine about a sixth of raw UDP's one-way
+/// rate: docs/performance.md), while one that polls takes the datagram without a wake-up.
+/// Bounded, and every poll that finds nothing yields the CPU (`sched_yield`), so a peer
+/// waiting for this CPU runs first; sparse traffic (a robot team's 20 Hz) never polls.
+pub const SPIN: StdDuration = StdDuration::from_micros(50);
+/// Reads in a row that found datagrams less than [`SPIN`] apart before a wait polls.
+const STREAK: u8 = 2;
+
 /// While traffic is sparse, one blocking wait in this many reads with `recvmmsg` all the same,
 /// so that traffic that became dense is noticed (the others read one datagram each).
 #[cfg(target_os = "linux")]
@@ -370,14 +397,70 @@ impl OsSocket {
             dense: false,
             #[cfg(target_os = "linux")]
             sparse_waits: 0,
+            last_data: None,
+            streak: 0,
+            quiet: 0,
         })
+    }
+
+    /// A read found datagrams: extend or restart the streak that makes a wait poll first
+    /// ([`SPIN`]). Only on a real-time clock (a non-zero `recheck`): on a manual clock a wait is
+    /// never asked to poll.
+    fn got_data(&mut self) {
+        self.quiet = 0;
+        if self.recheck.is_zero() {
+            return;
+        }
+        let now = std::time::Instant::now();
+        let close = self.last_data.is_some_and(|t| now.duration_since(t) < SPIN);
+        self.streak = if close { self.streak.saturating_add(1) } else { 0 };
+        self.last_data = Some(now);
+    }
+
+    /// While datagrams stream in, poll the main socket (non-blocking reads, yielding the CPU
+    /// between them) for up to [`SPIN`], at most `timeout`, before the wait sleeps. `None`:
+    /// it read datagrams (the wait is over); otherwise the time it spent, to take off the
+    /// sleep. A poll that finds nothing in time ends the streak: the next wait sleeps at once.
+    #[cfg(target_os = "linux")]
+    fn poll_stream(&mut self, timeout: StdDuration) -> Option<StdDuration> {
+        if self.streak < STREAK || !self.extra.is_empty() {
+            return Some(StdDuration::ZERO);
+        }
+        let start = std::time::Instant::now();
+        let budget = SPIN.min(timeout);
+        loop {
+            match self.ahead.fill(&self.socket) {
+                Ok(()) if !self.ahead.got.is_empty() => {
+                    self.dense = self.ahead.got.len() > 1;
+                    self.empty_until = None;
+                    // Read to the end: the next turn counts the socket empty from its time,
+                    // as after a blocking wait's read.
+                    self.waited_empty = self.ahead.drained;
+                    self.got_data();
+                    return None;
+                }
+                Ok(()) => {}
+                Err(e) if nothing_waiting(&e) => {}
+                // Reported by the next receive, which asks again.
+                Err(_) => return Some(start.elapsed()),
+            }
+            let spent = start.elapsed();
+            if spent >= budget {
+                self.streak = 0;
+                return Some(spent);
+            }
+            // SAFETY: sched_yield takes no arguments and only affects scheduling.
+            unsafe { libc::sched_yield() };
+        }
     }
 
     /// The sockets were found empty now: the finding stands for `recheck` of turn time (not at
     /// all when it is zero).
     fn found_empty(&mut self) {
         if !self.recheck.is_zero() {
-            self.empty_until = Some(self.turn_time + ayllu_core::Duration::from_nanos(self.recheck.as_nanos() as u64));
+            let stands = self.recheck * (1u32 << self.quiet);
+            self.empty_until = Some(self.turn_time + ayllu_core::Duration::from_nanos(stands.as_nanos() as u64));
+            self.quiet = (self.quiet + 1).min(RECHECK_DOUBLINGS);
         }
     }
 
@@ -418,6 +501,9 @@ impl OsSocket {
             }
             read
         };
+        if read.is_ok() && !self.ahead.got.is_empty() {
+            self.got_data();
+        }
         match read {
             Ok(()) if !self.ahead.drained => self.empty_until = None,
             // A datagram arriving after the read is read by the next wait or, RECHECK after
@@ -608,6 +694,9 @@ impl DatagramSocket for OsSocket {
                 if self.ahead.got.len() > 1 {
                     self.dense = true;
                 }
+                if !self.ahead.got.is_empty() {
+                    self.got_data();
+                }
                 if self.ahead.drained && self.extra.is_empty() {
                     self.found_empty();
                 }
@@ -633,6 +722,11 @@ impl DatagramSocket for OsSocket {
         if self.ahead.pending() {
             return;
         }
+        #[cfg(target_os = "linux")]
+        let timeout = match self.poll_stream(timeout) {
+            None => return,
+            Some(spent) => timeout.saturating_sub(spent),
+        };
         #[cfg(target_os = "linux")]
         let timeout = if self.extra.is_empty() && timeout >= BLOCKING_WAIT_MIN {
             let started = std::time::Instant::now();
@@ -894,6 +988,72 @@ mod tests {
         // ...but a short wait (ppoll) that finds something makes the next receive ask.
         rx.wait(StdDuration::from_millis(5));
         assert_eq!(rx.recv_from(&mut buf).unwrap().map(|(n, _)| n), Some(1), "after the short wait");
+    }
+
+    /// Empty findings in a row stand longer and longer (RECHECK, then doubled up to
+    /// RECHECK_DOUBLINGS times), and a read that finds datagrams starts again from RECHECK.
+    #[test]
+    fn empty_findings_in_a_row_stand_longer_up_to_a_bound() {
+        let loopback: SocketAddr = "127.0.0.1:0".parse().unwrap();
+        let (mut rx, mut tx) = (OsSocket::bind(loopback).unwrap(), OsSocket::bind(loopback).unwrap());
+        let to = rx.local_addr().unwrap();
+        let mut buf = vec![0u8; SLOT];
+        let t = |us: u64| Instant::ZERO + ayllu_core::Duration::from_micros(us);
+        rx.set_recheck(RECHECK);
+        // Found empty at 0 (stands 20 us), 20 (40), 60 (80), 140 (160), 300 (160: the bound).
+        let mut at = 0;
+        for stands in [20, 40, 80, 160, 160] {
+            rx.set_turn_time(t(at));
+            assert_eq!(rx.recv_from(&mut buf).unwrap(), None, "empty at {at}");
+            at += stands;
+        }
+        tx.send_to(b"a", to).unwrap();
+        rx.set_turn_time(t(at - 1));
+        assert_eq!(rx.recv_from(&mut buf).unwrap(), None, "the last finding stands 160 us");
+        rx.set_turn_time(t(at));
+        assert_eq!(rx.recv_from(&mut buf).unwrap().map(|(n, _)| n), Some(1), "asked again at {at}");
+        // That read emptied the socket: its finding stands RECHECK again, not 160 us.
+        tx.send_to(b"b", to).unwrap();
+        rx.set_turn_time(t(at + 19));
+        assert_eq!(rx.recv_from(&mut buf).unwrap(), None, "19 us after the read");
+        rx.set_turn_time(t(at + 20));
+        assert_eq!(rx.recv_from(&mut buf).unwrap().map(|(n, _)| n), Some(1), "20 us after the read");
+    }
+
+    /// While datagrams stream in, a wait polls before it sleeps, and reads what came; a poll
+    /// that finds nothing ends the streak (the next wait sleeps at once). A socket on a manual
+    /// clock (no RECHECK) never polls, however close its reads come.
+    #[test]
+    fn a_wait_polls_only_while_datagrams_stream_in() {
+        let loopback: SocketAddr = "127.0.0.1:0".parse().unwrap();
+        let (mut rx, mut tx) = (OsSocket::bind(loopback).unwrap(), OsSocket::bind(loopback).unwrap());
+        let to = rx.local_addr().unwrap();
+        let mut buf = vec![0u8; SLOT];
+        // Manual clock: reads build no streak.
+        for i in 0..4u8 {
+            tx.send_to(&[i], to).unwrap();
+            assert_eq!(rx.recv_from(&mut buf).unwrap().map(|(n, _)| n), Some(1));
+        }
+        assert_eq!((rx.streak, rx.last_data), (0, None), "no streak on a manual clock");
+        // Real time, a stream (set as a read a moment ago would leave it): the wait's poll
+        // reads the datagram and keeps the streak going.
+        rx.set_recheck(RECHECK);
+        let before = std::time::Instant::now();
+        rx.streak = STREAK;
+        rx.last_data = Some(before);
+        tx.send_to(b"s", to).unwrap();
+        rx.wait(StdDuration::from_secs(1));
+        assert!(rx.ahead.pending(), "the poll read the datagram");
+        assert!(rx.last_data.is_some_and(|t| t > before), "the poll's read was recorded");
+        assert_eq!(rx.recv_from(&mut buf).unwrap().map(|(n, _)| n), Some(1));
+        // Nothing comes: the poll gives up after SPIN, the streak ends, and the wait sleeps
+        // out its time as any wait does.
+        rx.streak = STREAK;
+        rx.wait(StdDuration::from_millis(1));
+        assert_eq!(rx.streak, 0, "a poll that found nothing ends the streak");
+        tx.send_to(b"t", to).unwrap();
+        rx.wait(StdDuration::from_secs(1));
+        assert_eq!(rx.recv_from(&mut buf).unwrap().map(|(n, _)| n), Some(1), "the sleeping wait hears it");
     }
 
     /// A train sent in one call arrives as the very datagrams it holds, in order, with the
