@@ -57,6 +57,7 @@ mod plain;
 pub mod port;
 pub mod process;
 mod schedule;
+mod sequence;
 pub mod time;
 pub mod transaction;
 pub mod value;

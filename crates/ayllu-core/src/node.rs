@@ -11,8 +11,8 @@
 //! * Nothing that arrives from outside can make it panic; what cannot be applied is dropped
 //!   and counted by cause.
 
-use std::collections::{HashMap, HashSet, VecDeque};
-use std::sync::atomic::{AtomicU16, AtomicU32, AtomicU64, AtomicUsize, Ordering::Relaxed};
+use std::collections::{HashMap, VecDeque};
+use std::sync::atomic::Ordering::Relaxed;
 use std::sync::Arc;
 
 use crate::access::{Access, Limits};
@@ -29,6 +29,7 @@ use crate::message::{ControlBody, ControlMessage, Destination, Message, Outgoing
 use crate::port::PortCell;
 use crate::process::Ctx;
 use crate::schedule::{Periodic, Schedule};
+use crate::sequence::{incoming_key, Incoming, IncomingKey, SeqEntry, SeqTable};
 use crate::time::{Duration, Instant};
 use crate::value::Value;
 
@@ -291,34 +292,6 @@ pub(crate) struct Edge {
     pub(crate) priority: i32,
 }
 
-/// What the node knows of one incoming connection (sender, connection id): the newest sequence
-/// number applied (N1), and the port its last message was applied to, so that the next message
-/// needs no name lookups. The names each message carries are still checked against that port,
-/// since a sender may reuse a connection id.
-///
-/// 32 bytes, so that with its 16-byte key a bucket of the table fits one cache line
-/// ([`SeqEntry`]), where it took 80 bytes over two: a node hears about a thousand (sender,
-/// connection) pairs, and the bucket is the first cold load of every message received.
-#[derive(Copy, Clone)]
-struct Incoming {
-    newest: u64,
-    /// The addresses of the name strings (`Arc<str>`) the message that resolved the port
-    /// carried (0: no port resolved): a message carrying the same `Arc`s (the sender's
-    /// connection shares them among its messages, e.g. in-process transports) names the same
-    /// port, so it skips comparing strings. Those `Arc`s are held in `NodeCore::held_names` for
-    /// as long as this entry may compare against them, so their addresses cannot be reused for
-    /// other names meanwhile.
-    behavior: usize,
-    port: usize,
-    /// The port: behavior slot and port index...
-    b: u32,
-    p: u16,
-    /// ...valid while `NodeCore::removals` (as 16 bits) is this: no behavior was removed since,
-    /// so slot `b` still holds the behavior it was resolved to (a slot is reused only after a
-    /// removal). Names never change while a behavior lives.
-    epoch: u16,
-}
-
 #[derive(Copy, Clone)]
 struct Frame {
     b: u32,
@@ -436,7 +409,7 @@ pub struct NodeCore {
     /// meanwhile waits in `parked` (see `Running`).
     running: Running,
     /// Keyed by `incoming_key(sender, connection)`; looked up for every message received.
-    newest_seq: HashSet<SeqEntry, foldhash::fast::RandomState>,
+    newest_seq: SeqTable,
     access: Access,
     pending: VecDeque<(u32, u64, u16)>,
     stack: Vec<Frame>,
@@ -515,7 +488,7 @@ impl NodeCore {
             poll_epoch: 0,
             outbox: VecDeque::new(),
             counters: Counters::default(),
-            newest_seq: HashSet::default(),
+            newest_seq: SeqTable::new(),
             removals: 0,
             held_names: Vec::new(),
             seq_table_resets: 0,
@@ -1530,7 +1503,7 @@ impl NodeCore {
     fn behavior_removed(&mut self) {
         self.removals = self.removals.wrapping_add(1);
         if self.removals == 0 {
-            for entry in &self.newest_seq {
+            for entry in self.newest_seq.iter() {
                 entry.set(Incoming { behavior: 0, port: 0, ..entry.get() });
             }
             self.held_names.clear();
@@ -2197,96 +2170,6 @@ pub(crate) fn current(cell: &PortCell, now: Instant) -> &Value {
         &cell.default
     } else {
         &cell.value
-    }
-}
-
-/// The sequence table's key for connection `conn` of node `from`.
-fn incoming_key(from: NodeId, conn: ConnectionId) -> IncomingKey {
-    IncomingKey { node: u64::from(from.0), conn: conn.0 }
-}
-
-/// One entry of the sequence table: a bucket is one whole cache line (the table is allocated
-/// at the entry's alignment), the first cold load of every message received. A set hands out
-/// its elements by shared reference, so the state ([`Incoming`]) is kept in atomics, read and
-/// written `Relaxed` (plain loads and stores): it changes only under `&mut NodeCore`, and
-/// atomics, unlike a `Cell`, leave the node `Sync`. The key never changes.
-#[repr(C, align(64))]
-struct SeqEntry {
-    key: IncomingKey,
-    newest: AtomicU64,
-    behavior: AtomicUsize,
-    port: AtomicUsize,
-    b: AtomicU32,
-    p: AtomicU16,
-    epoch: AtomicU16,
-}
-
-impl SeqEntry {
-    fn new(key: IncomingKey, i: Incoming) -> SeqEntry {
-        SeqEntry {
-            key,
-            newest: AtomicU64::new(i.newest),
-            behavior: AtomicUsize::new(i.behavior),
-            port: AtomicUsize::new(i.port),
-            b: AtomicU32::new(i.b),
-            p: AtomicU16::new(i.p),
-            epoch: AtomicU16::new(i.epoch),
-        }
-    }
-
-    fn get(&self) -> Incoming {
-        Incoming {
-            newest: self.newest.load(Relaxed),
-            behavior: self.behavior.load(Relaxed),
-            port: self.port.load(Relaxed),
-            b: self.b.load(Relaxed),
-            p: self.p.load(Relaxed),
-            epoch: self.epoch.load(Relaxed),
-        }
-    }
-
-    fn set(&self, i: Incoming) {
-        self.newest.store(i.newest, Relaxed);
-        self.behavior.store(i.behavior, Relaxed);
-        self.port.store(i.port, Relaxed);
-        self.b.store(i.b, Relaxed);
-        self.p.store(i.p, Relaxed);
-        self.epoch.store(i.epoch, Relaxed);
-    }
-}
-
-impl PartialEq for SeqEntry {
-    fn eq(&self, other: &Self) -> bool {
-        self.key == other.key
-    }
-}
-
-impl Eq for SeqEntry {}
-
-impl std::hash::Hash for SeqEntry {
-    fn hash<H: std::hash::Hasher>(&self, state: &mut H) {
-        self.key.hash(state);
-    }
-}
-
-impl std::borrow::Borrow<IncomingKey> for SeqEntry {
-    fn borrow(&self) -> &IncomingKey {
-        &self.key
-    }
-}
-
-/// A (sender, connection) pair, hashed in one piece as one 128-bit integer (a tuple is hashed
-/// field by field, which costs more on every message received), but aligned to 8 bytes, not
-/// 16: a `u128` key would pad every bucket of the table to a multiple of 16 bytes.
-#[derive(Copy, Clone, PartialEq, Eq)]
-struct IncomingKey {
-    node: u64,
-    conn: u64,
-}
-
-impl std::hash::Hash for IncomingKey {
-    fn hash<H: std::hash::Hasher>(&self, state: &mut H) {
-        state.write_u128((u128::from(self.node) << 64) | u128::from(self.conn));
     }
 }
 
