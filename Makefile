@@ -2,7 +2,7 @@
 # CI (.ci/run) runs `make lint` and `make test`.
 CARGO ?= cargo
 
-.PHONY: demo test lint test-python lint-python bench-python bench bench-c bench-net bench-peers bench-sim zenoh test-zenoh bench-zenoh fuzz fuzz-long soak fmt docs
+.PHONY: test-asan demo test lint test-python lint-python bench-python bench bench-c bench-net bench-peers bench-sim zenoh test-zenoh bench-zenoh fuzz fuzz-long soak fmt docs
 
 ## Run the main demo: W-CMOMMT in the simulator (the paper's setting, a sweep, a robot killed
 ## halfway) for BLE and every baseline; prints a short summary (BLE against each baseline, whether
@@ -20,7 +20,8 @@ TARGET_DIR ?= $(or $(CARGO_TARGET_DIR),target)
 
 ## Run every test: Rust (unit, rule, property, golden vectors, examples, processes over real
 ## sockets, the report page in headless Chromium), AylluLite C and Python (golden vectors,
-## node logic over loopback), libayllu's C tests under ASan+UBSan and its C++17 header check.
+## node logic over loopback), libayllu's C tests under ASan+UBSan and its C++17 header check,
+## and the core's pointer paths under ASan (test-asan).
 ## Installs Debian's chromium, pytest and ruff first if missing.
 test:
 	PYTHON=$(PYTHON) scripts/install-test-tools
@@ -31,6 +32,18 @@ test:
 	$(CARGO) build -p ayllu-cli
 	$(PYTHON) spec/conformance --ayllu $(TARGET_DIR)/debug/ayllu
 	$(MAKE) test-python
+	$(MAKE) test-asan
+
+## The core's tests that reach ports through remembered addresses (crates/ayllu-core/src/sequence.rs,
+## NodeCore::deliver_to) and run process bodies through borrowed pointers, under AddressSanitizer:
+## a stale address is a use after free there. Needs rustup's nightly toolchain (the sanitizer flag
+## is unstable); without one it says so and skips. About a minute; its own target directory.
+test-asan:
+	@if $(CARGO) +nightly --version >/dev/null 2>&1; then \
+		RUSTFLAGS="-Zsanitizer=address" CARGO_TARGET_DIR=$(abspath $(TARGET_DIR))/asan $(CARGO) +nightly test \
+			-p ayllu-core --target x86_64-unknown-linux-gnu --test receive_cache --test remote \
+			--test structure --test structure_from_process --test process_periodic --test process_triggered; \
+	else echo "test-asan: skipped: no nightly toolchain (rustup toolchain install nightly)"; fi
 
 ## The book (docs/, mkdocs.yml): concepts, tutorials, troubleshooting and the references, built
 ## into target/book (open target/book/index.html) with the API references under api/ (rustdoc,

@@ -17,16 +17,17 @@
 //! * Lookups never allocate; an insert allocates only when the table doubles.
 
 use std::hash::BuildHasher;
-use std::sync::atomic::{AtomicU16, AtomicU32, AtomicU64, AtomicUsize, Ordering::Relaxed};
+use std::sync::atomic::{AtomicPtr, AtomicU16, AtomicU32, AtomicU64, AtomicUsize, Ordering::Relaxed};
 
 use crate::address::{ConnectionId, NodeId};
+use crate::node::PortState;
 
 /// What the node knows of one incoming connection (sender, connection id): the newest sequence
 /// number applied (N1), and the port its last message was applied to, so that the next message
 /// needs no name lookups. The names each message carries are still checked against that port,
 /// since a sender may reuse a connection id.
 ///
-/// 32 bytes, so that with its 16-byte key an entry of the table fits one cache line
+/// 40 bytes, so that with its 16-byte key an entry of the table fits one cache line
 /// ([`SeqEntry`]), where it took 80 bytes over two: the entry is the first cold load of every
 /// message received.
 #[derive(Copy, Clone)]
@@ -47,6 +48,10 @@ pub(crate) struct Incoming {
     /// so slot `b` still holds the behavior it was resolved to (a slot is reused only after a
     /// removal). Names never change while a behavior lives.
     pub(crate) epoch: u16,
+    /// The port itself (port `p` of slot `b`), so that a delivery reaches its line without
+    /// reading the behavior's first (`NodeCore::deliver_to`); valid exactly when `b` and `p`
+    /// are (null while unresolved).
+    pub(crate) target: *mut PortState,
 }
 
 /// The sequence table's key for connection `conn` of node `from`.
@@ -68,6 +73,7 @@ pub(crate) struct SeqEntry {
     b: AtomicU32,
     p: AtomicU16,
     pub(crate) epoch: AtomicU16,
+    target: AtomicPtr<PortState>,
 }
 
 impl SeqEntry {
@@ -80,12 +86,13 @@ impl SeqEntry {
             b: AtomicU32::new(i.b),
             p: AtomicU16::new(i.p),
             epoch: AtomicU16::new(i.epoch),
+            target: AtomicPtr::new(i.target),
         }
     }
 
     /// A free slot.
     fn empty() -> SeqEntry {
-        let none = Incoming { newest: 0, behavior: 0, port: 0, b: 0, p: 0, epoch: 0 };
+        let none = Incoming { newest: 0, behavior: 0, port: 0, b: 0, p: 0, epoch: 0, target: std::ptr::null_mut() };
         SeqEntry::new(IncomingKey { node: EMPTY, conn: 0 }, none)
     }
 
@@ -97,6 +104,7 @@ impl SeqEntry {
             b: self.b.load(Relaxed),
             p: self.p.load(Relaxed),
             epoch: self.epoch.load(Relaxed),
+            target: self.target.load(Relaxed),
         }
     }
 
@@ -107,6 +115,7 @@ impl SeqEntry {
         self.b.store(i.b, Relaxed);
         self.p.store(i.p, Relaxed);
         self.epoch.store(i.epoch, Relaxed);
+        self.target.store(i.target, Relaxed);
     }
 }
 
@@ -226,7 +235,7 @@ mod tests {
     use std::collections::HashMap;
 
     fn entry(node: u64, conn: u64, newest: u64) -> SeqEntry {
-        let i = Incoming { newest, behavior: 0, port: 0, b: 0, p: 0, epoch: 0 };
+        let i = Incoming { newest, behavior: 0, port: 0, b: 0, p: 0, epoch: 0, target: std::ptr::null_mut() };
         SeqEntry::new(IncomingKey { node, conn }, i)
     }
 

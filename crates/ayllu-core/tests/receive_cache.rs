@@ -167,3 +167,28 @@ fn a_node_stays_send_and_sync() {
     fn both<T: Send + Sync>() {}
     both::<NodeCore>();
 }
+
+/// The table remembers where a port is (not only its slot and index): after its behavior is
+/// removed and re-created in the same slot, every later message, not only the first one that
+/// finds it again, reaches the new behavior's port, and the removed one's memory is never
+/// written (run under AddressSanitizer, a stale address would be a use after free).
+#[test]
+fn messages_after_a_recreation_reach_the_new_port_every_time() {
+    let mut n = node();
+    let (a, input) = ("A".into(), "In".into());
+    for seq in 1..=3 {
+        n.receive(at(seq), PEER, shared(seq, &a, &input, seq as i64));
+    }
+    n.remove("A").unwrap();
+    n.create("Rx", "A").unwrap();
+    for seq in 4..=8 {
+        n.receive(at(seq), PEER, shared(seq, &a, &input, seq as i64 * 10));
+        assert_eq!(read(&n, "A", "In"), Value::Int(seq as i64 * 10), "message {seq}");
+    }
+    // Messages by name (fresh strings each time) take the same remembered port.
+    for seq in 9..=11 {
+        n.receive(at(seq), PEER, message(seq, "A", "In", seq as i64));
+        assert_eq!(read(&n, "A", "In"), Value::Int(seq as i64), "message {seq}");
+    }
+    assert_eq!(n.why("A", "In").unwrap().accepted, 8);
+}
