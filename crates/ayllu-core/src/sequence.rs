@@ -182,6 +182,24 @@ impl SeqTable {
         }
     }
 
+    /// Ask the processor to start loading `key`'s home slot (a hint: nothing else changes), so
+    /// that a lookup a little later finds the line on its way.
+    #[inline(always)]
+    pub(crate) fn prefetch(&self, key: &IncomingKey) {
+        if self.slots.is_empty() {
+            return;
+        }
+        let home = self.home(key, self.slots.len() - 1);
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `home` is in bounds (masked by the length, a power of two); a prefetch only
+        // hints the cache and never faults.
+        unsafe {
+            std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(self.slots.as_ptr().add(home).cast());
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = home;
+    }
+
     /// Add `entry`, whose key the table does not hold (the caller looked it up first).
     pub(crate) fn insert(&mut self, entry: SeqEntry) {
         debug_assert!(self.get(&entry.key).is_none(), "a key is inserted once");

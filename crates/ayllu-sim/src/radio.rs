@@ -332,6 +332,18 @@ impl Radio {
     /// in one visit, its node staying in cache — with a hundred nodes or more, most of a
     /// delivery's cost is fetching the receiving node from memory.
     pub fn deliver_due(&mut self, station: usize, mut deliver: impl FnMut(NodeId, &Message)) {
+        self.deliver_due_ahead(station, |(from, m), _| deliver(from, m));
+    }
+
+    /// [`Radio::deliver_due`], each message handed over with the one that will follow it
+    /// (same messages, same order): a receiver can start loading what the next message needs
+    /// while it applies this one (`NodeCore::prefetch_receive`).
+    pub fn deliver_due_ahead<'a>(
+        &'a mut self,
+        station: usize,
+        mut deliver: impl FnMut((NodeId, &'a Message), Option<(NodeId, &'a Message)>),
+    ) {
+        let mut held: Option<(NodeId, &'a Message)> = None;
         for (&e, c) in self.due.iter().zip(&mut self.cursor) {
             let e = &self.parked[e];
             while e.to.get(*c).is_some_and(|&s| s < station) {
@@ -339,8 +351,14 @@ impl Radio {
             }
             if e.to.get(*c) == Some(&station) {
                 *c += 1;
-                deliver(e.from, e.message.as_ref().expect("parked while due"));
+                let next = (e.from, e.message.as_ref().expect("parked while due"));
+                if let Some(this) = held.replace(next) {
+                    deliver(this, Some(next));
+                }
             }
+        }
+        if let Some(this) = held {
+            deliver(this, None);
         }
     }
 

@@ -406,8 +406,12 @@ impl Sim {
             let alive = self.world.robots[i].alive;
             let r = &mut self.robots[i];
             // A broadcast reaches its receivers as one shared message: nothing copied.
-            self.radio.deliver_due(i, |from, msg| {
+            // The next message's sequence-table slot loads while this one is applied.
+            self.radio.deliver_due_ahead(i, |(from, msg), next| {
                 if alive {
+                    if let Some((f, m)) = next {
+                        r.core.prefetch_receive(f, m);
+                    }
                     r.core.receive_shared(now, from, msg);
                 }
             });
