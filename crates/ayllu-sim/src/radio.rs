@@ -451,4 +451,53 @@ mod tests {
         assert_eq!(x, y);
         assert_eq!((a.delivered, a.cut), (b.delivered, b.cut));
     }
+    /// Each station gets its messages in the same order with or without the look-ahead, and
+    /// each one handed over comes with the next two that station gets (none past its last).
+    #[test]
+    fn delivering_ahead_hands_over_the_same_messages_with_the_next_one() {
+        let stations: Vec<Station> =
+            (0..4).map(|i| Station { node: NodeId(i as u32 + 1), x: i as f64, y: 0.0, alive: true }).collect();
+        let peers: Arc<str> = Arc::from("Peers");
+        let build = || {
+            let mut r = Radio::new(RadioConfig::default(), stations.len(), 4);
+            for i in 0..stations.len() {
+                r.set_groups(i, std::slice::from_ref(&peers));
+            }
+            // Sender k sends k + 1 messages, so the stations get 0 to 6 messages each.
+            for from in 0..stations.len() {
+                for k in 0..=from {
+                    let out = Outgoing {
+                        to: Destination::Group(peers.clone()),
+                        message: Message::Control(ControlMessage {
+                            id: (from * 10 + k) as u64,
+                            body: ControlBody::List,
+                        }),
+                    };
+                    r.send(Instant::from_nanos(k as u64), from, out, &stations);
+                }
+            }
+            r.take_due(Instant::from_nanos(1_000_000_000));
+            r
+        };
+        let id = |m: &Message| match m {
+            Message::Control(c) => c.id,
+            Message::Port(_) => unreachable!("only control messages sent"),
+        };
+        let (mut plain, mut ahead) = (build(), build());
+        for station in 0..stations.len() {
+            let mut want = Vec::new();
+            plain.deliver_due(station, |from, m| want.push((from.0, id(m))));
+            let mut got = Vec::new();
+            let mut looks = Vec::new();
+            ahead.deliver_due_ahead(station, |(from, m), next| {
+                got.push((from.0, id(m)));
+                looks.push(next.map(|(f, m)| (f.0, id(m))));
+            });
+            assert_eq!(got, want, "station {station}");
+            assert!(station > 0 || want.len() == 9, "station 0 hears the other three");
+            for (i, look) in looks.iter().enumerate() {
+                assert_eq!(look, &want.get(i + 1).copied(), "station {station}, message {i}");
+            }
+        }
+    }
 }

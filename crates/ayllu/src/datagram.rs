@@ -138,7 +138,7 @@ pub const RECHECK_DOUBLINGS: u32 = 3;
 #[cfg(target_os = "linux")]
 const BLOCKING_WAIT_MIN: StdDuration = StdDuration::from_millis(20);
 /// How long a wait polls the socket before it sleeps, while datagrams stream in (each of the
-/// last [`STREAK`] reads found datagrams less than this after the one before) on a node with a
+/// last two reads found datagrams less than this after the one before) on a node with a
 /// real-time clock: a receiver asleep in the kernel must be woken by every datagram, which the
 /// sender pays for in its send (on this kind of machine about a sixth of raw UDP's one-way
 /// rate: docs/performance.md), while one that polls takes the datagram without a wake-up.
