@@ -1471,16 +1471,7 @@ impl NodeCore {
                 if self.newest_seq.len() >= SEQ_TABLE_MAX {
                     self.forget_incoming();
                 }
-                let unresolved = Incoming {
-                    newest: m.seq,
-                    behavior: 0,
-                    port: 0,
-                    b: 0,
-                    p: 0,
-                    epoch: 0,
-                    target: std::ptr::null_mut(),
-                };
-                self.newest_seq.insert(SeqEntry::new(key, unresolved));
+                self.newest_seq.insert(SeqEntry::new(key, Incoming::unresolved(m.seq)));
                 None
             }
         };

@@ -54,6 +54,13 @@ pub(crate) struct Incoming {
     pub(crate) target: *mut PortState,
 }
 
+impl Incoming {
+    /// A connection heard for the first time: its newest sequence number, no port resolved.
+    pub(crate) fn unresolved(newest: u64) -> Incoming {
+        Incoming { newest, behavior: 0, port: 0, b: 0, p: 0, epoch: 0, target: std::ptr::null_mut() }
+    }
+}
+
 /// The sequence table's key for connection `conn` of node `from`.
 pub(crate) fn incoming_key(from: NodeId, conn: ConnectionId) -> IncomingKey {
     IncomingKey { node: u64::from(from.0), conn: conn.0 }
@@ -92,8 +99,7 @@ impl SeqEntry {
 
     /// A free slot.
     fn empty() -> SeqEntry {
-        let none = Incoming { newest: 0, behavior: 0, port: 0, b: 0, p: 0, epoch: 0, target: std::ptr::null_mut() };
-        SeqEntry::new(IncomingKey { node: EMPTY, conn: 0 }, none)
+        SeqEntry::new(IncomingKey { node: EMPTY, conn: 0 }, Incoming::unresolved(0))
     }
 
     pub(crate) fn get(&self) -> Incoming {
@@ -165,10 +171,10 @@ impl SeqTable {
     /// The entry of `key`, if there is one: this runs for every message received.
     #[inline(always)]
     pub(crate) fn get(&self, key: &IncomingKey) -> Option<&SeqEntry> {
-        let mask = self.slots.len().wrapping_sub(1);
         if self.slots.is_empty() {
             return None;
         }
+        let mask = self.slots.len() - 1;
         let mut i = self.home(key, mask);
         loop {
             let entry = &self.slots[i];
@@ -253,8 +259,7 @@ mod tests {
     use std::collections::HashMap;
 
     fn entry(node: u64, conn: u64, newest: u64) -> SeqEntry {
-        let i = Incoming { newest, behavior: 0, port: 0, b: 0, p: 0, epoch: 0, target: std::ptr::null_mut() };
-        SeqEntry::new(IncomingKey { node, conn }, i)
+        SeqEntry::new(IncomingKey { node, conn }, Incoming::unresolved(newest))
     }
 
     /// Keys that share a home slot (the table's own hash, one of them chosen, the rest found

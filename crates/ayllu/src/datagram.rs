@@ -425,6 +425,21 @@ impl OsSocket {
         self.last_data = Some(now);
     }
 
+    /// A wait's read succeeded (a blocking one, or a poll that found datagrams): the next
+    /// receive reads what was read ahead; if the read emptied the socket, the next turn counts
+    /// it empty from that turn's time (a datagram arriving after the read is read by the next
+    /// wait or, RECHECK after that turn's start, by a turn).
+    #[cfg(target_os = "linux")]
+    fn read_in_wait(&mut self) {
+        self.empty_until = None;
+        if self.ahead.drained {
+            self.waited_empty = true;
+        }
+        if !self.ahead.got.is_empty() {
+            self.got_data();
+        }
+    }
+
     /// While datagrams stream in, poll the main socket (non-blocking reads, yielding the CPU
     /// between them) for up to [`SPIN`], at most `timeout`, before the wait sleeps. `None`:
     /// it read datagrams (the wait is over); otherwise the time it spent, to take off the
@@ -440,11 +455,7 @@ impl OsSocket {
             match self.ahead.fill(&self.socket) {
                 Ok(()) if !self.ahead.got.is_empty() => {
                     self.dense = self.ahead.got.len() > 1;
-                    self.empty_until = None;
-                    // Read to the end: the next turn counts the socket empty from its time,
-                    // as after a blocking wait's read.
-                    self.waited_empty = self.ahead.drained;
-                    self.got_data();
+                    self.read_in_wait();
                     return None;
                 }
                 Ok(()) => {}
@@ -509,17 +520,8 @@ impl OsSocket {
             }
             read
         };
-        if read.is_ok() && !self.ahead.got.is_empty() {
-            self.got_data();
-        }
         match read {
-            Ok(()) if !self.ahead.drained => self.empty_until = None,
-            // A datagram arriving after the read is read by the next wait or, RECHECK after
-            // the next turn's start, by a turn.
-            Ok(()) => {
-                self.empty_until = None;
-                self.waited_empty = true;
-            }
+            Ok(()) => self.read_in_wait(),
             Err(e) if e.kind() == io::ErrorKind::WouldBlock => return false,
             // Interrupted, or an error the next receive reports.
             Err(_) => self.empty_until = None,
@@ -919,13 +921,17 @@ impl Drop for BusSocket {
 mod tests {
     use super::*;
 
+    /// A receiving and a sending socket on fresh loopback ports.
+    fn loopback_pair() -> (OsSocket, OsSocket) {
+        let loopback: SocketAddr = "127.0.0.1:0".parse().unwrap();
+        (OsSocket::bind(loopback).unwrap(), OsSocket::bind(loopback).unwrap())
+    }
+
     /// The read-ahead hands out every datagram once, in order, with its sender and length
     /// (a longer one than accepted cut to `SLOT`), across more than one batch.
     #[test]
     fn os_socket_reads_ahead_without_losing_or_reordering() {
-        let loopback: SocketAddr = "127.0.0.1:0".parse().unwrap();
-        let mut rx = OsSocket::bind(loopback).unwrap();
-        let mut tx = OsSocket::bind(loopback).unwrap();
+        let (mut rx, mut tx) = loopback_pair();
         let (to, from) = (rx.local_addr().unwrap(), tx.local_addr().unwrap());
         let sizes: Vec<usize> = (0..3 * READ_AHEAD + 5).map(|i| if i == 7 { SLOT + 100 } else { 1 + i * 37 }).collect();
         for (i, &n) in sizes.iter().enumerate() {
@@ -951,8 +957,7 @@ mod tests {
     #[cfg(target_os = "linux")]
     #[test]
     fn a_refused_segmented_send_goes_one_datagram_per_call() {
-        let loopback: SocketAddr = "127.0.0.1:0".parse().unwrap();
-        let (mut rx, mut tx) = (OsSocket::bind(loopback).unwrap(), OsSocket::bind(loopback).unwrap());
+        let (mut rx, mut tx) = loopback_pair();
         let train: Vec<u8> = (0..2 * 40_000).map(|i| (i / 40_000) as u8 + 1).collect();
         tx.send_segments(&train, 40_000, rx.local_addr().unwrap()).unwrap();
         assert!(!tx.segmented, "80 000 bytes in one send is refused (EMSGSIZE): segmenting is off");
@@ -971,8 +976,7 @@ mod tests {
     /// next turn, and a later wait that heard something undoes that.
     #[test]
     fn an_empty_finding_stands_for_recheck_of_turn_time() {
-        let loopback: SocketAddr = "127.0.0.1:0".parse().unwrap();
-        let (mut rx, mut tx) = (OsSocket::bind(loopback).unwrap(), OsSocket::bind(loopback).unwrap());
+        let (mut rx, mut tx) = loopback_pair();
         let to = rx.local_addr().unwrap();
         let mut buf = vec![0u8; SLOT];
         let t = |us: u64| Instant::ZERO + ayllu_core::Duration::from_micros(us);
@@ -1004,8 +1008,7 @@ mod tests {
     /// RECHECK_DOUBLINGS times), and a read that finds datagrams starts again from RECHECK.
     #[test]
     fn empty_findings_in_a_row_stand_longer_up_to_a_bound() {
-        let loopback: SocketAddr = "127.0.0.1:0".parse().unwrap();
-        let (mut rx, mut tx) = (OsSocket::bind(loopback).unwrap(), OsSocket::bind(loopback).unwrap());
+        let (mut rx, mut tx) = loopback_pair();
         let to = rx.local_addr().unwrap();
         let mut buf = vec![0u8; SLOT];
         let t = |us: u64| Instant::ZERO + ayllu_core::Duration::from_micros(us);
@@ -1035,8 +1038,7 @@ mod tests {
     /// clock (no RECHECK) never polls, however close its reads come.
     #[test]
     fn a_wait_polls_only_while_datagrams_stream_in() {
-        let loopback: SocketAddr = "127.0.0.1:0".parse().unwrap();
-        let (mut rx, mut tx) = (OsSocket::bind(loopback).unwrap(), OsSocket::bind(loopback).unwrap());
+        let (mut rx, mut tx) = loopback_pair();
         let to = rx.local_addr().unwrap();
         let mut buf = vec![0u8; SLOT];
         // Manual clock: reads build no streak.
@@ -1082,8 +1084,7 @@ mod tests {
         for (i, &n) in sizes.iter().enumerate() {
             train.extend((0..n).map(|j| (i * 31 + j) as u8));
         }
-        let loopback: SocketAddr = "127.0.0.1:0".parse().unwrap();
-        let (mut rx, mut tx) = (OsSocket::bind(loopback).unwrap(), OsSocket::bind(loopback).unwrap());
+        let (mut rx, mut tx) = loopback_pair();
         let bus = DatagramBus::new();
         let (mut brx, mut btx) =
             (bus.bind("10.0.0.1:1".parse().unwrap()).unwrap(), bus.bind("10.0.0.2:1".parse().unwrap()).unwrap());
@@ -1110,9 +1111,7 @@ mod tests {
     /// in the receive itself (long ones).
     #[test]
     fn os_socket_wait_hears_what_came_after_an_empty_receive() {
-        let loopback: SocketAddr = "127.0.0.1:0".parse().unwrap();
-        let mut rx = OsSocket::bind(loopback).unwrap();
-        let mut tx = OsSocket::bind(loopback).unwrap();
+        let (mut rx, mut tx) = loopback_pair();
         let to = rx.local_addr().unwrap();
         let mut buf = vec![0u8; SLOT];
         for (i, (recheck, wait)) in [
