@@ -1436,6 +1436,17 @@ impl NodeCore {
         }
     }
 
+    /// The second hint, for a message whose [`NodeCore::prefetch_receive`] was given a while
+    /// before: reads its sequence-table entry and starts loading the port the entry remembers,
+    /// so that a caller holding several messages for this node has their ports' loads in flight
+    /// together instead of one after the other. Changes nothing.
+    #[inline]
+    pub fn prefetch_target(&self, from: NodeId, message: &Message) {
+        if let Message::Port(m) = message {
+            self.newest_seq.prefetch_target(&incoming_key(from, m.conn));
+        }
+    }
+
     // Inlined into its two callers (a plain `#[inline]` was not taken): a broadcast in a
     // simulator reaches each receiver through `receive_shared`, and one call less per delivery
     // is one register save and restore less (24 instructions).

@@ -188,6 +188,27 @@ impl SeqTable {
         }
     }
 
+    /// Ask the processor to start loading the port `key`'s entry remembers (its first three
+    /// lines: what a delivery reads and writes), reading the entry itself: call once its slot
+    /// has had time to arrive ([`SeqTable::prefetch`] a while before). A hint: nothing changes,
+    /// and a stale or null address only wastes the hint.
+    #[inline(always)]
+    pub(crate) fn prefetch_target(&self, key: &IncomingKey) {
+        let Some(entry) = self.get(key) else { return };
+        let target = entry.target.load(Relaxed).cast::<i8>().cast_const();
+        if target.is_null() {
+            return;
+        }
+        #[cfg(target_arch = "x86_64")]
+        for line in 0..3 {
+            // SAFETY: a prefetch only hints the cache and never faults, whatever the address;
+            // `wrapping_add` makes no claim that the address is in bounds.
+            unsafe {
+                std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(target.wrapping_add(64 * line));
+            }
+        }
+    }
+
     /// Ask the processor to start loading `key`'s home slot (a hint: nothing else changes), so
     /// that a lookup a little later finds the line on its way.
     #[inline(always)]

@@ -138,9 +138,14 @@ pub struct Radio {
     /// Emissions in flight, and the free entries.
     parked: Vec<Emission>,
     free: Vec<usize>,
-    /// Emissions set aside by `take_due`, and how far each has been delivered.
+    /// Emissions set aside by `take_due`, in delivery order.
     due: Vec<usize>,
-    cursor: Vec<usize>,
+    /// The same deliveries by receiver: station `s`'s are the emissions (`parked` indices)
+    /// `by_station[starts[s]..starts[s + 1]]`, in delivery order (a counting sort of the
+    /// receiver lists, made once in `take_due`), so that handing one station its messages
+    /// reads only its own.
+    starts: Vec<u32>,
+    by_station: Vec<u32>,
     /// Members of each group, by station index in increasing order.
     groups: Vec<(Arc<str>, Vec<usize>)>,
     /// Emissions per station (a group message counts once).
@@ -166,7 +171,8 @@ impl Radio {
             parked: Vec::new(),
             free: Vec::new(),
             due: Vec::new(),
-            cursor: Vec::new(),
+            starts: Vec::new(),
+            by_station: Vec::new(),
             groups: Vec::new(),
             sent: vec![0; stations],
             bytes: vec![0; stations],
@@ -306,9 +312,7 @@ impl Radio {
     /// independent nodes, so only the order at each receiver matters.
     pub fn deliver_shared(&mut self, now: Instant, mut deliver: impl FnMut(usize, NodeId, &Message)) {
         self.take_due(now);
-        loop {
-            let next = self.due.iter().zip(&self.cursor).filter_map(|(&e, &c)| self.parked[e].to.get(c)).min();
-            let Some(&station) = next else { break };
+        for station in 0..self.starts.len().saturating_sub(1) {
             self.deliver_due(station, |from, message| deliver(station, from, message));
         }
         self.release_due();
@@ -322,43 +326,67 @@ impl Radio {
             let Reverse(m) = self.queue.pop().expect("peeked");
             self.due.push(m.slot);
         }
-        self.cursor.clear();
-        self.cursor.resize(self.due.len(), 0);
+        // Counting sort by receiver: count, prefix sums, then place (stable: delivery order
+        // is kept within each station). Receivers are stations, all below `sent.len()`.
+        let stations = self.sent.len();
+        let (due, parked) = (&self.due, &self.parked);
+        let starts = &mut self.starts;
+        starts.clear();
+        starts.resize(stations + 1, 0);
+        for &e in due {
+            for &s in &parked[e].to {
+                starts[s + 1] += 1;
+            }
+        }
+        let mut total = 0;
+        for start in starts.iter_mut() {
+            total += *start;
+            *start = total;
+        }
+        self.by_station.clear();
+        self.by_station.resize(total as usize, 0);
+        // `starts[s]` serves as station s's next free place while placing: afterwards it is
+        // station s + 1's start, so everything shifts back by one.
+        for &e in due {
+            for &s in &parked[e].to {
+                self.by_station[starts[s] as usize] = e as u32;
+                starts[s] += 1;
+            }
+        }
+        starts.rotate_right(1);
+        starts[0] = 0;
     }
 
     /// Hand station `station` its messages among those set aside by [`Radio::take_due`], by
-    /// emission in (time, send) order. Call for stations in increasing order (a station
-    /// skipped is skipped for good): a simulator can then deliver to, sense and run each robot
-    /// in one visit, its node staying in cache — with a hundred nodes or more, most of a
-    /// delivery's cost is fetching the receiving node from memory.
-    pub fn deliver_due(&mut self, station: usize, mut deliver: impl FnMut(NodeId, &Message)) {
-        self.deliver_due_ahead(station, |(from, m), _| deliver(from, m));
+    /// emission in (time, send) order. Stations may be visited in any order, and again (a
+    /// second call hands the same messages): a simulator can deliver to, sense and run each
+    /// robot in one visit, its node staying in cache, and look at the next robot's messages
+    /// beforehand to start loading what they will touch in its node — with a hundred nodes or
+    /// more, most of a delivery's cost is fetching the receiving node from memory.
+    pub fn deliver_due(&self, station: usize, mut deliver: impl FnMut(NodeId, &Message)) {
+        let (Some(&start), Some(&end)) = (self.starts.get(station), self.starts.get(station + 1)) else { return };
+        for &e in &self.by_station[start as usize..end as usize] {
+            let e = &self.parked[e as usize];
+            deliver(e.from, e.message.as_ref().expect("parked while due"));
+        }
     }
 
     /// [`Radio::deliver_due`], each message handed over with the one that will follow it
     /// (same messages, same order): a receiver can start loading what the next message needs
     /// while it applies this one (`NodeCore::prefetch_receive`).
-    pub fn deliver_due_ahead<'a>(
-        &'a mut self,
+    pub fn deliver_due_ahead(
+        &self,
         station: usize,
-        mut deliver: impl FnMut((NodeId, &'a Message), Option<(NodeId, &'a Message)>),
+        mut deliver: impl FnMut((NodeId, &Message), Option<(NodeId, &Message)>),
     ) {
-        let mut held: Option<(NodeId, &'a Message)> = None;
-        for (&e, c) in self.due.iter().zip(&mut self.cursor) {
-            let e = &self.parked[e];
-            while e.to.get(*c).is_some_and(|&s| s < station) {
-                *c += 1;
-            }
-            if e.to.get(*c) == Some(&station) {
-                *c += 1;
-                let next = (e.from, e.message.as_ref().expect("parked while due"));
-                if let Some(this) = held.replace(next) {
-                    deliver(this, Some(next));
-                }
-            }
-        }
-        if let Some(this) = held {
-            deliver(this, None);
+        let (Some(&start), Some(&end)) = (self.starts.get(station), self.starts.get(station + 1)) else { return };
+        let message = |e: u32| {
+            let e = &self.parked[e as usize];
+            (e.from, e.message.as_ref().expect("parked while due"))
+        };
+        let mut list = self.by_station[start as usize..end as usize].iter().map(|&e| message(e)).peekable();
+        while let Some(this) = list.next() {
+            deliver(this, list.peek().copied());
         }
     }
 
@@ -373,7 +401,8 @@ impl Radio {
             self.free.push(slot);
         }
         self.due.clear();
-        self.cursor.clear();
+        self.starts.clear();
+        self.by_station.clear();
     }
 }
 
@@ -452,62 +481,55 @@ mod tests {
         assert_eq!((a.delivered, a.cut), (b.delivered, b.cut));
     }
 
-    /// Each station gets its messages in the same order with or without the look-ahead, and
-    /// each one handed over comes with the next two that station gets (none past its last).
+    /// Each station gets every other sender's messages in (time, send) order, whatever order
+    /// the stations are visited in and however often.
     #[test]
-    fn delivering_ahead_hands_over_the_same_messages_with_the_next_one() {
+    fn each_station_gets_its_messages_in_time_order_in_any_visiting_order() {
         let stations: Vec<Station> =
-            (0..4).map(|i| Station { node: NodeId(i as u32 + 1), x: i as f64, y: 0.0, alive: true }).collect();
+            (0..5).map(|i| Station { node: NodeId(i as u32 + 1), x: i as f64, y: 0.0, alive: true }).collect();
         let peers: Arc<str> = Arc::from("Peers");
-        let build = || {
-            let mut r = Radio::new(RadioConfig::default(), stations.len(), 4);
-            for i in 0..stations.len() {
-                r.set_groups(i, std::slice::from_ref(&peers));
+        // No jitter: the order is the send time, then the send order.
+        let config = RadioConfig { jitter: 0.0, ..RadioConfig::default() };
+        let mut r = Radio::new(config, stations.len(), 4);
+        for i in 0..stations.len() {
+            r.set_groups(i, std::slice::from_ref(&peers));
+        }
+        // Sender `from` sends `from + 1` messages, message k at k ns: each time's messages
+        // were sent in sender order.
+        for from in 0..stations.len() {
+            for k in 0..=from {
+                let out = Outgoing {
+                    to: Destination::Group(peers.clone()),
+                    message: Message::Control(ControlMessage { id: (from * 10 + k) as u64, body: ControlBody::List }),
+                };
+                r.send(Instant::from_nanos(k as u64), from, out, &stations);
             }
-            // Sender k sends k + 1 messages, so the stations get 0 to 6 messages each.
-            for from in 0..stations.len() {
-                for k in 0..=from {
-                    let out = Outgoing {
-                        to: Destination::Group(peers.clone()),
-                        message: Message::Control(ControlMessage {
-                            id: (from * 10 + k) as u64,
-                            body: ControlBody::List,
-                        }),
-                    };
-                    r.send(Instant::from_nanos(k as u64), from, out, &stations);
-                }
-            }
-            r.take_due(Instant::from_nanos(1_000_000_000));
-            r
-        };
+        }
+        r.take_due(Instant::from_nanos(1_000_000_000));
         let id = |m: &Message| match m {
             Message::Control(c) => c.id,
             Message::Port(_) => unreachable!("only control messages sent"),
         };
-        let (mut plain, mut ahead) = (build(), build());
-        for station in 0..stations.len() {
-            // Every other sender's messages (sender k sends k + 1), in the radio's order
-            // (jitter draws it), which the look-ahead must keep.
-            let mut want = Vec::new();
-            plain.deliver_due(station, |from, m| want.push((from.0, id(m))));
-            let mut sent: Vec<(u32, u64)> = (0..stations.len())
-                .filter(|&from| from != station)
-                .flat_map(|from| (0..=from).map(move |k| (from as u32 + 1, (from * 10 + k) as u64)))
-                .collect();
-            let mut heard = want.clone();
-            sent.sort_unstable();
-            heard.sort_unstable();
-            assert_eq!(heard, sent, "station {station} hears every other sender's messages");
+        let heard = |station: usize| {
             let mut got = Vec::new();
-            let mut looks = Vec::new();
-            ahead.deliver_due_ahead(station, |(from, m), next| {
-                got.push((from.0, id(m)));
-                looks.push(next.map(|(f, m)| (f.0, id(m))));
-            });
-            assert_eq!(got, want, "station {station}");
-            for (i, look) in looks.iter().enumerate() {
-                assert_eq!(look, &want.get(i + 1).copied(), "station {station}, message {i}");
-            }
+            r.deliver_due(station, |from, m| got.push((from.0, id(m))));
+            got
+        };
+        let want = |station: usize| {
+            let mut sent: Vec<(u64, usize)> = (0..stations.len())
+                .filter(|&from| from != station)
+                .flat_map(|from| (0..=from).map(move |k| (k as u64, from)))
+                .collect();
+            sent.sort_unstable();
+            sent.into_iter().map(|(k, from)| (from as u32 + 1, from as u64 * 10 + k)).collect::<Vec<_>>()
+        };
+        let forward: Vec<_> = (0..stations.len()).map(heard).collect();
+        for (station, got) in forward.iter().enumerate() {
+            assert_eq!(got, &want(station), "station {station}");
         }
+        for station in (0..stations.len()).rev() {
+            assert_eq!(heard(station), forward[station], "station {station} visited again, backwards");
+        }
+        assert!(heard(stations.len()).is_empty(), "a station no message names gets none");
     }
 }
