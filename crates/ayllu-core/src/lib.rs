@@ -55,6 +55,7 @@ pub mod message;
 pub mod node;
 mod plain;
 pub mod port;
+mod prefetch;
 pub mod process;
 mod schedule;
 mod sequence;

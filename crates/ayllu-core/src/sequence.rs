@@ -195,17 +195,9 @@ impl SeqTable {
     #[inline(always)]
     pub(crate) fn prefetch_target(&self, key: &IncomingKey) {
         let Some(entry) = self.get(key) else { return };
-        let target = entry.target.load(Relaxed).cast::<i8>().cast_const();
-        if target.is_null() {
-            return;
-        }
-        #[cfg(target_arch = "x86_64")]
-        for line in 0..3 {
-            // SAFETY: a prefetch only hints the cache and never faults, whatever the address;
-            // `wrapping_add` makes no claim that the address is in bounds.
-            unsafe {
-                std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(target.wrapping_add(64 * line));
-            }
+        let target = entry.target.load(Relaxed);
+        if !target.is_null() {
+            crate::prefetch::lines(target, 3);
         }
     }
 
@@ -217,14 +209,8 @@ impl SeqTable {
             return;
         }
         let home = self.home(key, self.slots.len() - 1);
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: `home` is in bounds (masked by the length, a power of two); a prefetch only
-        // hints the cache and never faults.
-        unsafe {
-            std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(self.slots.as_ptr().add(home).cast());
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        let _ = home;
+        // `home` is in bounds: masked by the length, a power of two.
+        crate::prefetch::line(&self.slots[home]);
     }
 
     /// Add `entry`, whose key the table does not hold (the caller looked it up first).
