@@ -327,14 +327,17 @@ impl Radio {
             self.due.push(m.slot);
         }
         // Counting sort by receiver: count, prefix sums, then place (stable: delivery order
-        // is kept within each station). Receivers are stations, all below `sent.len()`.
-        let stations = self.sent.len();
+        // is kept within each station). Receivers are indices into the callers' station
+        // lists: as many as the radio was made for, unless a caller passed a longer list.
         let (due, parked) = (&self.due, &self.parked);
         let starts = &mut self.starts;
         starts.clear();
-        starts.resize(stations + 1, 0);
+        starts.resize(self.sent.len() + 1, 0);
         for &e in due {
             for &s in &parked[e].to {
+                if s + 1 >= starts.len() {
+                    starts.resize(s + 2, 0);
+                }
                 starts[s + 1] += 1;
             }
         }
@@ -531,5 +534,23 @@ mod tests {
             assert_eq!(heard(station), forward[station], "station {station} visited again, backwards");
         }
         assert!(heard(stations.len()).is_empty(), "a station no message names gets none");
+    }
+
+    /// A caller whose station list is longer than the radio was made for (stations added
+    /// later) still has its later stations' messages delivered.
+    #[test]
+    fn stations_beyond_the_radios_count_get_their_messages() {
+        let stations: Vec<Station> =
+            (0..4).map(|i| Station { node: NodeId(i as u32 + 1), x: 0.0, y: 0.0, alive: true }).collect();
+        let mut r = Radio::new(RadioConfig::default(), 2, 4);
+        let out = Outgoing {
+            to: Destination::Node(NodeId(4)),
+            message: Message::Control(ControlMessage { id: 9, body: ControlBody::List }),
+        };
+        r.send(Instant::ZERO, 0, out, &stations);
+        r.take_due(Instant::from_nanos(1_000_000_000));
+        let mut got = Vec::new();
+        r.deliver_due(3, |from, _| got.push(from));
+        assert_eq!(got, vec![NodeId(1)]);
     }
 }
