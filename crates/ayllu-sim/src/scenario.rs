@@ -204,10 +204,10 @@ pub struct Outcome {
 }
 
 /// The smallest team whose robots' messages are loaded ahead of their visits (`Sim::step`),
-/// the planner's base station not counted:
-/// measured on a 2-vCPU EPYC (1 MiB L2 per core, 32 MiB L3), the hints saved 12-14 % of the
-/// user time of a 1000-robot run and cost 7 % of a 100-robot one, whose nodes stay in cache
-/// (docs/performance.md, issue 13's fifth pass).
+/// the planner's base station not counted. Measured on a 2-vCPU EPYC (1 MiB L2 per core,
+/// 32 MiB L3): the hints saved 19-23 % of the user time of a 1000-robot run, were even at
+/// 300 robots and cost 7 % at 100, whose nodes stay in cache (docs/performance.md, issue
+/// 13's fifth pass).
 const LOOK_AHEAD_TEAM: usize = 300;
 
 /// The first stage of loading robot `i`'s messages ahead of its visit (see `Sim::step`): the
