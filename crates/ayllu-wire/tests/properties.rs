@@ -276,6 +276,27 @@ proptest! {
         prop_assert!(all_same(&d.messages, &[WireMessage::Port(message)]));
     }
 
+    /// `push_port` (the runtime's path, from the core's own message) writes the bytes, and
+    /// returns the errors, that `push` does for the same message as a `WireMessage::Port` or
+    /// `GroupPort`: message after message into one datagram, through its filling up and the
+    /// messages too large for any datagram.
+    #[test]
+    fn push_port_is_push(
+        mtu in 40usize..400,
+        msgs in proptest::collection::vec((port_message(), proptest::option::of(name())), 0..12),
+    ) {
+        let mut by_push = DatagramWriter::new(7, NodeId(1), 1, None, mtu);
+        let mut by_push_port = by_push.clone();
+        for (message, group) in &msgs {
+            let wire = match group {
+                Some(group) => WireMessage::GroupPort { group: group.clone(), message: message.clone() },
+                None => WireMessage::Port(message.clone()),
+            };
+            prop_assert_eq!(by_push.push(&wire), by_push_port.push_port(message, group.as_deref()));
+        }
+        prop_assert_eq!(by_push.finish(), by_push_port.finish());
+    }
+
     #[test]
     fn random_bytes_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..600), auth: bool) {
         let _ = decode(&bytes, &ReceiverConfig { team: 7, key: auth.then_some(KEY) });

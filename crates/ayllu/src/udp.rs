@@ -25,7 +25,7 @@
 use std::collections::{BTreeMap, VecDeque};
 use std::net::{IpAddr, SocketAddr};
 
-use ayllu_core::{ControlBody, ControlMessage, Destination, Duration, Instant, Message, NodeId};
+use ayllu_core::{ControlBody, ControlMessage, Destination, Duration, Instant, Message, NodeId, PortMessage};
 use ayllu_wire::{
     decode_with, DatagramWriter, EncodeError, NameCache, ReceiverConfig, ReplayWindow, ReplyAssembler, SignedRequest,
     WireMessage,
@@ -529,6 +529,18 @@ impl<S: DatagramSocket> UdpTransport<S> {
     /// Append a message to the open datagram for `addr`; a full datagram is finished and queued
     /// for the end of the turn.
     fn push(&mut self, addr: SocketAddr, message: &WireMessage) {
+        self.push_with(addr, |w| w.push(message));
+    }
+
+    /// [`UdpTransport::push`] for a port message, encoded from the core's own message.
+    fn push_port(&mut self, addr: SocketAddr, message: &PortMessage, group: Option<&str>) {
+        self.push_with(addr, |w| w.push_port(message, group));
+    }
+
+    /// Add one message, written by `encode`, to the turn's datagram for `addr`; a full datagram
+    /// leaves and the message starts the next.
+    #[inline(always)]
+    fn push_with(&mut self, addr: SocketAddr, encode: impl Fn(&mut DatagramWriter) -> Result<(), EncodeError>) {
         let i = match self.batches.iter().position(|(a, _)| *a == addr) {
             Some(i) => i,
             None => {
@@ -537,13 +549,13 @@ impl<S: DatagramSocket> UdpTransport<S> {
                 self.batches.len() - 1
             }
         };
-        match self.batches[i].1.push(message) {
+        match encode(&mut self.batches[i].1) {
             Ok(()) => {}
             Err(EncodeError::DoesNotFit { .. }) => {
                 let fresh = self.writer();
                 let full = std::mem::replace(&mut self.batches[i].1, fresh);
                 self.transmit(addr, full);
-                if self.batches[i].1.push(message).is_err() {
+                if encode(&mut self.batches[i].1).is_err() {
                     self.count("too_large");
                 }
             }
@@ -879,6 +891,13 @@ impl<S: DatagramSocket> UdpTransport<S> {
     }
 
     fn send_message(&mut self, to: &Destination, message: Message) -> Sent {
+        // The hot path, a port message to one node: one lookup, no list of addresses.
+        if let (Destination::Node(n), Message::Port(p)) = (to, &message) {
+            let Some(addr) = self.peers.get(n).map(|peer| peer.addr) else { return self.hold(*n, message) };
+            self.push_port(addr, p, None);
+            self.unflushed += 1;
+            return Sent::Now;
+        }
         let mut addrs = std::mem::take(&mut self.route_buf);
         self.route(to, &mut addrs);
         let mut sent = Sent::Now;
@@ -891,16 +910,16 @@ impl<S: DatagramSocket> UdpTransport<S> {
                     Sent::Dropped
                 }
             };
-        } else if let Message::Port(p) = message {
-            // A port message is one wire message, moved rather than copied (the hot path). To
-            // a group it names the group: its address or the team's broadcast reaches
-            // non-members too, and they drop it (D-S10.6).
-            let m = match to {
-                Destination::Group(group) => WireMessage::GroupPort { group: group.clone(), message: p },
-                Destination::Node(_) => WireMessage::Port(p),
+        } else if let Message::Port(p) = &message {
+            // A port message is one wire message, encoded from the core's message (the hot
+            // path). To a group it names the group: its address or the team's broadcast
+            // reaches non-members too, and they drop it (D-S10.6).
+            let group = match to {
+                Destination::Group(group) => Some(&**group),
+                Destination::Node(_) => None,
             };
             for &addr in &addrs {
-                self.push(addr, &m);
+                self.push_port(addr, p, group);
             }
             self.unflushed += 1;
         } else {
