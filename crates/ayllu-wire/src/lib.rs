@@ -55,7 +55,9 @@ pub mod operator;
 pub mod reply;
 
 pub use auth::{mac, parse_key_hex, verify_mac, Key, ReplayWindow};
-pub use decode::{decode, decode_with, Datagram, DropReason, NameCache, ReceiverConfig};
+pub use decode::{
+    decode, decode_into, decode_with, Datagram, DropReason, Header, MessageSink, NameCache, ReceiverConfig,
+};
 pub use encode::{encode_datagram, encoded_len, DatagramWriter, EncodeError};
 pub use message::{ReplyPart, WireMessage};
 pub use operator::{OperatorPublic, OperatorSecret, OperatorSignature, SignedRequest};

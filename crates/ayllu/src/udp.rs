@@ -24,11 +24,12 @@
 
 use std::collections::{BTreeMap, VecDeque};
 use std::net::{IpAddr, SocketAddr};
+use std::sync::Arc;
 
 use ayllu_core::{ControlBody, ControlMessage, Destination, Duration, Instant, Message, NodeId, PortMessage};
 use ayllu_wire::{
-    decode_with, DatagramWriter, EncodeError, NameCache, ReceiverConfig, ReplayWindow, ReplyAssembler, SignedRequest,
-    WireMessage,
+    decode_into, DatagramWriter, EncodeError, Header, MessageSink, NameCache, ReceiverConfig, ReplayWindow,
+    ReplyAssembler, SignedRequest, WireMessage,
 };
 
 use crate::datagram::{DatagramSocket, OsSocket};
@@ -341,6 +342,39 @@ impl UdpTransport<OsSocket> {
     }
 }
 
+/// The receiving end of [`decode_into`] for one datagram: its port messages go straight into
+/// the inbox, a group's only if this node joined the group (S10, D-S10.6; the others are
+/// counted as `not_member` once the datagram is admitted). Any other message goes to `rest`,
+/// and so does every message after it, so that the inbox keeps the datagram's order.
+struct Inbound<'a> {
+    inbox: &'a mut VecDeque<(NodeId, Message)>,
+    joined: &'a [String],
+    rest: &'a mut Vec<WireMessage>,
+    sender: NodeId,
+    not_member: u64,
+}
+
+impl MessageSink for Inbound<'_> {
+    fn header(&mut self, header: &Header) {
+        self.sender = header.sender;
+    }
+    #[inline(always)]
+    fn port(&mut self, message: PortMessage, group: Option<Arc<str>>) {
+        if !self.rest.is_empty() {
+            return self.rest.port(message, group);
+        }
+        // A handful of names compared as bytes, nothing allocated.
+        if group.is_none_or(|group| self.joined.iter().any(|g| g.as_str() == &*group)) {
+            self.inbox.push_back((self.sender, Message::Port(message)));
+        } else {
+            self.not_member += 1;
+        }
+    }
+    fn other(&mut self, message: WireMessage) {
+        self.rest.push(message);
+    }
+}
+
 impl<S: DatagramSocket> UdpTransport<S> {
     /// A transport over any datagram socket (tests use the in-memory bus and fault injector).
     pub fn with_socket(id: NodeId, config: UdpConfig, mut socket: S) -> Result<Self, Error> {
@@ -640,72 +674,35 @@ impl<S: DatagramSocket> UdpTransport<S> {
     }
 
     fn receive_datagram(&mut self, len: usize, from: SocketAddr) {
-        let scratch = std::mem::take(&mut self.decoded);
-        let datagram = match decode_with(&self.buf[..len], &self.receiver, &mut self.names, scratch) {
-            Ok(d) => d,
-            Err(reason) => return self.count(reason.name()),
+        // Port messages go into the inbox as they are decoded (the hot path); anything else,
+        // and whatever follows it, waits in `rest` for the checks below, so the inbox keeps
+        // the datagram's order. A refused datagram's messages are taken back out.
+        let mark = self.inbox.len();
+        let mut rest = std::mem::take(&mut self.decoded);
+        rest.clear();
+        let mut sink =
+            Inbound { inbox: &mut self.inbox, joined: &self.joined, rest: &mut rest, sender: NodeId(0), not_member: 0 };
+        let decoded = decode_into(&self.buf[..len], &self.receiver, &mut self.names, &mut sink);
+        let not_member = sink.not_member;
+        let admitted = match decoded {
+            Ok(header) => self.admit(header, from, len),
+            Err(reason) => {
+                self.count(reason.name());
+                None
+            }
         };
-        if datagram.sender == self.id {
-            if self.is_own(from, datagram.seq) {
-                // Our own broadcast, looped back by the network.
-                return self.count("own");
-            }
-            // Another node uses our id: both of us hear the other, so both report it.
-            self.count("duplicate_id");
-            if !self.duplicates.contains(&from) && self.duplicates.len() < MAX_DUPLICATES {
-                self.duplicates.push(from);
-                self.warnings.push(format!(
-                    "another node with this node's id {} is sending from {from}: node ids must be unique in a team \
-                     (its messages are dropped and counted as duplicate_id)",
-                    self.id.0
-                ));
-            }
+        let Some((sender, is_new)) = admitted else {
+            self.inbox.truncate(mark);
+            self.decoded = rest;
             return;
+        };
+        if not_member > 0 {
+            self.counters.add_n("not_member", not_member);
+            self.generation += 1;
         }
         let now = self.now;
-        let default_interval = self.config.hello_interval;
-        if datagram.authenticated && !self.accept_sequence(datagram.sender, datagram.seq) {
-            return self.count("replayed");
-        }
-        let is_new = !self.peers.contains_key(&datagram.sender);
-        if is_new && self.peers.len() >= MAX_PEERS {
-            // Make room by forgetting the unproven peer heard from longest ago; proven peers
-            // are never evicted for a newcomer (a flood of forged ids cannot push real peers out).
-            let oldest = self.peers.iter().filter(|(_, p)| !p.proven()).min_by_key(|(_, p)| p.last_heard);
-            match oldest.map(|(n, _)| *n) {
-                Some(n) => {
-                    self.peers.remove(&n);
-                    self.count("peer_evicted");
-                }
-                None => return self.count("peer_table_full"),
-            }
-        }
-        let peer = self.peers.entry(datagram.sender).or_insert_with(|| Peer {
-            addr: from,
-            name: String::new(),
-            groups: Vec::new(),
-            interval: default_interval,
-            last_heard: now,
-            heard: 0,
-            authenticated: false,
-            budget: Budget::default(),
-        });
-        peer.heard = peer.heard.saturating_add(1);
-        peer.authenticated |= datagram.authenticated;
-        if peer.addr != from {
-            // Proof was for the old address; the new one starts over.
-            peer.budget.reset();
-        }
-        peer.addr = from;
-        peer.last_heard = now;
-        peer.budget.received = peer.budget.received.saturating_add(len as u64);
-        // Forging an authenticated datagram needs the team key (and a fresh number).
-        peer.budget.proven |= datagram.authenticated;
-        self.count_hot(Hot::DatagramsReceived, 1);
-        let sender = datagram.sender;
         let mut hello = false;
-        let mut messages = datagram.messages;
-        for m in messages.drain(..) {
+        for m in rest.drain(..) {
             match m {
                 WireMessage::Port(p) => self.inbox.push_back((sender, Message::Port(p))),
                 WireMessage::GroupPort { group, message } => {
@@ -797,7 +794,7 @@ impl<S: DatagramSocket> UdpTransport<S> {
                 WireMessage::Unknown { .. } => self.count("unknown_kind"),
             }
         }
-        self.decoded = messages;
+        self.decoded = rest;
         if is_new {
             self.release_held(sender);
         }
@@ -807,6 +804,76 @@ impl<S: DatagramSocket> UdpTransport<S> {
                 self.next_expiry = self.next_expiry.min(expiry(p));
             }
         }
+    }
+
+    /// The checks a decoded datagram passes before anything in it is applied (our own
+    /// looped-back broadcast, another node with our id, a replayed number, a full peer table),
+    /// and the peer table's update for its sender: `(sender, whether the sender is new)`, or
+    /// `None`, counted, for a datagram to drop.
+    fn admit(&mut self, header: Header, from: SocketAddr, len: usize) -> Option<(NodeId, bool)> {
+        if header.sender == self.id {
+            if self.is_own(from, header.seq) {
+                // Our own broadcast, looped back by the network.
+                self.count("own");
+                return None;
+            }
+            // Another node uses our id: both of us hear the other, so both report it.
+            self.count("duplicate_id");
+            if !self.duplicates.contains(&from) && self.duplicates.len() < MAX_DUPLICATES {
+                self.duplicates.push(from);
+                self.warnings.push(format!(
+                    "another node with this node's id {} is sending from {from}: node ids must be unique in a team \
+                     (its messages are dropped and counted as duplicate_id)",
+                    self.id.0
+                ));
+            }
+            return None;
+        }
+        let now = self.now;
+        let default_interval = self.config.hello_interval;
+        if header.authenticated && !self.accept_sequence(header.sender, header.seq) {
+            self.count("replayed");
+            return None;
+        }
+        let is_new = !self.peers.contains_key(&header.sender);
+        if is_new && self.peers.len() >= MAX_PEERS {
+            // Make room by forgetting the unproven peer heard from longest ago; proven peers
+            // are never evicted for a newcomer (a flood of forged ids cannot push real peers out).
+            let oldest = self.peers.iter().filter(|(_, p)| !p.proven()).min_by_key(|(_, p)| p.last_heard);
+            match oldest.map(|(n, _)| *n) {
+                Some(n) => {
+                    self.peers.remove(&n);
+                    self.count("peer_evicted");
+                }
+                None => {
+                    self.count("peer_table_full");
+                    return None;
+                }
+            }
+        }
+        let peer = self.peers.entry(header.sender).or_insert_with(|| Peer {
+            addr: from,
+            name: String::new(),
+            groups: Vec::new(),
+            interval: default_interval,
+            last_heard: now,
+            heard: 0,
+            authenticated: false,
+            budget: Budget::default(),
+        });
+        peer.heard = peer.heard.saturating_add(1);
+        peer.authenticated |= header.authenticated;
+        if peer.addr != from {
+            // Proof was for the old address; the new one starts over.
+            peer.budget.reset();
+        }
+        peer.addr = from;
+        peer.last_heard = now;
+        peer.budget.received = peer.budget.received.saturating_add(len as u64);
+        // Forging an authenticated datagram needs the team key (and a fresh number).
+        peer.budget.proven |= header.authenticated;
+        self.count_hot(Hot::DatagramsReceived, 1);
+        Some((header.sender, is_new))
     }
 
     fn reply_part(&mut self, sender: NodeId, id: u64, part: u16, parts: u16, payload: ayllu_wire::ReplyPart) {
@@ -1164,5 +1231,59 @@ impl<S: DatagramSocket> Transport for UdpTransport<S> {
     }
     fn take_warnings(&mut self, out: &mut Vec<String>) {
         out.append(&mut self.warnings);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ayllu_core::{ConnectionId, ConnectionKind, Value};
+
+    fn port(seq: u64) -> PortMessage {
+        PortMessage {
+            conn: ConnectionId(1),
+            seq,
+            behavior: "R".into(),
+            port: "In".into(),
+            kind: ConnectionKind::Normal,
+            priority: 0,
+            value: Value::Int(seq as i64),
+        }
+    }
+
+    /// Port messages before any other message go straight to the inbox (a group's only to a
+    /// member); from the first other message on, everything waits in `rest`, in order, so the
+    /// inbox gets a datagram's messages in the order they were sent.
+    #[test]
+    fn inbound_keeps_the_datagrams_order() {
+        let mut inbox = VecDeque::new();
+        let mut rest = Vec::new();
+        let joined = ["arm".to_string()];
+        let mut sink =
+            Inbound { inbox: &mut inbox, joined: &joined, rest: &mut rest, sender: NodeId(0), not_member: 0 };
+        sink.header(&Header { sender: NodeId(9), seq: 1, authenticated: false });
+        sink.port(port(1), None);
+        sink.port(port(2), Some("arm".into()));
+        sink.port(port(3), Some("legs".into()));
+        sink.other(WireMessage::Challenge { cookie: [0; 16] });
+        sink.port(port(4), None);
+        sink.port(port(5), Some("legs".into()));
+        assert_eq!(sink.not_member, 1, "counted once the datagram is admitted");
+        let seqs: Vec<u64> = inbox
+            .iter()
+            .map(|(from, m)| match m {
+                Message::Port(p) if *from == NodeId(9) => p.seq,
+                other => panic!("{other:?}"),
+            })
+            .collect();
+        assert_eq!(seqs, [1, 2]);
+        assert_eq!(
+            rest,
+            [
+                WireMessage::Challenge { cookie: [0; 16] },
+                WireMessage::Port(port(4)),
+                WireMessage::GroupPort { group: "legs".into(), message: port(5) },
+            ]
+        );
     }
 }
