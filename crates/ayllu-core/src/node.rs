@@ -1724,6 +1724,14 @@ impl NodeCore {
         self.outbox.pop_front()
     }
 
+    /// The messages waiting to be sent, oldest first, for a runtime that sends them where
+    /// they lie and then empties the queue, rather than taking them out one by one with
+    /// [`NodeCore::pop_outgoing`] (each a move of the whole message). Sending them in this
+    /// order, each once, is the caller's part.
+    pub fn outgoing_mut(&mut self) -> &mut VecDeque<Outgoing> {
+        &mut self.outbox
+    }
+
     /// How many messages wait to be sent.
     pub fn outgoing_len(&self) -> usize {
         self.outbox.len()

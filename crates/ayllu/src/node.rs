@@ -15,7 +15,7 @@ use ayllu_core::{
 
 use crate::clock::{Clock, MonotonicClock};
 use crate::error::Error;
-use crate::transport::{self, Sent, Transport};
+use crate::transport::{self, SendTally, Transport};
 
 /// Traffic figures of one node.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -24,7 +24,7 @@ pub struct NodeStats {
     pub steps: u64,
     /// Messages that left (handed to the network; best effort from there, N1).
     pub sent: u64,
-    /// Messages held for a node not heard from yet ([`Sent::Held`]): they leave when it
+    /// Messages held for a node not heard from yet ([`crate::Sent::Held`]): they leave when it
     /// greets, or are dropped after a bounded time (see the transport's counters).
     pub held: u64,
     /// Messages that could not be sent (no route, destination gone, unencodable).
@@ -319,12 +319,13 @@ impl Node {
 
     /// Hand the transport everything the core wants sent, and end the batch (N3).
     fn send_outgoing(&mut self) {
-        while let Some(out) = self.core.pop_outgoing() {
-            match self.transport.send(out) {
-                Sent::Now => self.stats.sent += 1,
-                Sent::Held => self.stats.held += 1,
-                Sent::Dropped => self.stats.dropped += 1,
-            }
+        // Most turns of a node that waits send nothing: no call into the transport then.
+        if self.core.outgoing_len() > 0 {
+            let mut tally = SendTally::default();
+            self.transport.send_all(self.core.outgoing_mut(), &mut tally);
+            self.stats.sent += tally.sent;
+            self.stats.held += tally.held;
+            self.stats.dropped += tally.dropped;
         }
         self.transport.flush();
     }

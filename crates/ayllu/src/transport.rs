@@ -7,6 +7,8 @@
 //! * a message to a group reaches every member except the sender;
 //! * `recv` never blocks; `wait` blocks at most until its timeout.
 
+use std::collections::VecDeque;
+
 use ayllu_core::{Instant, Message, NodeId, Outgoing};
 
 use crate::error::Error;
@@ -21,6 +23,15 @@ pub trait Transport: Send {
     /// Hand a message over for delivery (best effort), and say what became of it: a message
     /// is only reported [`Sent::Now`] when it really leaves (N1 stays best effort after that).
     fn send(&mut self, out: Outgoing) -> Sent;
+    /// Hand over every message of `outbox`, oldest first, leaving it empty, and count what
+    /// became of each in `tally`: what [`Transport::send`] on each does (the default). A
+    /// transport that can send a borrowed message overrides it to send the messages where they
+    /// lie, sparing each its moves out of the queue and into `send`.
+    fn send_all(&mut self, outbox: &mut VecDeque<Outgoing>, tally: &mut SendTally) {
+        while let Some(out) = outbox.pop_front() {
+            tally.add(self.send(out));
+        }
+    }
     /// The next message that has arrived, if any. Never blocks.
     fn recv(&mut self) -> Option<(NodeId, Message)>;
     /// Block until a message may be available or `timeout` passes.
@@ -92,6 +103,9 @@ impl Transport for Box<dyn Transport> {
     fn send(&mut self, out: Outgoing) -> Sent {
         (**self).send(out)
     }
+    fn send_all(&mut self, outbox: &mut VecDeque<Outgoing>, tally: &mut SendTally) {
+        (**self).send_all(outbox, tally)
+    }
     fn recv(&mut self) -> Option<(NodeId, Message)> {
         (**self).recv()
     }
@@ -147,6 +161,28 @@ pub enum Sent {
     /// It cannot be delivered (no route, destination gone, unencodable); counted by cause in
     /// the transport's counters.
     Dropped,
+}
+
+/// How many of the messages handed to [`Transport::send_all`] became each [`Sent`].
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq)]
+pub struct SendTally {
+    /// [`Sent::Now`].
+    pub sent: u64,
+    /// [`Sent::Held`].
+    pub held: u64,
+    /// [`Sent::Dropped`].
+    pub dropped: u64,
+}
+
+impl SendTally {
+    /// Count one message's fate.
+    pub fn add(&mut self, sent: Sent) {
+        match sent {
+            Sent::Now => self.sent += 1,
+            Sent::Held => self.held += 1,
+            Sent::Dropped => self.dropped += 1,
+        }
+    }
 }
 
 /// A peer as a transport knows it.

@@ -36,7 +36,7 @@ use crate::datagram::{DatagramSocket, OsSocket};
 use crate::error::Error;
 use crate::operator::OperatorGate;
 use crate::routability::{Budget, Cookies};
-use crate::transport::{PeerInfo, Sent, Transport};
+use crate::transport::{PeerInfo, SendTally, Sent, Transport};
 use crate::udp_config::{UdpConfig, MAX_DATAGRAM};
 
 /// Bounds that keep a flood from growing memory (N4).
@@ -738,7 +738,7 @@ impl<S: DatagramSocket> UdpTransport<S> {
                                 let reply = ControlBody::Reply { result: Err(why) };
                                 let _ = self.send_message(
                                     &Destination::Node(sender),
-                                    Message::Control(ControlMessage { id, body: reply }),
+                                    &Message::Control(ControlMessage { id, body: reply }),
                                 );
                             }
                         }
@@ -763,8 +763,10 @@ impl<S: DatagramSocket> UdpTransport<S> {
                 }
                 WireMessage::UnknownRequest { id, .. } => {
                     let reply = ControlBody::Reply { result: Err("unknown operation".into()) };
-                    let _ = self
-                        .send_message(&Destination::Node(sender), Message::Control(ControlMessage { id, body: reply }));
+                    let _ = self.send_message(
+                        &Destination::Node(sender),
+                        &Message::Control(ControlMessage { id, body: reply }),
+                    );
                 }
                 WireMessage::Reply { id, part, parts, payload } => self.reply_part(sender, id, part, parts, payload),
                 WireMessage::Hello { interval_ms, name, groups } => {
@@ -951,16 +953,18 @@ impl<S: DatagramSocket> UdpTransport<S> {
             std::mem::take(&mut self.held).into_iter().partition(|h| h.to == node);
         self.held = rest;
         for h in mine {
-            if self.send_message(&Destination::Node(node), h.message) == Sent::Now {
+            if self.send_message(&Destination::Node(node), &h.message) == Sent::Now {
                 self.count("held_sent");
             }
         }
     }
 
-    fn send_message(&mut self, to: &Destination, message: Message) -> Sent {
+    /// Send `message` to `to`, from a borrowed message: only a message held for a node not
+    /// heard from yet is copied (the rare case).
+    fn send_message(&mut self, to: &Destination, message: &Message) -> Sent {
         // The hot path, a port message to one node: one lookup, no list of addresses.
-        if let (Destination::Node(n), Message::Port(p)) = (to, &message) {
-            let Some(addr) = self.peers.get(n).map(|peer| peer.addr) else { return self.hold(*n, message) };
+        if let (Destination::Node(n), Message::Port(p)) = (to, message) {
+            let Some(addr) = self.peers.get(n).map(|peer| peer.addr) else { return self.hold(*n, message.clone()) };
             self.push_port(addr, p, None);
             self.unflushed += 1;
             return Sent::Now;
@@ -971,13 +975,13 @@ impl<S: DatagramSocket> UdpTransport<S> {
         if addrs.is_empty() {
             self.route_buf = addrs;
             return match to {
-                Destination::Node(n) => self.hold(*n, message),
+                Destination::Node(n) => self.hold(*n, message.clone()),
                 Destination::Group(_) => {
                     self.count("no_route");
                     Sent::Dropped
                 }
             };
-        } else if let Message::Port(p) = &message {
+        } else if let Message::Port(p) = message {
             // A port message is one wire message, encoded from the core's message (the hot
             // path). To a group it names the group: its address or the team's broadcast
             // reaches non-members too, and they drop it (D-S10.6).
@@ -990,7 +994,7 @@ impl<S: DatagramSocket> UdpTransport<S> {
             }
             self.unflushed += 1;
         } else {
-            match WireMessage::from_core(&message, self.config.mtu, self.config.key.is_some()) {
+            match WireMessage::from_core(message, self.config.mtu, self.config.key.is_some()) {
                 Ok(mut parts) => {
                     if let Destination::Node(n) = to {
                         if !self.may_answer(*n, &parts) {
@@ -1079,7 +1083,24 @@ impl<S: DatagramSocket> Transport for UdpTransport<S> {
         self.id
     }
     fn send(&mut self, out: ayllu_core::Outgoing) -> Sent {
-        self.send_message(&out.to, out.message)
+        self.send_message(&out.to, &out.message)
+    }
+    fn send_all(&mut self, outbox: &mut VecDeque<ayllu_core::Outgoing>, tally: &mut SendTally) {
+        // Sent where they lie, then dropped: one message (a loop's usual turn) taken out at
+        // once, several (a batch) by one drop loop over the queue instead of a move out of it
+        // each (callgrind: the first is 87 instructions cheaper alone, the second 47 a message
+        // cheaper in a batch of 64).
+        if outbox.len() == 1 {
+            if let Some(out) = outbox.front() {
+                tally.add(self.send_message(&out.to, &out.message));
+            }
+            outbox.pop_front();
+            return;
+        }
+        for out in outbox.iter() {
+            tally.add(self.send_message(&out.to, &out.message));
+        }
+        outbox.clear();
     }
     fn flush(&mut self) {
         // Most calls (a node flushes twice a turn) have nothing to send.

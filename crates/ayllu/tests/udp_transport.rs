@@ -604,3 +604,39 @@ fn n4_forged_hellos_and_reply_parts_are_bounded_in_bytes_not_only_in_entries() {
     }
     assert!(count(&team.nodes()[b], "reply_evicted") >= 1, "held more than 2 MiB of report parts");
 }
+
+#[test]
+fn every_message_of_a_turn_is_sent_once_and_counted_by_its_fate() {
+    // A turn's messages leave from the node's queue where they lie (`Transport::send_all`):
+    // one message alone, and several of different fates together, each counted once.
+    let bus = DatagramBus::new();
+    let mut team = Lockstep::new("udp-send-all");
+    let a = node(&mut team, &bus, 1, None, TEAM);
+    let b = node(&mut team, &bus, 2, None, TEAM);
+    team.advance(Duration::from_millis(250), TICK);
+    let to_b = |port: &str| Endpoint::node(NodeId(2), "R", port);
+    team.node(a).connect(&Endpoint::local("R", "Txt"), &to_b("Txt"), ConnectionKind::Normal).unwrap();
+    team.node(a).connect(&Endpoint::local("R", "Out"), &to_b("In"), ConnectionKind::Normal).unwrap();
+    team.node(a)
+        .connect(&Endpoint::local("R", "Out"), &Endpoint::node(NodeId(9), "R", "In"), ConnectionKind::Normal)
+        .unwrap();
+    let before = team.nodes()[a].stats();
+
+    // One message in the turn.
+    team.node(a).write("R", "Txt", Value::text("one")).unwrap();
+    team.advance(TICK * 2, TICK);
+    let stats = team.nodes()[a].stats();
+    assert_eq!((stats.sent - before.sent, stats.held - before.held), (1, 0));
+    assert_eq!(team.nodes()[b].read("R", "Txt").unwrap(), Value::text("one"));
+
+    // Three in one turn: two to node 2 (sent, one datagram), one to node 9, never heard (held).
+    team.node(a).write("R", "Txt", Value::text("two")).unwrap();
+    team.node(a).write("R", "Out", 5i64).unwrap();
+    team.advance(TICK * 2, TICK);
+    let stats = team.nodes()[a].stats();
+    assert_eq!((stats.sent - before.sent, stats.held - before.held, stats.dropped - before.dropped), (3, 1, 0));
+    assert_eq!(team.nodes()[b].read("R", "Txt").unwrap(), Value::text("two"));
+    assert_eq!(input(&team.nodes()[b]), Value::Int(5));
+    assert_eq!(count(&team.nodes()[a], "held"), 1);
+    assert_eq!(team.nodes()[b].stats().received, 3, "each message arrived once");
+}
