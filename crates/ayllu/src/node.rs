@@ -286,10 +286,11 @@ impl Node {
         }
         let now = self.clock.now();
         self.transport_due = self.transport.tick(now);
-        while let Some((from, message)) = self.transport.recv() {
-            self.stats.received += 1;
-            self.core.receive(now, from, message);
-        }
+        let (core, received) = (&mut self.core, &mut self.stats.received);
+        self.transport.recv_all(&mut |from, message| {
+            *received += 1;
+            core.receive_shared(now, from, message);
+        });
         // Peers the transport gave up on: what they held on our ports is released (D3.7).
         // After receiving, so that a dead node's last message still queued cannot take back
         // what its departure released.

@@ -34,6 +34,15 @@ pub trait Transport: Send {
     }
     /// The next message that has arrived, if any. Never blocks.
     fn recv(&mut self) -> Option<(NodeId, Message)>;
+    /// Hand `deliver` every message that has arrived, in order, until [`Transport::recv`] would
+    /// return `None`: what calling `recv` until then does (the default). A transport that
+    /// queues what it decoded overrides it to hand the messages over where they lie, sparing
+    /// each its move out of the queue. Never blocks.
+    fn recv_all(&mut self, deliver: &mut dyn FnMut(NodeId, &Message)) {
+        while let Some((from, message)) = self.recv() {
+            deliver(from, &message);
+        }
+    }
     /// Block until a message may be available or `timeout` passes.
     fn wait(&mut self, timeout: std::time::Duration);
     /// Start receiving messages sent to `group`.
@@ -108,6 +117,9 @@ impl Transport for Box<dyn Transport> {
     }
     fn recv(&mut self) -> Option<(NodeId, Message)> {
         (**self).recv()
+    }
+    fn recv_all(&mut self, deliver: &mut dyn FnMut(NodeId, &Message)) {
+        (**self).recv_all(deliver)
     }
     fn wait(&mut self, timeout: std::time::Duration) {
         (**self).wait(timeout)

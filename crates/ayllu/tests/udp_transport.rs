@@ -640,3 +640,69 @@ fn every_message_of_a_turn_is_sent_once_and_counted_by_its_fate() {
     assert_eq!(count(&team.nodes()[a], "held"), 1);
     assert_eq!(team.nodes()[b].stats().received, 3, "each message arrived once");
 }
+
+#[test]
+fn recv_all_hands_over_what_recv_would_in_the_same_order() {
+    // Two receivers with the same configuration get the same datagrams: one is read with
+    // `recv` until it returns nothing, the other with `recv_all` (what a node uses). Datagrams
+    // of one and of many port messages, a group message for a non-member, a port message after
+    // a CHALLENGE (which waits for the checks with everything after it), a malformed one and
+    // one from another team; many datagrams, so the inbox is refilled again and again.
+    use ayllu::Transport;
+    let (bus_a, bus_b) = (DatagramBus::new(), DatagramBus::new());
+    let receiver = |bus: &DatagramBus| {
+        let mut config = UdpConfig::new(addr(2));
+        config.team = TEAM;
+        let mut t = UdpTransport::with_socket(NodeId(2), config, bus.bind(addr(2)).unwrap()).unwrap();
+        t.join("team");
+        t
+    };
+    let (mut by_recv, mut by_recv_all) = (receiver(&bus_a), receiver(&bus_b));
+    let (mut from_a, mut from_b) = (bus_a.bind(addr(5)).unwrap(), bus_b.bind(addr(5)).unwrap());
+    let mut datagrams = Vec::new();
+    let mut seq = 0;
+    let mut next = || {
+        seq += 1;
+        seq
+    };
+    for round in 0..300u64 {
+        let mut w = DatagramWriter::new(TEAM, NodeId(5), next(), None, 1472);
+        let n = if round % 7 == 0 { 9 } else { 1 };
+        for k in 0..n {
+            w.push(&port_message(k, round + 1, "In", Value::Int((round * 10 + k) as i64))).unwrap();
+        }
+        match round % 11 {
+            3 => {
+                let WireMessage::Port(p) = port_message(50, round + 1, "In", Value::Int(-1)) else { unreachable!() };
+                w.push(&WireMessage::GroupPort { group: "legs".into(), message: p }).unwrap();
+            }
+            5 => {
+                w.push(&WireMessage::Challenge { cookie: [round as u8; 16] }).unwrap();
+                w.push(&port_message(60, round + 1, "In", Value::Int(-2))).unwrap();
+            }
+            7 => w.push_raw(0x01, &[1, 2, 3]).unwrap(),
+            _ => {}
+        }
+        datagrams.push(w.finish());
+        if round % 13 == 0 {
+            datagrams.push(
+                encode_datagram(TEAM + 1, NodeId(5), next(), None, &[port_message(1, 1, "In", Value::Int(9))]).unwrap(),
+            );
+        }
+    }
+    for d in &datagrams {
+        from_a.send_to(d, addr(2)).unwrap();
+        from_b.send_to(d, addr(2)).unwrap();
+    }
+    let mut got_recv = Vec::new();
+    while let Some(m) = by_recv.recv() {
+        got_recv.push(m);
+    }
+    let mut got_recv_all = Vec::new();
+    by_recv_all.recv_all(&mut |from, m| got_recv_all.push((from, m.clone())));
+    assert!(got_recv.len() > 600, "{}", got_recv.len());
+    assert_eq!(got_recv_all, got_recv);
+    assert_eq!(by_recv_all.counters(), by_recv.counters());
+    assert!(by_recv.counters().iter().any(|(c, n)| c == "not_member" && *n > 0));
+    assert!(by_recv.counters().iter().any(|(c, n)| c == "malformed" && *n > 0));
+}
