@@ -1826,6 +1826,11 @@ def parse_url(url: str) -> dict[str, Any]:
                 raise ValueError("operator must be 64 hex digits (the public key `ayllu keygen` prints)")
         elif k == "operator_secret":
             out["operator_secret"] = read_operator_secret(v)
+        elif k == "spin_us":
+            # How long a full node's wait may poll (D-N3.4). A lite node never polls: it
+            # checks the form, so that one AYLLU_URL serves both.
+            if not v.isdigit() or int(v) > 1000:
+                raise ValueError(f"spin_us `{v}` must be a number from 0 to 1000")
         else:
             raise ValueError(f"unknown option `{k}`")
     return out

@@ -45,6 +45,11 @@ pub trait DatagramSocket: Send {
     fn set_recheck(&mut self, interval: StdDuration) {
         let _ = interval;
     }
+    /// How long a wait may poll while datagrams stream in ([`SPIN`] unless told; zero never
+    /// polls). Sockets that never poll ignore it.
+    fn set_spin(&mut self, budget: StdDuration) {
+        let _ = budget;
+    }
     /// The time of the node's turn now beginning (its clock; the UDP transport passes it on
     /// every turn): what [`DatagramSocket::set_recheck`]'s interval is counted against, so
     /// that a receive need not read the clock. A socket that never hears it counts from zero;
@@ -103,6 +108,9 @@ pub struct OsSocket {
     /// less than [`SPIN`] after the read before: a stream, for which a wait polls first.
     last_data: Option<std::time::Instant>,
     streak: u8,
+    /// How long a wait may poll ([`SPIN`] unless the URL's `spin_us` says otherwise); zero:
+    /// no two reads are ever that close, so no streak builds and no wait polls.
+    spin: StdDuration,
     /// Empty findings in a row since a read last found datagrams: the next one stands for
     /// `recheck` doubled this many times ([`RECHECK_DOUBLINGS`] at most).
     quiet: u32,
@@ -405,6 +413,7 @@ impl OsSocket {
             sparse_waits: 0,
             last_data: None,
             streak: 0,
+            spin: SPIN,
             quiet: 0,
             sent_since_read: false,
         })
@@ -420,7 +429,7 @@ impl OsSocket {
             return;
         }
         let now = std::time::Instant::now();
-        let close = self.last_data.is_some_and(|t| now.duration_since(t) < SPIN);
+        let close = self.last_data.is_some_and(|t| now.duration_since(t) < self.spin);
         self.streak = if close { self.streak.saturating_add(1) } else { 0 };
         self.last_data = Some(now);
     }
@@ -450,7 +459,7 @@ impl OsSocket {
             return Some(StdDuration::ZERO);
         }
         let start = std::time::Instant::now();
-        let budget = SPIN.min(timeout);
+        let budget = self.spin.min(timeout);
         loop {
             match self.ahead.fill(&self.socket) {
                 Ok(()) if !self.ahead.got.is_empty() => {
@@ -783,6 +792,9 @@ impl DatagramSocket for OsSocket {
     fn local_addr(&self) -> io::Result<SocketAddr> {
         self.socket.local_addr()
     }
+    fn set_spin(&mut self, budget: StdDuration) {
+        self.spin = budget;
+    }
     fn set_recheck(&mut self, interval: StdDuration) {
         self.recheck = interval;
         self.empty_until = None;
@@ -1072,6 +1084,25 @@ mod tests {
         tx.send_to(b"t", to).unwrap();
         rx.wait(StdDuration::from_secs(1));
         assert_eq!(rx.recv_from(&mut buf).unwrap().map(|(n, _)| n), Some(1), "the sleeping wait hears it");
+    }
+
+    /// `spin_us=0` (`set_spin(0)`): on a real-time clock too, no two reads are ever close
+    /// enough to make a stream, so a read ends any streak and no wait polls.
+    #[test]
+    fn a_spin_of_zero_never_makes_a_stream() {
+        let (mut rx, mut tx) = loopback_pair();
+        let to = rx.local_addr().unwrap();
+        let mut buf = vec![0u8; SLOT];
+        rx.set_recheck(RECHECK);
+        rx.set_spin(StdDuration::ZERO);
+        for i in 0..4u8 {
+            // As if a stream had been running: the read must end it all the same.
+            (rx.streak, rx.last_data) = (STREAK, Some(std::time::Instant::now()));
+            tx.send_to(&[i], to).unwrap();
+            rx.wait(StdDuration::from_secs(1));
+            assert_eq!(rx.recv_from(&mut buf).unwrap().map(|(n, _)| n), Some(1));
+            assert_eq!(rx.streak, 0, "read {i}");
+        }
     }
 
     /// A train sent in one call arrives as the very datagrams it holds, in order, with the

@@ -398,6 +398,7 @@ impl MessageSink for Inbound<'_> {
 impl<S: DatagramSocket> UdpTransport<S> {
     /// A transport over any datagram socket (tests use the in-memory bus and fault injector).
     pub fn with_socket(id: NodeId, config: UdpConfig, mut socket: S) -> Result<Self, Error> {
+        socket.set_spin(config.spin);
         socket.set_multicast_ttl(config.ttl).map_err(|e| Error::Io {
             what: format!("setting the multicast TTL to {}", config.ttl),
             error: e.to_string(),

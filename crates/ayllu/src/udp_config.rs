@@ -3,7 +3,7 @@
 //! ```text
 //! udp://BIND_ADDR:PORT?team=7&key=HEX64&peer=ADDR:PORT&broadcast=ADDR:PORT
 //!                     &group=NAME@ADDR:PORT&discovery=ADDR:PORT&ttl=1
-//!                     &hello_ms=1000&mtu=1472&name=robot-1
+//!                     &hello_ms=1000&mtu=1472&name=robot-1&spin_us=50
 //! ```
 //!
 //! Every program (the runtime's [`default_url`], the `ayllu` tool, the AylluLite clients)
@@ -29,6 +29,10 @@
 //!   request id from each requester), so that a datagram or signed request captured before a
 //!   restart is not accepted after it (N5, D-N5.3).
 //! * `mtu`: the largest datagram sent (batching fills datagrams up to it, N3).
+//! * `spin_us` (default 50, 0 to 1000): how long a wait may poll the socket, yielding the CPU
+//!   between polls, before it sleeps, while datagrams stream in less than this far apart
+//!   (D-N3.4). `spin_us=0` never polls: every wait sleeps in the kernel at once (a robot
+//!   computer that counts its watts more than a receiver's wake-ups).
 //! * `operator=HEX64`: the operator's public key (`ayllu keygen` prints it). The node then
 //!   applies structure changes (CONNECT, DISCONNECT) only when signed with the operator's
 //!   secret, each once (docs/security.md). With `state=PATH` it also remembers across
@@ -49,6 +53,10 @@ use crate::error::Error;
 pub const DEFAULT_MTU: usize = 1472;
 /// Largest datagram accepted (spec/protocol.md).
 pub const MAX_DATAGRAM: usize = 8192;
+
+/// The longest a wait may poll (`spin_us`): a millisecond of a CPU per stream that stops is
+/// already much for a 2-core robot computer (the issue's "no unbounded spinning").
+pub const MAX_SPIN_US: u64 = 1000;
 
 /// The environment variable every Ayllu program reads its `udp://` URL from.
 pub const URL_ENV: &str = "AYLLU_URL";
@@ -92,6 +100,9 @@ pub struct UdpConfig {
     pub operator: Option<ayllu_wire::OperatorPublic>,
     /// The operator's secret, to sign the structure changes this node requests.
     pub operator_secret: Option<ayllu_wire::OperatorSecret>,
+    /// How long a wait may poll the socket while datagrams stream in, before it sleeps
+    /// (D-N3.4; [`crate::datagram::SPIN`] by default); zero never polls.
+    pub spin: std::time::Duration,
 }
 
 impl UdpConfig {
@@ -112,6 +123,7 @@ impl UdpConfig {
             name: String::new(),
             operator: None,
             operator_secret: None,
+            spin: crate::datagram::SPIN,
         }
     }
 
@@ -178,6 +190,14 @@ impl UdpConfig {
                     })?);
                 }
                 "operator_secret" => config.operator_secret = Some(read_operator_secret(v).map_err(bad)?),
+                "spin_us" => {
+                    let us: u64 = v
+                        .parse()
+                        .ok()
+                        .filter(|us| *us <= MAX_SPIN_US)
+                        .ok_or_else(|| bad(format!("spin_us `{v}` must be a number from 0 to {MAX_SPIN_US}")))?;
+                    config.spin = std::time::Duration::from_micros(us);
+                }
                 "name" => {
                     if v.len() > 255 {
                         return Err(bad("name must be at most 255 bytes".into()));
@@ -276,7 +296,8 @@ mod tests {
         fn any_text_is_parsed_or_refused_never_a_panic(
             pairs in proptest::collection::vec((
                 proptest::sample::select(vec![
-                    "team", "key", "peer", "broadcast", "group", "discovery", "ttl", "hello_ms", "mtu", "name", "x",
+                    "team", "key", "peer", "broadcast", "group", "discovery", "ttl", "hello_ms", "mtu", "name",
+                    "spin_us", "x",
                 ]),
                 "[0-9.:@é+\\- ]{0,24}",
             ), 0..6),
@@ -288,6 +309,14 @@ mod tests {
             let _ = UdpConfig::parse(&format!("udp://127.0.0.1:7400?key={key}"));
             let _ = UdpConfig::parse(&format!("udp://{junk}"));
         }
+    }
+
+    #[test]
+    fn spin_us_sets_how_long_a_wait_may_poll() {
+        let at = |q: &str| UdpConfig::parse(&format!("udp://127.0.0.1:1{q}")).unwrap().spin;
+        assert_eq!(at(""), crate::datagram::SPIN);
+        assert_eq!(at("?spin_us=0"), std::time::Duration::ZERO);
+        assert_eq!(at("?spin_us=1000"), std::time::Duration::from_micros(1000));
     }
 
     #[test]
@@ -307,6 +336,8 @@ mod tests {
             ("udp://127.0.0.1:1?discovery=127.0.0.1:7400", "multicast"),
             ("udp://127.0.0.1:1?ttl=256", "ttl"),
             ("udp://127.0.0.1:1?ttl=-1", "ttl"),
+            ("udp://127.0.0.1:1?spin_us=1001", "spin_us"),
+            ("udp://127.0.0.1:1?spin_us=-1", "spin_us"),
             ("tcp://127.0.0.1:1", "udp://"),
         ] {
             let e = UdpConfig::parse(url).unwrap_err().to_string();

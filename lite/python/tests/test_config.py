@@ -69,6 +69,12 @@ def test_operator_options(tmp_path: Path) -> None:
         al.parse_url("udp://127.0.0.1:0?operator=abc")
 
 
+def test_a_full_nodes_spin_us_is_accepted() -> None:
+    # One AYLLU_URL serves full nodes and lite clients alike.
+    al.parse_url("udp://127.0.0.1:1?spin_us=0")
+    al.parse_url("udp://127.0.0.1:1?spin_us=1000")
+
+
 @pytest.mark.parametrize(
     ("url", "needle"),
     [
@@ -77,6 +83,7 @@ def test_operator_options(tmp_path: Path) -> None:
         ("udp://127.0.0.1:1?key=+0112233445566778899aabbccddeeff00112233445566778899aabbccddeeff", "hex"),
         ("udp://127.0.0.1:1?discovery=127.0.0.1:7400", "multicast"),
         ("udp://127.0.0.1:1?ttl=256", "ttl"),
+        ("udp://127.0.0.1:1?spin_us=1001", "spin_us"),
         ("udp://127.0.0.1:1?colour=blue", "unknown option"),
         ("udp://nowhere", "HOST:PORT"),
     ],
