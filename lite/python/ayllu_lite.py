@@ -1267,7 +1267,9 @@ class LiteNode:
         machine). Understood: the bind address, ``team``, ``key``, ``peer`` (repeatable),
         ``broadcast``, ``discovery``, ``ttl``, ``hello_ms``, ``name``. Keyword arguments
         override the URL's settings. ``operator_secret=PATH`` signs structure changes; a node's
-        ``operator=`` key is accepted (a lite node applies no structure change)."""
+        ``operator=`` key is accepted (a lite node applies no structure change), and so are
+        ``state=`` and ``spin_us=`` (a full node's; a lite node keeps its windows in memory and
+        never polls)."""
         options = parse_url(url if url is not None else default_url())
         options.update(kwargs)
         return cls(node_id, **options)
