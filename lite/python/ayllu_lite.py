@@ -1157,7 +1157,7 @@ class Connection:
         """Send one value along the connection (best effort: a lost value is not resent).
 
         Raises :class:`EncodeError` for a value a receiver would drop or that does not fit in
-        one datagram of the default path MTU (values are never fragmented)."""
+        one datagram of the node's MTU (values are never fragmented)."""
         with self._node._lock:
             self.seq += 1
             msg = Port(self.conn, self.seq, self.kind, self.period_ns, self.priority, self.behavior, self.port, value)
@@ -1201,7 +1201,12 @@ class LiteNode:
         hello_interval_ms: int = 1000,
         clock: Callable[[], float] = time.monotonic,
         operator_secret: bytes | None = None,
+        mtu: int = MTU,
     ) -> None:
+        if not 64 <= mtu <= MAX_DATAGRAM:
+            raise ValueError(f"mtu must be between 64 and {MAX_DATAGRAM}")
+        #: The largest datagram this node sends (the URL's ``mtu``, as full nodes have it).
+        self.mtu = mtu
         if key is not None and len(key) != 32:
             raise ValueError("team keys are 32 bytes (64 hex digits)")
         if operator_secret is not None:
@@ -1265,7 +1270,7 @@ class LiteNode:
         """A lite node configured by a ``udp://`` URL, as every Ayllu program is: ``url``, else
         the environment variable ``AYLLU_URL``, else :data:`DEFAULT_URL` (discovery on this
         machine). Understood: the bind address, ``team``, ``key``, ``peer`` (repeatable),
-        ``broadcast``, ``discovery``, ``ttl``, ``hello_ms``, ``name``. Keyword arguments
+        ``broadcast``, ``discovery``, ``ttl``, ``hello_ms``, ``name``, ``mtu``. Keyword arguments
         override the URL's settings. ``operator_secret=PATH`` signs structure changes; a node's
         ``operator=`` key is accepted (a lite node applies no structure change), and so are
         ``state=`` and ``spin_us=`` (a full node's; a lite node keeps its windows in memory and
@@ -1391,7 +1396,7 @@ class LiteNode:
     def _send(self, messages: Sequence[Message], to: Address) -> None:
         with self._lock:
             self._seq += 1
-            data = encode(self.team, self.node_id, self._seq, messages, key=self.key, limit=MTU)
+            data = encode(self.team, self.node_id, self._seq, messages, key=self.key, limit=self.mtu)
             try:
                 self.sock.sendto(data, to)
             except OSError:
@@ -1816,6 +1821,10 @@ def parse_url(url: str) -> dict[str, Any]:
             out["hello_interval_ms"] = int(v)
         elif k == "name":
             out["name"] = v
+        elif k == "mtu":
+            if not v.isdigit() or not 64 <= int(v) <= MAX_DATAGRAM:
+                raise ValueError(f"mtu must be between 64 and {MAX_DATAGRAM}")
+            out["mtu"] = int(v)
         elif k == "state":
             # Replay marks kept across restarts (D-N5.3) belong to full nodes; a lite client
             # sharing the same AYLLU_URL accepts the option and keeps its windows in memory.

@@ -69,6 +69,19 @@ def test_operator_options(tmp_path: Path) -> None:
         al.parse_url("udp://127.0.0.1:0?operator=abc")
 
 
+def test_mtu_bounds_what_a_lite_node_sends() -> None:
+    # The URL's mtu, as a full node reads it: a value that does not fit is refused at send.
+    assert al.parse_url("udp://127.0.0.1:1?mtu=8192")["mtu"] == 8192
+    with al.LiteNode.from_url(4, "udp://127.0.0.1:0?mtu=200") as small, al.LiteNode(5, bind=("127.0.0.1", 0)) as big:
+        assert (small.mtu, big.mtu) == (200, al.MTU)
+        text = "x" * 400
+        to_small = big.connection(small.address, "B", "P")
+        to_big = small.connection(big.address, "B", "P")
+        to_small.send(text)  # fits the default MTU
+        with pytest.raises(al.EncodeError):
+            to_big.send(text)
+
+
 def test_a_full_nodes_spin_us_is_accepted() -> None:
     # One AYLLU_URL serves full nodes and lite clients alike.
     al.parse_url("udp://127.0.0.1:1?spin_us=0")
@@ -84,6 +97,8 @@ def test_a_full_nodes_spin_us_is_accepted() -> None:
         ("udp://127.0.0.1:1?discovery=127.0.0.1:7400", "multicast"),
         ("udp://127.0.0.1:1?ttl=256", "ttl"),
         ("udp://127.0.0.1:1?spin_us=1001", "spin_us"),
+        ("udp://127.0.0.1:1?mtu=63", "mtu"),
+        ("udp://127.0.0.1:1?mtu=8193", "mtu"),
         ("udp://127.0.0.1:1?colour=blue", "unknown option"),
         ("udp://nowhere", "HOST:PORT"),
     ],
