@@ -167,11 +167,7 @@ impl DatagramWriter {
     pub fn push_port(&mut self, message: &PortMessage, group: Option<&str>) -> Result<(), EncodeError> {
         let start = self.buf.len();
         self.buf.extend_from_slice(&[kind::PORT, 0, 0]);
-        let body = encode_port(&mut self.buf, message).and_then(|()| match group {
-            Some(group) => put_str8(&mut self.buf, group, NonEmpty::Yes),
-            None => Ok(()),
-        });
-        if let Err(e) = body {
+        if let Err(e) = encode_port_to(&mut self.buf, message, group) {
             self.buf.truncate(start);
             return Err(e);
         }
@@ -265,11 +261,8 @@ pub fn encoded_len(message: &WireMessage) -> Result<usize, EncodeError> {
 
 fn encode_body(buf: &mut Vec<u8>, message: &WireMessage) -> Result<(), EncodeError> {
     match message {
-        WireMessage::Port(p) => encode_port(buf, p),
-        WireMessage::GroupPort { group, message } => {
-            encode_port(buf, message)?;
-            put_str8(buf, group, NonEmpty::Yes)
-        }
+        WireMessage::Port(p) => encode_port_to(buf, p, None),
+        WireMessage::GroupPort { group, message } => encode_port_to(buf, message, Some(group)),
         WireMessage::Hello { interval_ms, name, groups } => {
             if *interval_ms == 0 {
                 return Err(EncodeError::Invalid("HELLO interval_ms must be above zero"));
@@ -341,6 +334,17 @@ fn encode_body(buf: &mut Vec<u8>, message: &WireMessage) -> Result<(), EncodeErr
 /// PORT, the message sent most, with the checks (and errors) of the field-by-field encoders:
 /// the fixed-size fields are laid out in one array and everything is appended after a single
 /// reservation, rather than with a capacity check and a copy per field.
+/// A PORT body, to a node (`group` is `None`) or to a group (the optional field appended):
+/// the one encoding of both [`DatagramWriter::push`] and [`DatagramWriter::push_port`].
+#[inline(always)]
+fn encode_port_to(buf: &mut Vec<u8>, p: &PortMessage, group: Option<&str>) -> Result<(), EncodeError> {
+    encode_port(buf, p)?;
+    match group {
+        Some(group) => put_str8(buf, group, NonEmpty::Yes),
+        None => Ok(()),
+    }
+}
+
 fn encode_port(buf: &mut Vec<u8>, p: &PortMessage) -> Result<(), EncodeError> {
     let (code, period) = conn_kind_code(p.kind);
     if code != 0 && period == 0 {

@@ -311,7 +311,8 @@ pub struct UdpTransport<S: DatagramSocket = OsSocket> {
     cookies: Cookies,
     /// With `operator=`: the key structure changes must be signed with, and what it let through.
     operator: Option<OperatorGate>,
-    /// The decoded messages of the last datagram, emptied: its allocation is reused.
+    /// The messages of the last datagram that waited for its checks ([`Inbound`]'s `rest`),
+    /// emptied: its allocation is reused.
     decoded: Vec<WireMessage>,
 }
 
@@ -362,6 +363,13 @@ fn each_then_empty<T>(queue: &mut VecDeque<T>, mut f: impl FnMut(&T)) {
     queue.clear();
 }
 
+/// Whether this node joined `group`, for a group's port message (S10, D-S10.6): a handful of
+/// names compared as bytes, nothing allocated. One rule for both ways a message reaches the
+/// inbox ([`Inbound::port`], and the messages that waited for the checks).
+fn joined(joined: &[String], group: &str) -> bool {
+    joined.iter().any(|g| g == group)
+}
+
 /// The receiving end of [`decode_into`] for one datagram: its port messages go straight into
 /// the inbox, a group's only if this node joined the group (S10, D-S10.6; the others are
 /// counted as `not_member` once the datagram is admitted). Any other message goes to `rest`,
@@ -383,8 +391,7 @@ impl MessageSink for Inbound<'_> {
         if !self.rest.is_empty() {
             return self.rest.port(message, group);
         }
-        // A handful of names compared as bytes, nothing allocated.
-        if group.is_none_or(|group| self.joined.iter().any(|g| g.as_str() == &*group)) {
+        if group.is_none_or(|group| joined(self.joined, &group)) {
             self.inbox.push_back((self.sender, Message::Port(message)));
         } else {
             self.not_member += 1;
@@ -727,9 +734,8 @@ impl<S: DatagramSocket> UdpTransport<S> {
             match m {
                 WireMessage::Port(p) => self.inbox.push_back((sender, Message::Port(p))),
                 WireMessage::GroupPort { group, message } => {
-                    // Only a member applies a group's message (S10, D-S10.6); a handful of
-                    // names compared as bytes, nothing allocated.
-                    if self.joined.iter().any(|g| g.as_str() == &*group) {
+                    // Only a member applies a group's message (S10, D-S10.6).
+                    if joined(&self.joined, &group) {
                         self.inbox.push_back((sender, Message::Port(message)));
                     } else {
                         self.count("not_member");
