@@ -550,15 +550,18 @@ impl NodeCore {
 
     // ----- structure (rule S9) -------------------------------------------------------------
 
-    /// Make a behavior class available for [`NodeCore::create`].
-    pub fn define(&mut self, class: BehaviorClass) -> Result<(), Error> {
+    /// Make a behavior class available for [`NodeCore::create`]. A class is immutable once
+    /// defined, so one `Arc<BehaviorClass>` may be defined on many nodes: a simulated team
+    /// then keeps one copy of each process's closure and port specifications instead of one
+    /// per node (its state is in the behaviors' ports and slots, never in the class).
+    pub fn define(&mut self, class: impl Into<Arc<BehaviorClass>>) -> Result<(), Error> {
+        let class: Arc<BehaviorClass> = class.into();
         if class.name.is_empty() {
             return Err(Error::EmptyName { what: "behavior class" });
         }
         if self.classes.contains_key(&class.name) {
-            return Err(Error::DuplicateName { what: "behavior class", name: class.name });
+            return Err(Error::DuplicateName { what: "behavior class", name: class.name.clone() });
         }
-        let class = Arc::new(class);
         self.classes.insert(class.name.clone(), class.clone());
         self.journal(|| Event::Define(class));
         Ok(())

@@ -11,6 +11,7 @@
 use ayllu::stdlib::{base_class, sonar_class, vision_class, BASE, SONAR, VISION};
 use ayllu_core::{Error, Instant, NodeCore, PortRef, Value};
 
+use crate::classes::SharedClasses;
 use crate::world::{Command, Sighting, World, WorldConfig};
 
 /// The port handles of one robot's body on its node.
@@ -31,9 +32,20 @@ pub struct Body {
 impl Body {
     /// Define and create VISION, SONAR and BASE on `core` for `targets` targets.
     pub fn install(core: &mut NodeCore, targets: usize, world: &WorldConfig) -> Result<Body, Error> {
-        core.define(vision_class(targets as u32)?)?;
-        core.define(sonar_class(world.sonar_beams, world.sonar_range)?)?;
-        core.define(base_class()?)?;
+        Body::install_shared(core, targets, world, &mut SharedClasses::new())
+    }
+
+    /// [`Body::install`] with the body's classes taken from (or built into) `classes`, so that
+    /// the robots of one scenario share them (crate::classes).
+    pub fn install_shared(
+        core: &mut NodeCore,
+        targets: usize,
+        world: &WorldConfig,
+        classes: &mut SharedClasses,
+    ) -> Result<Body, Error> {
+        classes.define(core, "Vision", || vision_class(targets as u32))?;
+        classes.define(core, "Sonar", || sonar_class(world.sonar_beams, world.sonar_range))?;
+        classes.define(core, "Base", base_class)?;
         core.create("Vision", VISION)?;
         core.create("Sonar", SONAR)?;
         core.create("Base", BASE)?;

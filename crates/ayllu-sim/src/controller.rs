@@ -34,6 +34,7 @@ use ayllu_core::{
 };
 use serde::{Deserialize, Serialize};
 
+use crate::classes::SharedClasses;
 use crate::world::{wrap, WorldConfig};
 
 /// The BLE (and force-field) broadcast group.
@@ -266,9 +267,22 @@ pub fn build(
     priorities: &[f64],
     cfg: &ControllerConfig,
 ) -> Result<Brain, Error> {
+    build_shared(node, controller, priorities, cfg, &mut SharedClasses::new())
+}
+
+/// [`build`] with the controller's classes taken from (or built into) `classes`, so that the
+/// robots of one scenario share them (crate::classes). The Planner's `Follower` class knows
+/// its robot and is built for each node.
+pub fn build_shared(
+    node: &mut NodeCore,
+    controller: Controller,
+    priorities: &[f64],
+    cfg: &ControllerConfig,
+    classes: &mut SharedClasses,
+) -> Result<Brain, Error> {
     let m = priorities.len() as u32;
-    node.define(safe_velocity_class(SafeVelocity::default())?)?;
-    node.define(random_wander_class(10.0, cfg.wander_seed)?)?;
+    classes.define(node, "SafeVelocity", || safe_velocity_class(SafeVelocity::default()))?;
+    classes.define(node, "RandomWander", || random_wander_class(10.0, cfg.wander_seed))?;
     node.create("SafeVelocity", VEL)?;
     node.create("RandomWander", WANDER)?;
     local(node, (SONAR, "Ranges"), (VEL, "Ranges"), ConnectionKind::Normal)?;
@@ -277,7 +291,7 @@ pub fn build(
     match controller {
         Controller::Random => Ok(Brain::Wander),
         Controller::Ble | Controller::Local | Controller::Planner => {
-            node.define(observer_class_with(cfg.eligibility)?)?;
+            classes.define(node, "Observer", || observer_class_with(cfg.eligibility))?;
             let ble = BleConfig::new(GROUP, "Rotate", cfg.claim_hz)?;
             // Lowest layer first, so that each layer's `next` exists when it is made.
             for num in (1..=m).rev() {
@@ -301,7 +315,7 @@ pub fn build(
             })
         }
         Controller::ForceField => {
-            node.define(force_class(priorities)?)?;
+            classes.define(node, "Force", || force_class(priorities))?;
             node.create("Force", "FORCE")?;
             for n in 1..=m {
                 local(
@@ -329,7 +343,7 @@ pub fn build(
             Ok(Brain::Drive(node.port("FORCE", "Drive")?))
         }
         Controller::Centralized => {
-            node.define(oracle_class()?)?;
+            classes.define(node, "Oracle", oracle_class)?;
             node.create("Oracle", "ORACLE")?;
             local(node, ("ORACLE", "Rotate"), (WANDER, "Rotate"), ConnectionKind::OverrideOut(OVERRIDE_PERIOD))?;
             Ok(Brain::Oracle { angle: node.port("ORACLE", "Angle")?, assigned: node.port("ORACLE", "Assigned")? })

@@ -12,6 +12,7 @@
 #![warn(missing_docs)]
 
 pub mod body;
+pub mod classes;
 pub mod controller;
 pub mod metrics;
 pub mod radio;

@@ -20,7 +20,8 @@ use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
 use crate::body::Body;
-use crate::controller::{build, build_planner, chain_quiet, Brain, Controller, ControllerConfig, PLANNER_NODE};
+use crate::classes::SharedClasses;
+use crate::controller::{build_planner, build_shared, chain_quiet, Brain, Controller, ControllerConfig, PLANNER_NODE};
 use crate::metrics::{Meter, Metrics};
 use crate::radio::{Radio, RadioConfig, Station};
 use crate::recording::{CoverageSeries, Event, Frame, Recording, RecordingMeta, RobotFrame, RobotInfo, TargetInfo};
@@ -277,7 +278,9 @@ impl Sim {
     /// controller cannot be built.
     pub fn new(scenario: &Scenario) -> Result<Sim, Error> {
         let controller = scenario.controller;
-        Sim::with_controller(scenario, &mut |core, prios, cfg| build(core, controller, prios, cfg))
+        // One copy of each controller class for the whole team (crate::classes).
+        let mut classes = SharedClasses::new();
+        Sim::with_controller(scenario, &mut |core, prios, cfg| build_shared(core, controller, prios, cfg, &mut classes))
     }
 
     /// [`Sim::new`] with every robot's controller built by `build` instead of
@@ -295,9 +298,10 @@ impl Sim {
         let stations = scenario.robots + usize::from(planner);
         let mut radio = Radio::new(scenario.radio.clone(), stations, scenario.seed);
         let mut robots = Vec::with_capacity(scenario.robots);
+        let mut body_classes = SharedClasses::new();
         for i in 0..scenario.robots {
             let mut core = NodeCore::new(node_id(i));
-            let body = Body::install(&mut core, prios.len(), &scenario.world)?;
+            let body = Body::install_shared(&mut core, prios.len(), &scenario.world, &mut body_classes)?;
             let brain = build(&mut core, &prios, &scenario.controllers)?;
             radio.set_groups(i, core.groups());
             robots.push(RobotNode { core, body, brain });
@@ -782,5 +786,34 @@ mod tests {
         assert_eq!(with.radio, without.radio);
         assert_eq!(with.metrics, without.metrics);
         assert!(with.radio.delivered > 10_000, "messages flowed: {:?}", with.radio);
+    }
+
+    /// `Sim::new` defines one copy of each class on every robot (crate::classes); each robot
+    /// building its own classes (`controller::build`, as `with_controller` callers do) must
+    /// give the same run bit for bit, for every controller: no class keeps per-robot state.
+    #[test]
+    fn sharing_classes_changes_nothing() {
+        for controller in Controller::ALL {
+            let mut s = Scenario::sized(controller, 12, 4, 5).loss(0.1).duration(6.0);
+            s.kills.push(Kill { at: 3.0, robot: Some(2) });
+            let run_with = |sim: Sim| {
+                let mut sim = sim;
+                while !sim.done() {
+                    sim.step().expect("steps");
+                }
+                let nodes: Vec<_> = sim.robots.iter().map(|r| r.core.report()).collect();
+                (nodes, sim.finish())
+            };
+            let (nodes_shared, shared) = run_with(Sim::new(&s).expect("builds"));
+            let own = Sim::with_controller(&s, &mut |core, prios, cfg| {
+                crate::controller::build(core, controller, prios, cfg)
+            });
+            let (nodes_own, own) = run_with(own.expect("builds"));
+            for (i, (a, b)) in nodes_shared.iter().zip(&nodes_own).enumerate() {
+                assert_eq!(a, b, "{} robot {i}", controller.name());
+            }
+            assert_eq!(shared.trace_hash, own.trace_hash, "{}", controller.name());
+            assert_eq!(shared.metrics, own.metrics, "{}", controller.name());
+        }
     }
 }
