@@ -102,6 +102,34 @@ fn measure_alone(controller: Controller, robots: usize, warmup: f64, timed: f64)
     Figures { robots, sim_s: v[0], wall_s: v[1], deliveries_per_s: v[2] }
 }
 
+/// Nanoseconds one dependent load takes when each lands on a random cache line of `bytes` of
+/// memory (a pointer chase round one random cycle, Sattolo's shuffle): about what a robot's
+/// visit pays for each line of its node that is no longer in the cache. Printed beside the
+/// figures because the simulator is memory-bound at 1000 robots (about 60 MB of nodes), so a
+/// host whose memory is slower runs it slower with the same instructions; comparing this line
+/// tells a slow host from a slow simulator.
+fn dependent_load_ns(bytes: usize, loads: usize) -> f64 {
+    const STRIDE: usize = 8; // usizes a cache line holds
+    let lines = bytes / 64;
+    let mut order: Vec<usize> = (0..lines).collect();
+    let mut rng = fastrand::Rng::with_seed(7);
+    for i in (1..lines).rev() {
+        order.swap(i, rng.usize(0..i));
+    }
+    let mut next = vec![0usize; lines * STRIDE];
+    for (i, &j) in order.iter().enumerate() {
+        next[i * STRIDE] = j * STRIDE;
+    }
+    let mut at = 0;
+    let start = WallClock::now();
+    for _ in 0..loads {
+        at = next[at];
+    }
+    let ns = start.elapsed().as_nanos() as f64 / loads as f64;
+    std::hint::black_box(at);
+    ns
+}
+
 /// Step `sim` until it is done, alone in a function so that callgrind can collect just this.
 #[inline(never)]
 fn callgrind_ticks(sim: &mut Sim) {
@@ -163,6 +191,12 @@ fn main() {
     let only_ctl: Option<Controller> = args.iter().find_map(|a| Controller::parse(a));
     println!("Simulation speed, one thread: CMOMMT, {TARGETS} targets (5 observer layers), 20 Hz ticks, seed {SEED}");
     println!("machine: {}", machine());
+    println!(
+        "memory: a dependent load at random takes {:.1} ns over 64 MB (a 1000-robot team), {:.1} ns over 4 MB, {:.1} ns over 256 KB",
+        dependent_load_ns(64 << 20, 2_000_000),
+        dependent_load_ns(4 << 20, 2_000_000),
+        dependent_load_ns(256 << 10, 2_000_000),
+    );
     println!();
     println!(
         "{:<7} {:>6} {:>9} {:>8} {:>11} {:>17} {:>16} {:>12}",
