@@ -35,6 +35,7 @@ import dataclasses
 import enum
 import hashlib
 import hmac
+import ipaddress
 import json
 import math
 import os
@@ -1273,8 +1274,9 @@ class LiteNode:
         ``broadcast``, ``discovery``, ``ttl``, ``hello_ms``, ``name``, ``mtu``. Keyword arguments
         override the URL's settings. ``operator_secret=PATH`` signs structure changes; a node's
         ``operator=`` key is accepted (a lite node applies no structure change), and so are
-        ``state=`` and ``spin_us=`` (a full node's; a lite node keeps its windows in memory and
-        never polls)."""
+        ``group=``, ``state=`` and ``spin_us=`` (a full node's; a lite node sends to nodes, keeps
+        its windows in memory and never polls). The rules are every Ayllu parser's
+        (``spec/vectors/urls.json``)."""
         options = parse_url(url if url is not None else default_url())
         options.update(kwargs)
         return cls(node_id, **options)
@@ -1775,16 +1777,48 @@ def default_url() -> str:
     return os.environ.get(URL_ENV, "").strip() or DEFAULT_URL
 
 
+def _decimal(text: str) -> int | None:
+    """A number in a URL: ASCII decimal digits only (no sign, no space), as every Ayllu parser
+    reads it (``spec/vectors/urls.json``)."""
+    if not text or not all("0" <= c <= "9" for c in text):
+        return None
+    return int(text)
+
+
+def _hex32(text: str) -> bytes | None:
+    """64 ASCII hex digits as 32 bytes, else ``None``."""
+    if len(text) != 64 or any(c not in "0123456789abcdefABCDEF" for c in text):
+        return None
+    return bytes.fromhex(text)
+
+
 def _address(text: str, what: str) -> Address:
-    host, sep, port = text.rpartition(":")
-    if not sep or not host or not port.isdigit() or int(port) > 65535:
-        raise ValueError(f"{what} `{text}` is not HOST:PORT")
-    return (socket.gethostbyname(host), int(port))
+    """``HOST:PORT`` with an IPv4 host: a dotted-quad literal, or a name (text with a letter)
+    for the system's resolver; the rules of the full nodes' parser (``udp_config.rs``)."""
+    host, sep, port_text = text.rpartition(":")
+    port = _decimal(port_text)
+    if host.startswith("[") and host.endswith("]") and port is not None and port <= 65535:
+        raise ValueError(f"{what} `{text}` has no IPv4 address")
+    if not sep or not host or port is None or port > 65535:
+        raise ValueError(f"{what} `{text}` is not HOST:PORT (an IPv4 address or a host name, and a port)")
+    try:
+        return (str(ipaddress.IPv4Address(host)), port)
+    except ValueError:
+        pass
+    # Only a name goes to the resolver (and so maybe to DNS): `1..2` or `127.1` is refused here.
+    if not any(c.isascii() and c.isalpha() for c in host):
+        raise ValueError(f"{what} `{text}` is not HOST:PORT (an IPv4 address or a host name, and a port)")
+    try:
+        return (socket.gethostbyname(host), port)
+    except (OSError, UnicodeError) as e:
+        raise ValueError(f"{what} `{text}` is not HOST:PORT ({e})") from None
 
 
 def parse_url(url: str) -> dict[str, Any]:
     """The :class:`LiteNode` keyword arguments a ``udp://`` URL gives (the options of
-    ``crates/ayllu/src/udp_config.rs``). Raises ``ValueError`` naming the bad part."""
+    ``crates/ayllu/src/udp_config.rs``, with the same rules: ``spec/vectors/urls.json``).
+    Raises ``ValueError`` naming the bad part. ``group``, ``state``, ``operator`` and
+    ``spin_us`` are a full node's: checked, not returned."""
     if not url.startswith("udp://"):
         raise ValueError(f"`{url}`: expected udp://HOST:PORT?...")
     rest = url[len("udp://") :]
@@ -1794,53 +1828,67 @@ def parse_url(url: str) -> dict[str, Any]:
         k, sep, v = pair.partition("=")
         if not sep:
             raise ValueError(f"`{pair}` is not key=value")
+        n = _decimal(v)
         if k == "team":
-            if not v.isdigit() or int(v) >= 1 << 32:
+            if n is None or n >= 1 << 32:
                 raise ValueError(f"team `{v}` is not a u32")
-            out["team"] = int(v)
+            out["team"] = n
         elif k == "key":
-            if len(v) != 64 or any(c not in "0123456789abcdefABCDEF" for c in v):
+            key = _hex32(v)
+            if key is None:
                 raise ValueError("key must be 64 hex digits")
-            out["key"] = bytes.fromhex(v)
+            out["key"] = key
         elif k == "peer":
             out["bootstrap"].append(_address(v, "peer"))
         elif k == "broadcast":
             out["broadcast"] = _address(v, "broadcast")
+        elif k == "group":
+            # A group's own address is where a full node sends that group's messages; a lite
+            # node sends to nodes, so it only checks the form.
+            name, at, where = v.partition("@")
+            if not at:
+                raise ValueError(f"group `{v}` should be NAME@ADDR:PORT")
+            if not 1 <= len(name.encode()) <= 255:
+                raise ValueError(f"group name `{name}` must be 1 to 255 bytes")
+            _address(where, "group address")
         elif k == "discovery":
             a = _address(v, "discovery")
             if not 224 <= int(a[0].split(".")[0]) <= 239:
                 raise ValueError(f"discovery `{v}` must be a multicast address (224.0.0.0/4)")
             out["discovery"] = a
         elif k == "ttl":
-            if not v.isdigit() or int(v) > 255:
+            if n is None or n > 255:
                 raise ValueError(f"ttl `{v}` must be a number from 0 to 255")
-            out["ttl"] = int(v)
+            out["ttl"] = n
         elif k == "hello_ms":
-            if not v.isdigit() or not 0 < int(v) < 1 << 32:
+            if n is None or not 0 < n < 1 << 32:
                 raise ValueError("hello_ms must be between 1 and 4294967295")
-            out["hello_interval_ms"] = int(v)
+            out["hello_interval_ms"] = n
         elif k == "name":
+            if len(v.encode()) > 255:
+                raise ValueError("name must be at most 255 bytes")
             out["name"] = v
         elif k == "mtu":
-            if not v.isdigit() or not 64 <= int(v) <= MAX_DATAGRAM:
+            if n is None or not 64 <= n <= MAX_DATAGRAM:
                 raise ValueError(f"mtu must be between 64 and {MAX_DATAGRAM}")
-            out["mtu"] = int(v)
+            out["mtu"] = n
         elif k == "state":
             # Replay marks kept across restarts (D-N5.3) belong to full nodes; a lite client
             # sharing the same AYLLU_URL accepts the option and keeps its windows in memory.
-            pass
+            if not v:
+                raise ValueError("state needs a file path")
         elif k == "operator":
             # A node's operator public key: what it requires of structure changes it applies.
             # A lite node applies none (it refuses CONNECT and DISCONNECT), so it only checks
-            # the form.
-            if len(v) != 64 or any(c not in "0123456789abcdefABCDEF" for c in v):
+            # the form (a full node also checks that it is a valid Ed25519 point).
+            if _hex32(v) is None:
                 raise ValueError("operator must be 64 hex digits (the public key `ayllu keygen` prints)")
         elif k == "operator_secret":
             out["operator_secret"] = read_operator_secret(v)
         elif k == "spin_us":
             # How long a full node's wait may poll (D-N3.4). A lite node never polls: it
             # checks the form, so that one AYLLU_URL serves both.
-            if not v.isdigit() or int(v) > 1000:
+            if n is None or n > 1000:
                 raise ValueError(f"spin_us `{v}` must be a number from 0 to 1000")
         else:
             raise ValueError(f"unknown option `{k}`")

@@ -136,7 +136,7 @@ impl UdpConfig {
         for pair in query.split('&').filter(|p| !p.is_empty()) {
             let (k, v) = pair.split_once('=').ok_or_else(|| bad(format!("`{pair}` is not key=value")))?;
             match k {
-                "team" => config.team = v.parse().map_err(|_| bad(format!("team `{v}` is not a u32")))?,
+                "team" => config.team = decimal(v).ok_or_else(|| bad(format!("team `{v}` is not a u32")))?,
                 "key" => config.key = Some(parse_key(v).map_err(bad)?),
                 "peer" => config.peers.push(resolve(v).map_err(bad)?),
                 "broadcast" => config.broadcast = Some(resolve(v).map_err(bad)?),
@@ -156,9 +156,7 @@ impl UdpConfig {
                     config.discovery = Some(a);
                 }
                 "ttl" => {
-                    config.ttl = v
-                        .parse()
-                        .ok()
+                    config.ttl = decimal(v)
                         .filter(|t| *t <= 255)
                         .ok_or_else(|| bad(format!("ttl `{v}` must be a number from 0 to 255")))?;
                 }
@@ -169,14 +167,14 @@ impl UdpConfig {
                     config.state = Some(v.into());
                 }
                 "hello_ms" => {
-                    let ms: u64 = v.parse().map_err(|_| bad(format!("hello_ms `{v}` is not a number")))?;
+                    let ms: u64 = decimal(v).ok_or_else(|| bad(format!("hello_ms `{v}` is not a number")))?;
                     if ms == 0 || ms > u64::from(u32::MAX) {
                         return Err(bad("hello_ms must be between 1 and 4294967295".into()));
                     }
                     config.hello_interval = Duration::from_millis(ms);
                 }
                 "mtu" => {
-                    let mtu: usize = v.parse().map_err(|_| bad(format!("mtu `{v}` is not a number")))?;
+                    let mtu: usize = decimal(v).ok_or_else(|| bad(format!("mtu `{v}` is not a number")))?;
                     if !(64..=MAX_DATAGRAM).contains(&mtu) {
                         return Err(bad(format!("mtu must be between 64 and {MAX_DATAGRAM}")));
                     }
@@ -191,9 +189,7 @@ impl UdpConfig {
                 }
                 "operator_secret" => config.operator_secret = Some(read_operator_secret(v).map_err(bad)?),
                 "spin_us" => {
-                    let us: u64 = v
-                        .parse()
-                        .ok()
+                    let us: u64 = decimal(v)
                         .filter(|us| *us <= MAX_SPIN_US)
                         .ok_or_else(|| bad(format!("spin_us `{v}` must be a number from 0 to {MAX_SPIN_US}")))?;
                     config.spin = std::time::Duration::from_micros(us);
@@ -209,6 +205,16 @@ impl UdpConfig {
         }
         Ok(config)
     }
+}
+
+/// A number in a URL: ASCII decimal digits only, then `T`'s own range. `str::parse` would also
+/// take a leading `+`, which AylluLite's parsers refuse; one grammar for every parser
+/// (`spec/vectors/urls.json`).
+fn decimal<T: std::str::FromStr>(v: &str) -> Option<T> {
+    if v.is_empty() || !v.bytes().all(|b| b.is_ascii_digit()) {
+        return None;
+    }
+    v.parse().ok()
 }
 
 fn resolve(addr: &str) -> Result<SocketAddr, String> {
