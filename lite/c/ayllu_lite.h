@@ -591,6 +591,71 @@ uint64_t ayl_node_next_deadline(const ayl_node *node);
  * thread-safe. */
 int ayl_node_send_hello(ayl_node *node, uint64_t now_ns);
 
+/* ----- configuration: the udp:// URL every Ayllu program reads (ayllu_url.c) ---------------- */
+
+/* The URL's grammar and limits are those of the Rust runtime's parser and of AylluLite
+ * Python; spec/vectors/urls.json holds the cases all three must agree on (tests/test_url.c).
+ * The library reads no environment, no file and no resolver: a program passes the text of
+ * getenv("AYLLU_URL") (or AYL_URL_DEFAULT when it is unset or empty), resolves host names
+ * itself, reads the operator secret's file itself, and sizes cfg.tx to the URL's mtu. */
+
+#define AYL_URL_DEFAULT "udp://0.0.0.0:0?discovery=239.255.65.89:7400&ttl=0"
+#define AYL_URL_ENV "AYLLU_URL"
+#ifndef AYL_URL_MAX_PEERS
+#define AYL_URL_MAX_PEERS 16 /* peer= options kept; more are refused */
+#endif
+#ifndef AYL_URL_MAX_GROUPS
+#define AYL_URL_MAX_GROUPS 8 /* group= options kept; more are refused */
+#endif
+
+/* HOST:PORT in a URL. An IPv4 literal (dotted quad, no leading zeros) is decoded into ip4
+ * (is_name 0); a host name -- text with a letter -- is left to the caller's resolver (is_name
+ * 1, ip4 zero). `host` points into the URL, not NUL-terminated. */
+typedef struct {
+    ayl_str host;
+    int is_name;
+    uint8_t ip4[4];
+    uint16_t port;
+} ayl_url_addr;
+
+typedef struct {
+    ayl_str name; /* 1 to 255 bytes, pointing into the URL */
+    ayl_url_addr addr;
+} ayl_url_group;
+
+/* What a URL says; options it does not give keep their defaults (in brackets). Text fields
+ * point into the URL, which must outlive this. */
+typedef struct {
+    ayl_url_addr bind;
+    uint32_t team;               /* team= [0] */
+    uint8_t key[AYL_KEY_LEN];    /* key= (64 hex digits) */
+    int keyed;                   /* [0]: an open team */
+    ayl_url_addr peers[AYL_URL_MAX_PEERS]; /* peer= (repeatable): greeted with HELLO */
+    size_t npeers;
+    ayl_url_addr broadcast;      /* broadcast= */
+    int has_broadcast;
+    ayl_url_group groups[AYL_URL_MAX_GROUPS]; /* group=NAME@HOST:PORT (a full node's) */
+    size_t ngroups;
+    ayl_url_addr discovery;      /* discovery= (multicast, 224.0.0.0/4) */
+    int has_discovery;
+    uint8_t ttl;                 /* ttl= (0 to 255) [1] */
+    uint32_t hello_ms;           /* hello_ms= (1 to 4294967295) [1000] */
+    uint32_t mtu;                /* mtu= (64 to AYL_MAX_DATAGRAM) [AYL_MTU]: size cfg.tx to it */
+    uint32_t spin_us;            /* spin_us= (0 to 1000) [50]: a full node's; a lite node never polls */
+    ayl_str name;                /* name= (at most 255 bytes) [empty]: for HELLO */
+    ayl_str state;               /* state= (a path; a full node's): [empty] */
+    uint8_t operator_key[AYL_KEY_LEN]; /* operator= (64 hex digits; a full node's: a lite node
+                                        * applies no structure change; the form is checked,
+                                        * not the Ed25519 point) */
+    int has_operator;
+    ayl_str operator_secret;     /* operator_secret= (a path: the caller reads the file) */
+} ayl_url;
+
+/* Parse `url` (NUL-terminated) into *out. Returns 0, or AYL_E_INVALID with a message naming
+ * the bad part in err (NUL-terminated, cut to err_cap; err may be NULL), e.g. "team `+7` is
+ * not a u32" or "unknown option `colour`". Reentrant (touches only its arguments). */
+int ayl_url_parse(ayl_url *out, const char *url, char *err, size_t err_cap);
+
 #ifdef __cplusplus
 }
 #endif

@@ -47,54 +47,37 @@ static int posix_udp_recv(void *io_user, ayl_addr *from, uint8_t *buf, size_t ca
     return n == 0 ? 0 : (int)n; /* a zero-length datagram is nothing to apply */
 }
 
-/* The team and key that the environment variable AYLLU_URL gives (`team=N`, `key=HEX64` in
- * its query), which every Ayllu program reads the same way (docs/cli.md): `*team` and
- * `*keyed` are left as they are (team 0, no key by default) when the variable or the option is
- * absent. The URL's other options are ignored here: the examples are told their peer on the
- * command line. Returns 0, or -1 with a message on stderr for a malformed team= or key=.
+/* The URL every Ayllu program reads (docs/cli.md): the environment variable AYLLU_URL if it
+ * is set and not empty, else AYL_URL_DEFAULT, parsed whole by ayl_url_parse -- a malformed or
+ * unknown option is refused here as the Rust runtime and AylluLite Python refuse it
+ * (spec/vectors/urls.json). The URL's text is copied into `text` (cap bytes), which *url points
+ * into and which must outlive it. Returns 0, or -1 with the reason on stderr.
  * Thread-safety: reads the environment; call before starting threads. */
-static inline int posix_env_team_key(uint32_t *team, uint8_t key[AYL_KEY_LEN], int *keyed) {
-    const char *url = getenv("AYLLU_URL");
-    const char *p = url != NULL ? strchr(url, '?') : NULL;
-    while (p != NULL && *p != '\0') {
-        const char *item = p + 1;
-        const char *end = strchr(item, '&');
-        size_t len = end != NULL ? (size_t)(end - item) : strlen(item);
-        if (len > 5 && strncmp(item, "team=", 5) == 0) {
-            unsigned long v = 0;
-            size_t i;
-            for (i = 5; i < len; i++) {
-                if (!isdigit((unsigned char)item[i]) || v > 429496729UL) {
-                    fprintf(stderr, "AYLLU_URL: team= must be a number (u32)\n");
-                    return -1;
-                }
-                v = v * 10 + (unsigned long)(item[i] - '0');
-            }
-            if (v > 4294967295UL) {
-                fprintf(stderr, "AYLLU_URL: team= must be a number (u32)\n");
-                return -1;
-            }
-            *team = (uint32_t)v;
-        } else if (len >= 4 && strncmp(item, "key=", 4) == 0) {
-            size_t i;
-            if (len - 4 != 2 * AYL_KEY_LEN) {
-                fprintf(stderr, "AYLLU_URL: key= must be 64 hex digits\n");
-                return -1;
-            }
-            for (i = 0; i < AYL_KEY_LEN; i++) {
-                char pair[3];
-                pair[0] = item[4 + 2 * i];
-                pair[1] = item[5 + 2 * i];
-                pair[2] = '\0';
-                if (!isxdigit((unsigned char)pair[0]) || !isxdigit((unsigned char)pair[1])) {
-                    fprintf(stderr, "AYLLU_URL: key= must be 64 hex digits\n");
-                    return -1;
-                }
-                key[i] = (uint8_t)strtoul(pair, NULL, 16);
-            }
-            *keyed = 1;
+static inline int posix_env_url(ayl_url *url, char *text, size_t cap) {
+    const char *env = getenv(AYL_URL_ENV);
+    const char *from = AYL_URL_DEFAULT;
+    char err[256];
+    size_t i = 0;
+    if (env != NULL) {
+        while (isspace((unsigned char)env[i])) {
+            i++;
         }
-        p = end;
+        if (env[i] != '\0') {
+            from = env;
+        }
+    }
+    if (strlen(from) >= cap) {
+        fprintf(stderr, "%s: longer than this program's %zu bytes\n", AYL_URL_ENV, cap - 1);
+        return -1;
+    }
+    strcpy(text, from);
+    /* Trailing white space (a newline from a file) is not part of the URL, as in Python. */
+    for (i = strlen(text); i > 0 && isspace((unsigned char)text[i - 1]); i--) {
+        text[i - 1] = '\0';
+    }
+    if (ayl_url_parse(url, text + strspn(text, " \t\r\n"), err, sizeof err) != 0) {
+        fprintf(stderr, "%s: %s\n", from == env ? AYL_URL_ENV : "the default URL", err);
+        return -1;
     }
     return 0;
 }

@@ -11,8 +11,9 @@
  *
  * VALUE: true/false (bool), an integer (int), a decimal number (float), vec:1,2.5 (vector),
  * hex:00ff (bytes), anything else (text; text:... forces text).
- * Team and key: from AYLLU_URL's team= and key= if set (as every Ayllu program), else team 0
- * and no key; --team and --key override them.
+ * Configuration: the udp:// URL in AYLLU_URL, else the shared default (as every Ayllu program;
+ * parsed whole by ayl_url_parse, so a bad option is refused): its team=, key=, mtu= and
+ * hello_ms=; --team and --key override them. The peer is given on the command line.
  * Options: --team N (0), --node N (900), --kind normal|suppress|inhibit|override-in|
  * override-out|write-inhibit, --period-ms N (special kinds; default 500), --priority N,
  * --key HEX64 (authenticated team), --count N (1), --interval-ms N (100).
@@ -152,7 +153,9 @@ int main(int argc, char **argv) {
     static ayl_peer peers[8];
     static ayl_seq_entry seqs[8];
     static ayl_pending pending[1];
-    static uint8_t rx[AYL_MAX_DATAGRAM], tx[AYL_MTU], out[4096];
+    static uint8_t rx[AYL_MAX_DATAGRAM], tx[AYL_MAX_DATAGRAM], out[4096];
+    static char url_text[4096];
+    ayl_url url;
     uint32_t team = 0, node_id = 900;
     int kind = AYL_NORMAL, count = 1, read_mode = 0, a;
     long period_ms = 500, interval_ms = 100;
@@ -166,8 +169,13 @@ int main(int argc, char **argv) {
     ayl_node node;
     ayl_addr to;
 
-    if (posix_env_team_key(&team, key, &keyed) < 0) {
+    if (posix_env_url(&url, url_text, sizeof url_text) < 0) {
         return 2;
+    }
+    team = url.team;
+    if (url.keyed) {
+        memcpy(key, url.key, AYL_KEY_LEN);
+        keyed = 1;
     }
     for (a = 1; a < argc; a++) {
         const char *o = argv[a];
@@ -253,7 +261,8 @@ int main(int argc, char **argv) {
     cfg.rx = rx;
     cfg.rx_cap = sizeof rx;
     cfg.tx = tx;
-    cfg.tx_cap = sizeof tx;
+    cfg.tx_cap = url.mtu; /* the URL's mtu= (AYL_MTU unless it says otherwise) */
+    cfg.hello_interval_ms = url.hello_ms;
     cfg.name = "udp_client";
     if (ayl_node_init(&node, &cfg) != 0) {
         fprintf(stderr, "udp_client: bad configuration\n");
