@@ -185,6 +185,57 @@ static void defaults_names_and_limits(void) {
     CHECK(strcmp(err, "team `+7` is not a u32") == 0);
 }
 
+/* Mutated URLs (bytes flipped, cut, the grammar's own characters inserted), a bounded
+ * deterministic run: under the tests' AddressSanitizer/UBSan build any read outside the URL or
+ * the error buffer fails; every result is 0 or AYL_E_INVALID, and text fields point into the
+ * URL. (libFuzzer covers the runtime's parser: fuzz/fuzz_targets/udp_url.rs.) */
+static void mutations(void) {
+    static const char *const seeds[] = {
+        AYL_URL_DEFAULT,
+        "udp://127.0.0.1:7400?team=7&key=00112233445566778899aabbccddeeff00112233445566778899aabbccddeeff"
+        "&peer=10.0.0.2:7401&group=Peers@239.1.2.3:7500&name=r1&state=/x&mtu=1200&operator_secret=/k",
+        "udp://robot.local:1?peer=a.b:2&broadcast=255.255.255.255:3&discovery=239.1.1.1:4&hello_ms=5",
+    };
+    static const char specials[] = "&=?:@.[]+-09aZ%";
+    uint32_t rng = 12345u;
+    int i;
+    for (i = 0; i < 20000; i++) {
+        char url[300], err[40];
+        const char *seed = seeds[i % 3];
+        size_t n = strlen(seed), edits, e;
+        ayl_url u;
+        int rc;
+        memcpy(url, seed, n + 1);
+        rng = rng * 1103515245u + 12345u;
+        edits = 1 + (rng >> 16) % 4;
+        for (e = 0; e < edits && n > 0; e++) {
+            size_t at;
+            rng = rng * 1103515245u + 12345u;
+            at = (rng >> 8) % n;
+            switch ((rng >> 24) % 4) {
+            case 0: url[at] = (char)((rng >> 3) & 0xff); if (url[at] == '\0') url[at] = 'x'; break;
+            case 1: url[at] = specials[(rng >> 4) % (sizeof specials - 1)]; break;
+            case 2: n = at; url[n] = '\0'; break;
+            default:
+                if (n + 1 < sizeof url) {
+                    memmove(url + at + 1, url + at, n - at + 1);
+                    url[at] = specials[(rng >> 5) % (sizeof specials - 1)];
+                    n++;
+                }
+            }
+        }
+        rc = ayl_url_parse(&u, url, err, sizeof err);
+        CHECK(rc == 0 || rc == AYL_E_INVALID);
+        if (rc == 0) {
+            CHECK(u.bind.host.ptr >= url && u.bind.host.ptr + u.bind.host.len <= url + n);
+            CHECK(u.name.len == 0 || (u.name.ptr >= url && u.name.ptr + u.name.len <= url + n));
+            CHECK(u.npeers <= AYL_URL_MAX_PEERS && u.ngroups <= AYL_URL_MAX_GROUPS);
+        } else {
+            CHECK(strlen(err) < sizeof err && err[0] != '\0');
+        }
+    }
+}
+
 int main(int argc, char **argv) {
     if (argc != 2) {
         fprintf(stderr, "usage: %s spec/vectors/urls.json\n", argv[0]);
@@ -192,5 +243,6 @@ int main(int argc, char **argv) {
     }
     vectors(argv[1]);
     defaults_names_and_limits();
+    mutations();
     return check_exit("test_url");
 }
