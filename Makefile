@@ -114,10 +114,13 @@ soak:
 	SOAK_MINUTES=$(MINUTES) $(CARGO) test --release -p ayllu-cli --test cross_subsumption_processes soak -- --ignored --nocapture
 
 ## Fuzz every target (decoder, node, udp:// URLs, command lines) for SECONDS each (needs a
-## nightly toolchain; installs cargo-fuzz).
+## nightly toolchain; installs cargo-fuzz), then AylluLite C's decoders (a datagram, a datagram
+## into a lite node, a URL) under clang's libFuzzer (installs Debian's clang).
 SECONDS ?= 60
 fuzz:
 	fuzz/run $(SECONDS)
+	scripts/install-c-fuzzer
+	$(MAKE) -C lite/c fuzz SECONDS=$(SECONDS)
 
 ## Every fuzz target for RUNS executions each (default 10 million; about an hour each for
 ## node_receive and cli_args), JOBS targets at once, then DATAGRAMS mutated golden vectors over
