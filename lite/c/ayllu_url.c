@@ -33,7 +33,7 @@ static void put(msgbuf *m, const char *s, size_t n) {
     }
 }
 
-static void puts_(msgbuf *m, const char *s) { put(m, s, strlen(s)); }
+static void put_text(msgbuf *m, const char *s) { put(m, s, strlen(s)); }
 
 /* `before` + "`text`" + `after` (text NULL: before + after) into err; AYL_E_INVALID. */
 static int fail(char *err, size_t cap, const char *before, const char *text, size_t tlen, const char *after) {
@@ -44,13 +44,13 @@ static int fail(char *err, size_t cap, const char *before, const char *text, siz
     if (m.cap > 0) {
         m.p[0] = '\0';
     }
-    puts_(&m, before);
+    put_text(&m, before);
     if (text != NULL) {
-        puts_(&m, "`");
+        put_text(&m, "`");
         put(&m, text, tlen);
-        puts_(&m, "`");
+        put_text(&m, "`");
     }
-    puts_(&m, after);
+    put_text(&m, after);
     return AYL_E_INVALID;
 }
 

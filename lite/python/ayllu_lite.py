@@ -1906,9 +1906,10 @@ def read_operator_secret(path: str) -> bytes:
             text = f.read().strip()
     except (OSError, UnicodeDecodeError) as e:
         raise ValueError(f"cannot read the operator secret {path}: {e}") from None
-    if len(text) != 64 or any(c not in "0123456789abcdefABCDEF" for c in text):
+    seed = _hex32(text)
+    if seed is None:
         raise ValueError(f"operator secret {path}: must be 64 hex digits")
-    return bytes.fromhex(text)
+    return seed
 
 
 def key_from_hex(text: str) -> bytes:
