@@ -8,9 +8,9 @@ use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
 use ayllu_sim::report;
-use ayllu_sim::scenario::{run, Outcome, Scenario};
+use ayllu_sim::scenario::{run_on, Outcome, Scenario};
 use ayllu_sim::scenario_file;
-use ayllu_sim::trace::{run_traced, TraceFormat};
+use ayllu_sim::trace::{run_traced_on, TraceFormat};
 use clap::Args;
 use serde_json::json;
 
@@ -33,6 +33,18 @@ pub struct RunArgs {
     /// `.jsonl` (columns: docs/cmommt.md, "Per-tick traces").
     #[arg(long, value_name = "FILE")]
     pub trace: Option<PathBuf>,
+    /// Threads that share each tick's robots [default: the number of CPUs]. The outcome is
+    /// the same bit for bit; a thread takes at least 50 robots, so smaller teams use fewer.
+    /// A run written to `--mcap` stays on one thread.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=256))]
+    pub threads: Option<u32>,
+}
+
+impl RunArgs {
+    /// `--threads`, or the number of CPUs.
+    fn threads(&self) -> usize {
+        self.threads.map_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()), |t| t as usize)
+    }
 }
 
 /// `ayllu sim sweep`.
@@ -78,7 +90,8 @@ fn traced(args: &RunArgs, scenario: &Scenario, path: &Path) -> Result<Outcome, F
     let _ = args;
     let file = std::fs::File::create(path).map_err(|e| Fail::error(format!("creating {}: {e}", path.display())))?;
     let mut out = std::io::BufWriter::new(file);
-    run_traced(scenario, TraceFormat::for_path(path), &mut out).map_err(|e| Fail::error(e.to_string()))
+    run_traced_on(scenario, args.threads(), TraceFormat::for_path(path), &mut out)
+        .map_err(|e| Fail::error(e.to_string()))
 }
 
 /// The run, as an MCAP file if asked.
@@ -86,12 +99,10 @@ fn plain(args: &RunArgs, scenario: &Scenario) -> Result<Outcome, Fail> {
     #[cfg(feature = "foxglove")]
     let outcome = match &args.mcap {
         Some(path) => crate::foxglove::run_to_mcap(scenario, path)?,
-        None => run(scenario).map_err(|e| Fail::error(format!("the run failed: {e}")))?,
+        None => run_on(scenario, args.threads()).map_err(|e| Fail::error(format!("the run failed: {e}")))?,
     };
     #[cfg(not(feature = "foxglove"))]
-    let outcome = run(scenario).map_err(|e| Fail::error(format!("the run failed: {e}")))?;
-    #[cfg(not(feature = "foxglove"))]
-    let _ = args;
+    let outcome = run_on(scenario, args.threads()).map_err(|e| Fail::error(format!("the run failed: {e}")))?;
     Ok(outcome)
 }
 

@@ -70,6 +70,26 @@ fn a_sweep_writes_every_run_and_its_means_are_recomputable() {
     assert!(tables.contains("cell2: radio.loss = 0.2"), "{tables}");
 }
 
+/// `--threads` shares a large team's ticks among threads: the same run, the same trace.
+#[test]
+fn threads_print_the_same_run_and_trace() {
+    let dir = scratch("threads");
+    let file = dir.join("big.toml");
+    std::fs::write(&file, "robots = 120\nduration = 4.0\n[radio]\nloss = 0.1\n").unwrap();
+    let f = file.to_str().unwrap();
+    let run = |threads: &str| {
+        let trace = dir.join(format!("t{threads}.csv"));
+        let printed =
+            ayllu(&["sim", "run", f, "--json", "--threads", threads, "--trace", trace.to_str().unwrap()], LIMIT).ok();
+        (printed.stdout, std::fs::read_to_string(trace).unwrap())
+    };
+    let (one, two) = (run("1"), run("2"));
+    assert_eq!(one.0, two.0);
+    assert!(one.1 == two.1, "the traces differ");
+    assert_eq!(one.1.lines().count(), 81, "a header and 80 ticks");
+    ayllu(&["sim", "run", f, "--threads", "0"], LIMIT).fails(2, "--threads");
+}
+
 #[test]
 fn traces_on_request_for_a_run_and_for_every_run_of_a_sweep() {
     let dir = scratch("trace");

@@ -256,22 +256,33 @@ fn simulate(mut sim: Sim, trace: Option<&mut Trace>) -> Result<ayllu_sim::scenar
 /// built-in one, else a Python callable building each robot's controller. `trace`: also return
 /// the per-tick state. Returns `(outcome JSON, trace dict or None, process errors)`.
 #[pyfunction]
-#[pyo3(signature = (scenario, controller = None, trace = false))]
+#[pyo3(signature = (scenario, controller = None, trace = false, threads = 1))]
 #[allow(clippy::type_complexity)]
 fn run_scenario<'py>(
     py: Python<'py>,
     scenario: &str,
     controller: Option<Py<PyAny>>,
     trace: bool,
+    threads: usize,
 ) -> PyResult<(String, Option<Bound<'py, PyDict>>, Vec<(u32, String, String, f64, String)>)> {
     let scenario: Scenario =
         serde_json::from_str(scenario).map_err(|e| errors::value_error(format!("not a scenario: {e}")))?;
+    if threads == 0 {
+        return Err(errors::value_error("threads must be at least 1"));
+    }
+    if threads > 1 && controller.is_some() {
+        return Err(errors::value_error(
+            "threads > 1 needs a built-in controller: a Python controller's processes run one at a time (the GIL)",
+        ));
+    }
     let (robots, targets) = (scenario.robots, scenario.world.targets.len());
     let mut tr = trace.then(Trace::default);
     let mut all_procs: Vec<(u32, Arc<Processes>)> = Vec::new();
     let outcome = match controller {
         None => {
-            let sim = py.detach(|| Sim::new(&scenario)).map_err(sim_error)?;
+            let mut sim = py.detach(|| Sim::new(&scenario)).map_err(sim_error)?;
+            sim.set_threads(threads)
+                .map_err(|e| pyo3::exceptions::PyOSError::new_err(format!("starting the simulator's threads: {e}")))?;
             py.detach(|| simulate(sim, tr.as_mut())).map_err(sim_error)?
         }
         Some(ctrl) => {

@@ -94,6 +94,18 @@ def spinner(robot: sim.RobotBuilder) -> sim.BrainSpec:
     return None
 
 
+def test_threads_give_the_same_run() -> None:
+    # 120 robots: two shares of 60 (a thread takes at least 50 robots).
+    s = sim.Scenario.sized("BLE", 120, 5, 3).with_(duration=4.0)
+    one, two = sim.run(s), sim.run(s, threads=2)
+    assert one.trace_hash == two.trace_hash
+    assert one.metrics == two.metrics and one.radio == two.radio
+    with pytest.raises(ValueError, match="at least 1"):
+        sim.run(s, threads=0)
+    with pytest.raises(ValueError, match="built-in controller"):
+        sim.run(short("Random", duration=1.0), spinner, threads=2)
+
+
 def test_a_python_controller_runs_beside_the_rust_ones() -> None:
     s = short("Random", duration=5.0)
     out = sim.run(s, spinner, trace=True)

@@ -22,6 +22,9 @@ pub struct Body {
     translate: PortRef,
     sightings: Vec<Sighting>,
     sonar: Vec<f64>,
+    /// `sonar` as the world's shared quiet-sweep value, when it heard nothing
+    /// ([`World::quiet_sweep`]); taken by the next write.
+    quiet: Option<Value>,
     /// When this body last wrote each target's VISION ports (`None`: never).
     seen: Vec<Option<Instant>>,
     /// The latest of `seen`, kept beside the port handles that every tick reads: most ticks
@@ -66,6 +69,7 @@ impl Body {
             translate: core.port(BASE, "Translate")?,
             sightings: Vec::new(),
             sonar: vec![0.0; beams],
+            quiet: None,
             seen: vec![None; targets],
             latest: None,
         })
@@ -73,7 +77,23 @@ impl Body {
 
     /// Take one camera frame and one sonar sweep of robot `i` and write them to the ports.
     pub fn sense(&mut self, core: &mut NodeCore, now: Instant, world: &mut World, i: usize) -> Result<(), Error> {
+        self.observe(world, i);
+        self.write_senses(core, now)
+    }
+
+    /// The first half of [`Body::sense`]: take robot `i`'s camera frame and sonar sweep into
+    /// this body, drawing their noise from the world's stream. Touches no node, so a team's
+    /// bodies can all observe (in robot order: the noise stream's order) before any node runs,
+    /// and the nodes then run on several threads.
+    pub fn observe(&mut self, world: &mut World, i: usize) {
         world.camera(i, &mut self.sightings);
+        world.sonar(i, &mut self.sonar);
+        // A sweep that heard nothing is the world's one shared value (no copy of the beams).
+        self.quiet = world.quiet_sweep(&self.sonar).cloned();
+    }
+
+    /// The second half of [`Body::sense`]: write what [`Body::observe`] took to the ports.
+    pub fn write_senses(&mut self, core: &mut NodeCore, now: Instant) -> Result<(), Error> {
         for s in &self.sightings {
             let (angle, bottom) = self.vision[s.target];
             core.write(now, angle, s.angle)?;
@@ -81,9 +101,8 @@ impl Body {
             self.seen[s.target] = Some(now);
             self.latest = Some(now);
         }
-        world.sonar(i, &mut self.sonar);
-        match world.quiet_sweep(&self.sonar) {
-            Some(quiet) => core.write(now, self.ranges, quiet.clone())?,
+        match self.quiet.take() {
+            Some(quiet) => core.write(now, self.ranges, quiet)?,
             None => core.write(now, self.ranges, self.sonar.as_slice())?,
         }
         Ok(())

@@ -26,4 +26,5 @@ pub mod served_robot;
 pub mod study;
 pub mod sweep;
 pub mod trace;
+mod workers;
 pub mod world;

@@ -2,22 +2,26 @@
 //! between them, and the metrics — all on virtual time, stepped by [`Sim::step`].
 //!
 //! Promise: [`run`] is a pure function of the [`Scenario`]: same scenario and seed, same
-//! outcome bit for bit, on any machine (no clock, no threads, no hash-map iteration order; all
-//! randomness from seeded streams). The trace hash is SHA-256 over every frame's exact state
-//! (f64 bits), so any divergence shows.
+//! outcome bit for bit, on any machine and with any number of threads ([`Sim::set_threads`];
+//! no clock, no hash-map iteration order; all randomness from seeded streams). The trace hash
+//! is SHA-256 over every frame's exact state (f64 bits), so any divergence shows.
 //!
 //! One tick (`dt`, 50 ms = the observers' 20 Hz): kills due; the radio's deliveries due are set
-//! aside; then robot by robot (one visit each, so its node stays in cache): its deliveries,
-//! every `sense_every` ticks a camera frame and sonar sweep into its body, the oracle's word
-//! (Centralized only), its pose (Planner only), its node polls at the tick's time and its
-//! outgoing messages enter the radio, its motors are read; then the Planner's base station (a
-//! node of its own, the radio's last station) takes its deliveries, polls and sends; the world moves; metrics account the tick; every `frame_dt` a
-//! frame is hashed (and recorded if asked). Robots meet only through the world and the radio,
-//! so this equals doing each stage for every robot in turn.
+//! aside; every `sense_every` ticks each live robot's body takes a camera frame and a sonar
+//! sweep, in robot order (one noise stream); then robot by robot (one visit each, so its node
+//! stays in cache; shared out among threads if allowed): its deliveries, its senses written to
+//! its ports, the oracle's word (Centralized only), its pose (Planner only), its node runs at
+//! the tick's time, its motors are read; then every robot's outgoing messages enter the radio
+//! in robot order; the Planner's base station (a node of its own, the radio's last station)
+//! takes its deliveries, polls and sends; the world moves; metrics account the tick; every
+//! `frame_dt` a frame is hashed (and recorded if asked). Robots meet only through the world
+//! and the radio, and nothing sent in a tick is delivered before the next, so this equals
+//! doing each stage for every robot in turn.
 
-use ayllu_core::{Duration, Error, Instant, NodeCore, NodeId, PortRef, Value};
+use ayllu_core::{Duration, Error, Instant, NodeCore, NodeId, Outgoing, PortRef, Value};
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
+use std::sync::Mutex;
 
 use crate::body::Body;
 use crate::classes::SharedClasses;
@@ -25,6 +29,7 @@ use crate::controller::{build_planner, build_shared, chain_quiet, Brain, Control
 use crate::metrics::{Meter, Metrics};
 use crate::radio::{Radio, RadioConfig, Station};
 use crate::recording::{CoverageSeries, Event, Frame, Recording, RecordingMeta, RobotFrame, RobotInfo, TargetInfo};
+use crate::workers::Workers;
 use crate::world::{wrap, Command, World, WorldConfig};
 
 /// A scheduled robot failure.
@@ -213,17 +218,129 @@ const LOOK_AHEAD_TEAM: usize = 300;
 
 /// The first stage of loading robot `i`'s messages ahead of its visit (see `Sim::step`): the
 /// sequence-table slots they look up. Hints only.
-fn load_slots(radio: &Radio, robots: &[RobotNode], i: usize) {
-    if let Some(r) = robots.get(i) {
-        radio.deliver_due(i, |from, m| r.core.prefetch_receive(from, m));
+fn load_slots(radio: &Radio, robots: &[RobotNode], base: usize, k: usize) {
+    if let Some(r) = robots.get(k) {
+        radio.deliver_due(base + k, |from, m| r.core.prefetch_receive(from, m));
     }
 }
 
 /// The second stage, once the slots are in: the ports they name. Hints only.
-fn load_ports(radio: &Radio, robots: &[RobotNode], i: usize) {
-    if let Some(r) = robots.get(i) {
-        radio.deliver_due(i, |from, m| r.core.prefetch_target(from, m));
+fn load_ports(radio: &Radio, robots: &[RobotNode], base: usize, k: usize) {
+    if let Some(r) = robots.get(k) {
+        radio.deliver_due(base + k, |from, m| r.core.prefetch_target(from, m));
     }
+}
+
+/// Robots a thread takes at the least: below this a share's visits take about as long as
+/// starting the thread that would run them (tens of microseconds), so a smaller team runs on
+/// fewer threads, down to one.
+const ROBOTS_PER_THREAD: usize = 50;
+
+/// How many threads visit a team of `robots` when [`Sim::set_threads`] allows `allowed`.
+fn visit_threads(allowed: usize, robots: usize) -> usize {
+    allowed.min(robots / ROBOTS_PER_THREAD).max(1)
+}
+
+/// What every visit of one tick reads, shared by the threads that visit.
+struct Tick<'a> {
+    now: Instant,
+    radio: &'a Radio,
+    world: &'a World,
+    /// Centralized: the oracle's assignment per robot.
+    assignment: &'a [Option<usize>],
+    /// Whether the bodies observed this tick (their senses are written in the visit).
+    sense: bool,
+    /// BLE and Local: a bare observer chain (see the drives below).
+    chain_only: bool,
+    centralized: bool,
+    /// Load each robot's messages ahead of its visit ([`LOOK_AHEAD_TEAM`]).
+    ahead: bool,
+}
+
+/// Visit robots `base..base + robots.len()` in turn: each one's deliveries, senses, the
+/// oracle's word (Centralized), pose (Planner), its node's run, then its motors. Its outgoing
+/// messages go to `outbox` (robot index first) for the radio, in order. In a large team, what a
+/// robot's messages will touch in its node loads ahead of its visit, in two stages, so that the
+/// loads of each stage overlap one another and the visits between: two visits ahead, the
+/// sequence-table slots its messages look up; one visit ahead, the ports those slots name (by
+/// then the slots are in cache). A small team's nodes stay in cache from tick to tick: there
+/// the hints would only cost.
+fn visit(
+    tick: &Tick<'_>,
+    base: usize,
+    robots: &mut [RobotNode],
+    commands: &mut [Command],
+    drives: &mut [u32],
+    outbox: &mut Vec<(usize, Outgoing)>,
+) -> Result<(), Error> {
+    let (now, radio) = (tick.now, tick.radio);
+    if tick.ahead {
+        load_slots(radio, robots, base, 0);
+        load_slots(radio, robots, base, 1);
+        load_ports(radio, robots, base, 0);
+    }
+    for k in 0..robots.len() {
+        if tick.ahead {
+            load_slots(radio, robots, base, k + 2);
+            load_ports(radio, robots, base, k + 1);
+        }
+        let i = base + k;
+        let alive = tick.world.robots[i].alive;
+        let r = &mut robots[k];
+        // A broadcast reaches its receivers as one shared message: nothing copied. In a
+        // small team the next message's slot loads while this one is applied.
+        if alive && tick.ahead {
+            radio.deliver_due(i, |from, msg| r.core.receive_shared(now, from, msg));
+        } else if alive {
+            radio.deliver_due_ahead(i, |(from, msg), next| {
+                if let Some((f, m)) = next {
+                    r.core.prefetch_receive(f, m);
+                }
+                r.core.receive_shared(now, from, msg);
+            });
+        }
+        if !alive {
+            continue;
+        }
+        if tick.sense {
+            r.body.write_senses(&mut r.core, now)?;
+            if let Brain::Follow { pose, .. } = r.brain {
+                // Localization: the robot knows where it is (as odometry on a map would).
+                let p = tick.world.robots[i].pose;
+                r.core.write(now, pose, Value::vector(&[p.x, p.y, p.theta]))?;
+            }
+        }
+        if tick.centralized {
+            steer(tick, i, r)?;
+        }
+        // The next tick comes at its time whatever is due: no `poll_at` scan.
+        r.core.run_due(now);
+        while let Some(out) = r.core.pop_outgoing() {
+            outbox.push((i, out));
+        }
+        commands[k] = r.body.command(&r.core);
+        // Ble and Local build a bare chain: a robot that saw no target lately has no driver,
+        // and neither its brain nor its ports need reading.
+        drives[k] = if tick.chain_only && chain_quiet(now, r.body.latest_seen()) {
+            0
+        } else {
+            r.brain.drive_seen(&r.core, r.body.seen())
+        };
+    }
+    Ok(())
+}
+
+/// The oracle's word to live robot `i` this tick (see [`Sim::plan`]).
+fn steer(tick: &Tick<'_>, i: usize, r: &mut RobotNode) -> Result<(), Error> {
+    let w = tick.world;
+    let (Some(j), Brain::Oracle { angle, assigned }) = (tick.assignment[i], &r.brain) else { return Ok(()) };
+    let p = w.robots[i].pose;
+    let t = &w.targets[j];
+    let bearing = wrap((t.y - p.y).atan2(t.x - p.x) - p.theta);
+    let (angle, assigned): (PortRef, PortRef) = (*angle, *assigned);
+    r.core.write(tick.now, angle, -bearing)?;
+    r.core.write(tick.now, assigned, j as i64 + 1)?;
+    Ok(())
 }
 
 struct RobotNode {
@@ -262,6 +379,10 @@ pub struct Sim {
     /// Whether robots' messages are loaded ahead of their visits (a large team,
     /// [`LOOK_AHEAD_TEAM`]); a hint that changes no outcome.
     look_ahead: bool,
+    /// The threads beside the caller's that visit the robots (`Sim::set_threads`).
+    workers: Option<Workers>,
+    /// Each visiting thread's outgoing messages of the tick, kept for their capacity.
+    outboxes: Vec<Vec<(usize, Outgoing)>>,
 }
 
 /// Builds one robot's controller on its node for [`Sim::with_controller`]: the node (body
@@ -341,6 +462,8 @@ impl Sim {
             planner,
             last_coverage: (0, 0.0),
             look_ahead: n >= LOOK_AHEAD_TEAM,
+            workers: None,
+            outboxes: Vec::new(),
         };
         for r in &mut sim.robots {
             r.core.poll(Instant::ZERO);
@@ -395,6 +518,28 @@ impl Sim {
         &self.scenario
     }
 
+    /// Let up to `threads` threads visit the robots in each tick (1, the default, visits them
+    /// on the caller's thread; 0 counts as 1). The outcome is the same bit for bit whatever
+    /// the number: only the nodes' runs are shared out, each robot's on one thread, while the
+    /// sensor noise, the radio and the world stay in robot order on the caller's. A thread
+    /// takes at least 150 robots, so a smaller team uses fewer threads than allowed; the gain
+    /// is for large teams (docs/performance.md). The threads live until the next call or the
+    /// end of the run; between two steps each one spins for at most 2 ms, then sleeps.
+    /// Errors if the system refuses a thread (the run then stays on the caller's thread).
+    pub fn set_threads(&mut self, threads: usize) -> std::io::Result<()> {
+        self.workers = None;
+        let threads = visit_threads(threads, self.robots.len());
+        if threads > 1 {
+            self.workers = Some(Workers::new(threads - 1)?);
+        }
+        Ok(())
+    }
+
+    /// How many threads visit the robots in each tick (see [`Sim::set_threads`]).
+    pub fn threads(&self) -> usize {
+        self.workers.as_ref().map_or(1, Workers::shares)
+    }
+
     /// True once the scenario's duration has been simulated.
     pub fn done(&self) -> bool {
         self.now().as_secs_f64() >= self.scenario.duration - 1e-9
@@ -427,73 +572,70 @@ impl Sim {
             self.stations.push(*station);
         }
         let all_alive = self.stations.iter().all(|s| s.alive);
-        let chain_only = matches!(self.scenario.controller, Controller::Ble | Controller::Local);
-        // One visit per robot: its messages, its senses, its node's poll. Robots interact only
-        // through the world (which moves after the loop) and the radio (whose deliveries were
-        // set aside above), so this is the same as doing each step for all robots in turn —
-        // but a robot's node is fetched from memory once a tick instead of three times.
-        // In a large team, what a robot's messages will touch in its node loads ahead of its
-        // visit, in two stages, so that the loads of each stage overlap one another and the
-        // visits between: two visits ahead, the sequence-table slots its messages look up; one
-        // visit ahead, the ports those slots name (by then the slots are in cache). A small
-        // team's nodes stay in cache from tick to tick: there the hints would only cost.
-        let ahead = self.look_ahead;
-        if ahead {
-            load_slots(&self.radio, &self.robots, 0);
-            load_slots(&self.radio, &self.robots, 1);
-            load_ports(&self.radio, &self.robots, 0);
-        }
-        for i in 0..self.robots.len() {
-            if ahead {
-                load_slots(&self.radio, &self.robots, i + 2);
-                load_ports(&self.radio, &self.robots, i + 1);
-            }
-            let alive = self.world.robots[i].alive;
-            let r = &mut self.robots[i];
-            // A broadcast reaches its receivers as one shared message: nothing copied. In a
-            // small team the next message's slot loads while this one is applied.
-            if alive && ahead {
-                self.radio.deliver_due(i, |from, msg| r.core.receive_shared(now, from, msg));
-            } else if alive {
-                self.radio.deliver_due_ahead(i, |(from, msg), next| {
-                    if let Some((f, m)) = next {
-                        r.core.prefetch_receive(f, m);
-                    }
-                    r.core.receive_shared(now, from, msg);
-                });
-            }
-            if !alive {
-                continue;
-            }
-            if sense {
-                r.body.sense(&mut r.core, now, &mut self.world, i)?;
-                if let Brain::Follow { pose, .. } = r.brain {
-                    // Localization: the robot knows where it is (as odometry on a map would).
-                    let p = self.world.robots[i].pose;
-                    r.core.write(now, pose, Value::vector(&[p.x, p.y, p.theta]))?;
+        // The bodies observe first, robot by robot: the sensor noise is one stream, drawn in
+        // robot order, and the world does not move until every robot has been visited.
+        if sense {
+            for (i, r) in self.robots.iter_mut().enumerate() {
+                if self.world.robots[i].alive {
+                    r.body.observe(&mut self.world, i);
                 }
             }
-            if self.scenario.controller == Controller::Centralized {
-                self.steer(now, i)?;
+        }
+        let tick = Tick {
+            now,
+            radio: &self.radio,
+            world: &self.world,
+            assignment: &self.assignment,
+            sense,
+            chain_only: matches!(self.scenario.controller, Controller::Ble | Controller::Local),
+            centralized: self.scenario.controller == Controller::Centralized,
+            ahead: self.look_ahead,
+        };
+        let threads = self.workers.as_ref().map_or(1, Workers::shares);
+        if self.outboxes.len() < threads {
+            self.outboxes.resize_with(threads, Vec::new);
+        }
+        match &mut self.workers {
+            None => visit(&tick, 0, &mut self.robots, &mut self.commands, &mut self.drives, &mut self.outboxes[0])?,
+            Some(workers) => {
+                // Contiguous shares, one a thread (this one takes the first): each robot's
+                // visit reads only the tick's shared state and writes only its own node,
+                // command, drive and outbox, so the split changes nothing but the wall time.
+                let share = self.robots.len().div_ceil(threads);
+                let parts: Vec<_> = self
+                    .robots
+                    .chunks_mut(share)
+                    .zip(self.commands.chunks_mut(share))
+                    .zip(self.drives.chunks_mut(share))
+                    .zip(self.outboxes.iter_mut())
+                    .map(|(((robots, commands), drives), outbox)| Mutex::new(Some((robots, commands, drives, outbox))))
+                    .collect();
+                let results: Vec<Mutex<Result<(), Error>>> = parts.iter().map(|_| Mutex::new(Ok(()))).collect();
+                let tick = &tick;
+                workers.run(&|k| {
+                    let part = parts.get(k).and_then(|p| p.lock().expect("a share's part").take());
+                    if let Some((robots, commands, drives, outbox)) = part {
+                        *results[k].lock().expect("a share's result") =
+                            visit(tick, k * share, robots, commands, drives, outbox);
+                    }
+                });
+                // The first error in robot order, as one thread would have met it.
+                for r in results {
+                    r.into_inner().expect("a share's result")?;
+                }
             }
-            let r = &mut self.robots[i];
-            // The next tick comes at its time whatever is due: no `poll_at` scan.
-            r.core.run_due(now);
-            while let Some(out) = r.core.pop_outgoing() {
+        }
+        // The messages enter the radio in robot order, as if each robot had sent at the end
+        // of its visit: nothing sent this tick is delivered before the next one, so no visit
+        // could have seen them, and the radio's draws (loss, jitter) keep their order.
+        for outbox in &mut self.outboxes[..threads] {
+            for (i, out) in outbox.drain(..) {
                 if all_alive {
                     self.radio.send_all_alive(now, i, out, &self.stations);
                 } else {
                     self.radio.send(now, i, out, &self.stations);
                 }
             }
-            self.commands[i] = r.body.command(&r.core);
-            // Ble and Local build a bare chain: a robot that saw no target lately has no driver, and
-            // neither its brain nor its ports need reading.
-            self.drives[i] = if chain_only && chain_quiet(now, r.body.latest_seen()) {
-                0
-            } else {
-                r.brain.drive_seen(&r.core, r.body.seen())
-            };
         }
         if let Some((core, _)) = &mut self.planner {
             let station = self.robots.len();
@@ -551,20 +693,6 @@ impl Sim {
             self.oracle_messages += next.iter().filter(|a| a.is_some()).count() as u64;
             self.assignment = next;
         }
-    }
-
-    /// The oracle's word to live robot `i` this tick (see [`Sim::plan`]).
-    fn steer(&mut self, now: Instant, i: usize) -> Result<(), Error> {
-        let w = &self.world;
-        let r = &mut self.robots[i];
-        let (Some(j), Brain::Oracle { angle, assigned }) = (self.assignment[i], &r.brain) else { return Ok(()) };
-        let p = w.robots[i].pose;
-        let t = &w.targets[j];
-        let bearing = wrap((t.y - p.y).atan2(t.x - p.x) - p.theta);
-        let (angle, assigned): (PortRef, PortRef) = (*angle, *assigned);
-        r.core.write(now, angle, -bearing)?;
-        r.core.write(now, assigned, j as i64 + 1)?;
-        Ok(())
     }
 
     fn frame(&mut self, observed: u32, weighted: f64) {
@@ -701,7 +829,15 @@ impl Sim {
 /// assert_eq!(run(&s).unwrap().trace_hash, out.trace_hash);
 /// ```
 pub fn run(scenario: &Scenario) -> Result<Outcome, Error> {
+    run_on(scenario, 1)
+}
+
+/// [`run`] with up to `threads` threads visiting the robots ([`Sim::set_threads`]): the same
+/// outcome bit for bit, sooner for a large team. If the system refuses a thread, the run uses
+/// fewer (the outcome does not depend on them).
+pub fn run_on(scenario: &Scenario, threads: usize) -> Result<Outcome, Error> {
     let mut sim = Sim::new(scenario)?;
+    let _ = sim.set_threads(threads);
     while !sim.done() {
         sim.step()?;
     }
@@ -786,6 +922,66 @@ mod tests {
         assert_eq!(with.radio, without.radio);
         assert_eq!(with.metrics, without.metrics);
         assert!(with.radio.delivered > 10_000, "messages flowed: {:?}", with.radio);
+    }
+
+    /// Sharing a tick's visits among threads (`Sim::set_threads`) must give the run of one
+    /// thread bit for bit: every controller (the Centralized oracle's words and the Planner's
+    /// base station included), with loss, jitter, a range limit, a partition and kills, split
+    /// in two and in three unequal shares, and a team large enough to load its messages
+    /// ahead of the visits.
+    #[test]
+    fn threads_change_nothing() {
+        let mut cases: Vec<(Scenario, usize)> = Controller::ALL
+            .iter()
+            .map(|&c| {
+                let mut s = Scenario::sized(c, 3 * ROBOTS_PER_THREAD + 7, 5, 4).loss(0.15).duration(5.0);
+                s.radio.jitter = 0.03;
+                s.radio.range = Some(25.0);
+                s.radio.partitions.push(Partition { start: 1.0, end: 2.0, island: (1..40).collect() });
+                s.kills.push(Kill { at: 1.5, robot: None });
+                s.kills.push(Kill { at: 2.5, robot: Some(ROBOTS_PER_THREAD as u32 + 1) });
+                (s, 3)
+            })
+            .collect();
+        cases.push((Scenario::sized(Controller::Ble, LOOK_AHEAD_TEAM + 5, 5, 9).loss(0.1).duration(3.0), 2));
+        for (s, threads) in cases {
+            let outcome = |threads: usize| {
+                let mut sim = Sim::new(&s).expect("builds");
+                sim.set_threads(threads).expect("the threads start");
+                assert_eq!(sim.threads(), threads);
+                while !sim.done() {
+                    sim.step().expect("steps");
+                }
+                let nodes: Vec<_> = sim.robots.iter().map(|r| r.core.report()).collect();
+                (nodes, sim.finish())
+            };
+            let ((nodes_one, one), (nodes_more, more)) = (outcome(1), outcome(threads));
+            let name = s.controller.name();
+            for (i, (a, b)) in nodes_one.iter().zip(&nodes_more).enumerate() {
+                assert_eq!(a, b, "{name}: robot {i}");
+            }
+            assert_eq!(one.trace_hash, more.trace_hash, "{name}");
+            assert_eq!(one.radio, more.radio, "{name}");
+            assert_eq!(one.metrics, more.metrics, "{name}");
+            assert_eq!(one.coverage, more.coverage, "{name}");
+            if matches!(s.controller, Controller::Ble | Controller::Planner) {
+                assert!(one.radio.delivered > 1000, "{name}: messages flowed: {:?}", one.radio);
+            }
+        }
+    }
+
+    /// A team too small for two shares of [`ROBOTS_PER_THREAD`] runs on one thread whatever is
+    /// allowed, and 0 counts as 1.
+    #[test]
+    fn small_teams_stay_on_one_thread() {
+        let mut sim = Sim::new(&Scenario::sized(Controller::Ble, 2 * ROBOTS_PER_THREAD - 1, 4, 1)).unwrap();
+        sim.set_threads(8).unwrap();
+        assert_eq!(sim.threads(), 1);
+        sim.set_threads(0).unwrap();
+        assert_eq!(sim.threads(), 1);
+        let mut sim = Sim::new(&Scenario::sized(Controller::Ble, 2 * ROBOTS_PER_THREAD, 4, 1)).unwrap();
+        sim.set_threads(8).unwrap();
+        assert_eq!(sim.threads(), 2);
     }
 
     /// `Sim::new` defines one copy of each class on every robot (crate::classes); each robot

@@ -156,7 +156,20 @@ pub fn csv_line(tick: &Tick) -> String {
 
 /// Run `scenario` to its end, writing its trace to `out` in `format` (module docs).
 pub fn run_traced(scenario: &Scenario, format: TraceFormat, out: &mut dyn Write) -> Result<Outcome, TraceError> {
+    run_traced_on(scenario, 1, format, out)
+}
+
+/// [`run_traced`] with up to `threads` threads visiting the robots
+/// ([`crate::scenario::Sim::set_threads`]): the same outcome and trace, sooner for a large team.
+pub fn run_traced_on(
+    scenario: &Scenario,
+    threads: usize,
+    format: TraceFormat,
+    out: &mut dyn Write,
+) -> Result<Outcome, TraceError> {
     let mut sim = Sim::new(scenario)?;
+    // The outcome does not depend on the threads: a refused one only costs time.
+    let _ = sim.set_threads(threads);
     if format == TraceFormat::Csv {
         writeln!(out, "{}", csv_header(scenario.robots, scenario.world.targets.len()))?;
     }
