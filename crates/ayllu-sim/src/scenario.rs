@@ -21,6 +21,7 @@
 use ayllu_core::{Duration, Error, Instant, NodeCore, NodeId, Outgoing, PortRef, Value};
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
+use std::sync::atomic::{AtomicUsize, Ordering::Relaxed};
 use std::sync::Mutex;
 
 use crate::body::Body;
@@ -235,6 +236,12 @@ fn load_ports(radio: &Radio, robots: &[RobotNode], base: usize, k: usize) {
 /// starting the thread that would run them (tens of microseconds), so a smaller team runs on
 /// fewer threads, down to one.
 const ROBOTS_PER_THREAD: usize = 50;
+
+/// Robots a thread visits in turn before it takes the next block of a tick ([`Sim::set_threads`]):
+/// small enough that a thread slowed by the machine leaves most of its work to the others,
+/// large enough that a block's first two robots, whose messages were not loaded ahead
+/// ([`LOOK_AHEAD_TEAM`]), are few.
+const BLOCK: usize = 25;
 
 /// How many threads visit a team of `robots` when [`Sim::set_threads`] allows `allowed`.
 fn visit_threads(allowed: usize, robots: usize) -> usize {
@@ -520,8 +527,9 @@ impl Sim {
 
     /// Let up to `threads` threads visit the robots in each tick (1, the default, visits them
     /// on the caller's thread; 0 counts as 1). The outcome is the same bit for bit whatever
-    /// the number: only the nodes' runs are shared out, each robot's on one thread, while the
-    /// sensor noise, the radio and the world stay in robot order on the caller's. A thread
+    /// the number: only the robots' visits (deliveries, senses written, node runs, motors) are
+    /// shared out, in blocks of 25 robots taken by whichever thread is free, while the sensor
+    /// noise, the radio and the world stay in robot order on the caller's. A thread
     /// takes at least 150 robots, so a smaller team uses fewer threads than allowed; the gain
     /// is for large teams (docs/performance.md). The threads live until the next call or the
     /// end of the run; between two steps each one spins for at most 2 ms, then sleeps.
@@ -591,44 +599,49 @@ impl Sim {
             centralized: self.scenario.controller == Controller::Centralized,
             ahead: self.look_ahead,
         };
-        let threads = self.workers.as_ref().map_or(1, Workers::shares);
-        if self.outboxes.len() < threads {
-            self.outboxes.resize_with(threads, Vec::new);
+        let blocks = match &self.workers {
+            None => 1,
+            Some(_) => self.robots.len().div_ceil(BLOCK),
+        };
+        if self.outboxes.len() < blocks {
+            self.outboxes.resize_with(blocks, Vec::new);
         }
         match &mut self.workers {
             None => visit(&tick, 0, &mut self.robots, &mut self.commands, &mut self.drives, &mut self.outboxes[0])?,
             Some(workers) => {
-                // Contiguous shares, one a thread (this one takes the first): each robot's
-                // visit reads only the tick's shared state and writes only its own node,
-                // command, drive and outbox, so the split changes nothing but the wall time.
-                let share = self.robots.len().div_ceil(threads);
+                // Blocks of robots in turn, each taken by whichever thread is free (this one
+                // too), so that a thread slowed by the machine takes fewer: each robot's visit
+                // reads only the tick's shared state and writes only its own node, command,
+                // drive and its block's outbox, so the split changes nothing but the wall time.
                 let parts: Vec<_> = self
                     .robots
-                    .chunks_mut(share)
-                    .zip(self.commands.chunks_mut(share))
-                    .zip(self.drives.chunks_mut(share))
+                    .chunks_mut(BLOCK)
+                    .zip(self.commands.chunks_mut(BLOCK))
+                    .zip(self.drives.chunks_mut(BLOCK))
                     .zip(self.outboxes.iter_mut())
                     .map(|(((robots, commands), drives), outbox)| Mutex::new(Some((robots, commands, drives, outbox))))
                     .collect();
                 let results: Vec<Mutex<Result<(), Error>>> = parts.iter().map(|_| Mutex::new(Ok(()))).collect();
+                let next = AtomicUsize::new(0);
                 let tick = &tick;
-                workers.run(&|k| {
-                    let part = parts.get(k).and_then(|p| p.lock().expect("a share's part").take());
-                    if let Some((robots, commands, drives, outbox)) = part {
-                        *results[k].lock().expect("a share's result") =
-                            visit(tick, k * share, robots, commands, drives, outbox);
+                workers.run(&|_| loop {
+                    let b = next.fetch_add(1, Relaxed);
+                    let Some(part) = parts.get(b) else { break };
+                    if let Some((robots, commands, drives, outbox)) = part.lock().expect("a block").take() {
+                        *results[b].lock().expect("a block's result") =
+                            visit(tick, b * BLOCK, robots, commands, drives, outbox);
                     }
                 });
                 // The first error in robot order, as one thread would have met it.
                 for r in results {
-                    r.into_inner().expect("a share's result")?;
+                    r.into_inner().expect("a block's result")?;
                 }
             }
         }
         // The messages enter the radio in robot order, as if each robot had sent at the end
         // of its visit: nothing sent this tick is delivered before the next one, so no visit
         // could have seen them, and the radio's draws (loss, jitter) keep their order.
-        for outbox in &mut self.outboxes[..threads] {
+        for outbox in &mut self.outboxes[..blocks] {
             for (i, out) in outbox.drain(..) {
                 if all_alive {
                     self.radio.send_all_alive(now, i, out, &self.stations);
