@@ -12,7 +12,7 @@ use ayllu::stdlib::{base_class, sonar_class, vision_class, BASE, SONAR, VISION};
 use ayllu_core::{Error, Instant, NodeCore, PortRef, Value};
 
 use crate::classes::SharedClasses;
-use crate::world::{Command, Sighting, World, WorldConfig};
+use crate::world::{Command, Sighting, SonarScratch, World, WorldConfig};
 
 /// The port handles of one robot's body on its node.
 pub struct Body {
@@ -22,9 +22,9 @@ pub struct Body {
     translate: PortRef,
     sightings: Vec<Sighting>,
     sonar: Vec<f64>,
-    /// `sonar` as the world's shared quiet-sweep value, when it heard nothing
-    /// ([`World::quiet_sweep`]); taken by the next write.
-    quiet: Option<Value>,
+    /// The sonar sweep's noise, drawn by [`Body::observe`] (a pair of uniforms a pair of
+    /// beams).
+    draws: Vec<(f64, f64)>,
     /// When this body last wrote each target's VISION ports (`None`: never).
     seen: Vec<Option<Instant>>,
     /// The latest of `seen`, kept beside the port handles that every tick reads: most ticks
@@ -69,7 +69,7 @@ impl Body {
             translate: core.port(BASE, "Translate")?,
             sightings: Vec::new(),
             sonar: vec![0.0; beams],
-            quiet: None,
+            draws: Vec::new(),
             seen: vec![None; targets],
             latest: None,
         })
@@ -78,22 +78,30 @@ impl Body {
     /// Take one camera frame and one sonar sweep of robot `i` and write them to the ports.
     pub fn sense(&mut self, core: &mut NodeCore, now: Instant, world: &mut World, i: usize) -> Result<(), Error> {
         self.observe(world, i);
-        self.write_senses(core, now)
+        self.write_senses(core, now, world, i, &mut SonarScratch::default())
     }
 
-    /// The first half of [`Body::sense`]: take robot `i`'s camera frame and sonar sweep into
-    /// this body, drawing their noise from the world's stream. Touches no node, so a team's
-    /// bodies can all observe (in robot order: the noise stream's order) before any node runs,
-    /// and the nodes then run on several threads.
+    /// The first half of [`Body::sense`]: everything that draws from the world's noise
+    /// stream, for robot `i`: its camera frame, and its sonar sweep's noise. Touches no node,
+    /// so a team's bodies can all observe in robot order (the stream's order) before any node
+    /// runs, and the rest of each robot's work, sweeps included, can then run on any thread.
     pub fn observe(&mut self, world: &mut World, i: usize) {
         world.camera(i, &mut self.sightings);
-        world.sonar(i, &mut self.sonar);
-        // A sweep that heard nothing is the world's one shared value (no copy of the beams).
-        self.quiet = world.quiet_sweep(&self.sonar).cloned();
+        world.sonar_draws(self.sonar.len(), &mut self.draws);
     }
 
-    /// The second half of [`Body::sense`]: write what [`Body::observe`] took to the ports.
-    pub fn write_senses(&mut self, core: &mut NodeCore, now: Instant) -> Result<(), Error> {
+    /// The second half of [`Body::sense`]: robot `i`'s sonar sweep (with the noise
+    /// [`Body::observe`] drew; `scratch` for room), then the camera frame and the sweep
+    /// written to the ports. Reads the world only.
+    pub fn write_senses(
+        &mut self,
+        core: &mut NodeCore,
+        now: Instant,
+        world: &World,
+        i: usize,
+        scratch: &mut SonarScratch,
+    ) -> Result<(), Error> {
+        world.sonar_with(i, &self.draws, scratch, &mut self.sonar);
         for s in &self.sightings {
             let (angle, bottom) = self.vision[s.target];
             core.write(now, angle, s.angle)?;
@@ -101,8 +109,9 @@ impl Body {
             self.seen[s.target] = Some(now);
             self.latest = Some(now);
         }
-        match self.quiet.take() {
-            Some(quiet) => core.write(now, self.ranges, quiet)?,
+        // A sweep that heard nothing is the world's one shared value (no copy of the beams).
+        match world.quiet_sweep(&self.sonar) {
+            Some(quiet) => core.write(now, self.ranges, quiet.clone())?,
             None => core.write(now, self.ranges, self.sonar.as_slice())?,
         }
         Ok(())

@@ -7,10 +7,10 @@
 //! is SHA-256 over every frame's exact state (f64 bits), so any divergence shows.
 //!
 //! One tick (`dt`, 50 ms = the observers' 20 Hz): kills due; the radio's deliveries due are set
-//! aside; every `sense_every` ticks each live robot's body takes a camera frame and a sonar
-//! sweep, in robot order (one noise stream); then robot by robot (one visit each, so its node
-//! stays in cache; shared out among threads if allowed): its deliveries, its senses written to
-//! its ports, the oracle's word (Centralized only), its pose (Planner only), its node runs at
+//! aside; every `sense_every` ticks each live robot's body takes a camera frame and its sonar
+//! sweep's noise draws, in robot order (one noise stream); then robot by robot (one visit each,
+//! so its node stays in cache; shared out among threads if allowed): its deliveries, its sonar
+//! sweep and its senses written to its ports, the oracle's word (Centralized only), its pose (Planner only), its node runs at
 //! the tick's time, its motors are read; then every robot's outgoing messages enter the radio
 //! in robot order; the Planner's base station (a node of its own, the radio's last station)
 //! takes its deliveries, polls and sends; the world moves; metrics account the tick; every
@@ -31,7 +31,7 @@ use crate::metrics::{Meter, Metrics};
 use crate::radio::{Radio, RadioConfig, Station};
 use crate::recording::{CoverageSeries, Event, Frame, Recording, RecordingMeta, RobotFrame, RobotInfo, TargetInfo};
 use crate::workers::Workers;
-use crate::world::{wrap, Command, World, WorldConfig};
+use crate::world::{wrap, Command, SonarScratch, World, WorldConfig};
 
 /// A scheduled robot failure.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -264,8 +264,8 @@ struct Tick<'a> {
     ahead: bool,
 }
 
-/// Visit robots `base..base + robots.len()` in turn: each one's deliveries, senses, the
-/// oracle's word (Centralized), pose (Planner), its node's run, then its motors. Its outgoing
+/// Visit robots `base..base + robots.len()` in turn: each one's deliveries, its sonar sweep
+/// (`sweep` for room) and senses, the oracle's word (Centralized), pose (Planner), its node's run, then its motors. Its outgoing
 /// messages go to `outbox` (robot index first) for the radio, in order. In a large team, what a
 /// robot's messages will touch in its node loads ahead of its visit, in two stages, so that the
 /// loads of each stage overlap one another and the visits between: two visits ahead, the
@@ -279,6 +279,7 @@ fn visit(
     commands: &mut [Command],
     drives: &mut [u32],
     outbox: &mut Vec<(usize, Outgoing)>,
+    sweep: &mut SonarScratch,
 ) -> Result<(), Error> {
     let (now, radio) = (tick.now, tick.radio);
     if tick.ahead {
@@ -310,7 +311,7 @@ fn visit(
             continue;
         }
         if tick.sense {
-            r.body.write_senses(&mut r.core, now)?;
+            r.body.write_senses(&mut r.core, now, tick.world, i, sweep)?;
             if let Brain::Follow { pose, .. } = r.brain {
                 // Localization: the robot knows where it is (as odometry on a map would).
                 let p = tick.world.robots[i].pose;
@@ -388,8 +389,10 @@ pub struct Sim {
     look_ahead: bool,
     /// The threads beside the caller's that visit the robots (`Sim::set_threads`).
     workers: Option<Workers>,
-    /// Each visiting thread's outgoing messages of the tick, kept for their capacity.
+    /// Each block's outgoing messages of the tick, kept for their capacity.
     outboxes: Vec<Vec<(usize, Outgoing)>>,
+    /// Each visiting thread's room for sonar sweeps.
+    sweeps: Vec<Mutex<SonarScratch>>,
 }
 
 /// Builds one robot's controller on its node for [`Sim::with_controller`]: the node (body
@@ -471,6 +474,7 @@ impl Sim {
             look_ahead: n >= LOOK_AHEAD_TEAM,
             workers: None,
             outboxes: Vec::new(),
+            sweeps: Vec::new(),
         };
         for r in &mut sim.robots {
             r.core.poll(Instant::ZERO);
@@ -527,9 +531,10 @@ impl Sim {
 
     /// Let up to `threads` threads visit the robots in each tick (1, the default, visits them
     /// on the caller's thread; 0 counts as 1). The outcome is the same bit for bit whatever
-    /// the number: only the robots' visits (deliveries, senses written, node runs, motors) are
-    /// shared out, in blocks of 25 robots taken by whichever thread is free, while the sensor
-    /// noise, the radio and the world stay in robot order on the caller's. A thread
+    /// the number: only the robots' visits (deliveries, sonar sweeps, senses written, node
+    /// runs, motors) are shared out, in blocks of 25 robots taken by whichever thread is free,
+    /// while the sensor noise draws, the radio and the world stay in robot order on the
+    /// caller's. A thread
     /// takes at least 150 robots, so a smaller team uses fewer threads than allowed; the gain
     /// is for large teams (docs/performance.md). The threads live until the next call or the
     /// end of the run; between two steps each one spins for at most 2 ms, then sleeps.
@@ -580,8 +585,10 @@ impl Sim {
             self.stations.push(*station);
         }
         let all_alive = self.stations.iter().all(|s| s.alive);
-        // The bodies observe first, robot by robot: the sensor noise is one stream, drawn in
-        // robot order, and the world does not move until every robot has been visited.
+        // What draws from the sensor noise stream first, robot by robot (the stream's order):
+        // the camera frames and the sonar sweeps' draws. The sweeps themselves read only the
+        // world, which does not move until every robot has been visited: they run in the
+        // visits.
         if sense {
             for (i, r) in self.robots.iter_mut().enumerate() {
                 if self.world.robots[i].alive {
@@ -606,8 +613,15 @@ impl Sim {
         if self.outboxes.len() < blocks {
             self.outboxes.resize_with(blocks, Vec::new);
         }
+        let shares = self.workers.as_ref().map_or(1, Workers::shares);
+        if self.sweeps.len() < shares {
+            self.sweeps.resize_with(shares, || Mutex::new(SonarScratch::default()));
+        }
         match &mut self.workers {
-            None => visit(&tick, 0, &mut self.robots, &mut self.commands, &mut self.drives, &mut self.outboxes[0])?,
+            None => {
+                let sweep = self.sweeps[0].get_mut().expect("a thread's sweep room");
+                visit(&tick, 0, &mut self.robots, &mut self.commands, &mut self.drives, &mut self.outboxes[0], sweep)?
+            }
             Some(workers) => {
                 // Blocks of robots in turn, each taken by whichever thread is free (this one
                 // too), so that a thread slowed by the machine takes fewer: each robot's visit
@@ -623,13 +637,16 @@ impl Sim {
                     .collect();
                 let results: Vec<Mutex<Result<(), Error>>> = parts.iter().map(|_| Mutex::new(Ok(()))).collect();
                 let next = AtomicUsize::new(0);
-                let tick = &tick;
-                workers.run(&|_| loop {
-                    let b = next.fetch_add(1, Relaxed);
-                    let Some(part) = parts.get(b) else { break };
-                    if let Some((robots, commands, drives, outbox)) = part.lock().expect("a block").take() {
-                        *results[b].lock().expect("a block's result") =
-                            visit(tick, b * BLOCK, robots, commands, drives, outbox);
+                let (tick, sweeps) = (&tick, &self.sweeps);
+                workers.run(&|k| {
+                    let mut sweep = sweeps[k].lock().expect("a thread's sweep room");
+                    loop {
+                        let b = next.fetch_add(1, Relaxed);
+                        let Some(part) = parts.get(b) else { break };
+                        if let Some((robots, commands, drives, outbox)) = part.lock().expect("a block").take() {
+                            *results[b].lock().expect("a block's result") =
+                                visit(tick, b * BLOCK, robots, commands, drives, outbox, &mut sweep);
+                        }
                     }
                 });
                 // The first error in robot order, as one thread would have met it.

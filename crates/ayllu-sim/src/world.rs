@@ -177,15 +177,25 @@ pub struct World {
     grid: Grid,
     /// Reused by `camera` so a frame allocates nothing.
     view: Vec<(usize, f64, f64)>,
-    /// (sin, cos) of each sonar beam's offset from the heading.
-    beams: Vec<(f64, f64)>,
-    /// Scratch of `sonar`: circles within its reach, as [`Echo`]s from the sweeping robot.
-    circles: Vec<Echo>,
-    /// Scratch of `sonar`: each beam's direction this sweep (x and y components).
-    dirs: (Vec<f64>, Vec<f64>),
+    /// [`World::sonar`]'s own room and draws.
+    sweep: SonarScratch,
+    draws: Vec<(f64, f64)>,
     /// A sweep that heard nothing (every beam at the range), as a port value shared by every
     /// robot: see [`World::quiet_sweep`].
-    quiet: Option<ayllu_core::Value>,
+    quiet: ayllu_core::Value,
+}
+
+/// What a sonar sweep needs besides the world, kept from sweep to sweep so that a sweep
+/// allocates nothing: the beams' directions and room for the circles in reach. One for each
+/// thread that sweeps ([`World::sonar_with`]).
+#[derive(Default)]
+pub struct SonarScratch {
+    /// (sin, cos) of each sonar beam's offset from the heading.
+    beams: Vec<(f64, f64)>,
+    /// Circles within the sweep's reach, as [`Echo`]s from the sweeping robot.
+    circles: Vec<Echo>,
+    /// Each beam's direction this sweep (x and y components).
+    dirs: (Vec<f64>, Vec<f64>),
 }
 
 /// A standard normal draw (Box-Muller), from a stream that only this module uses.
@@ -194,21 +204,22 @@ fn gauss(rng: &mut fastrand::Rng) -> f64 {
 }
 
 /// Two independent standard normal draws: both outputs of one Box-Muller transform (one
-/// logarithm, one square root and one sin_cos for two draws). Not inlined: in a caller's
-/// loop the compiler called `sin` and `cos` apart, where on its own it makes one `sincos`.
-#[inline(never)]
+/// logarithm, one square root and one sin_cos for two draws) of two uniform draws.
 fn gauss_pair(rng: &mut fastrand::Rng) -> (f64, f64) {
-    let u = rng.f64().max(f64::MIN_POSITIVE);
+    let u = rng.f64();
     let v = rng.f64();
+    gauss_from(u, v)
+}
+
+/// [`gauss_pair`] from its two uniform draws, taken earlier ([`World::sonar_draws`]). Not
+/// inlined: in a caller's loop the compiler called `sin` and `cos` apart, where on its own it
+/// makes one `sincos`.
+#[inline(never)]
+fn gauss_from(u: f64, v: f64) -> (f64, f64) {
+    let u = u.max(f64::MIN_POSITIVE);
     let r = (-2.0 * u.ln()).sqrt();
     let (s, c) = (TAU * v).sin_cos();
     (r * c, r * s)
-}
-
-/// Advance `rng` as [`gauss_pair`] does, when its outputs would not change anything.
-fn skip_gauss_pair(rng: &mut fastrand::Rng) {
-    rng.f64();
-    rng.f64();
 }
 
 /// No output of [`gauss_pair`] is larger in size: its radius `sqrt(-2 ln u)` is largest at
@@ -342,17 +353,16 @@ impl World {
             .collect();
         let grid = Grid::new(config.arena, config.sonar_range.max(config.robot_radius * 4.0));
         World {
-            config,
             robots,
             targets,
             motion_rng,
             noise_rng,
             grid,
             view: Vec::new(),
-            beams: Vec::new(),
-            circles: Vec::new(),
-            dirs: (Vec::new(), Vec::new()),
-            quiet: None,
+            sweep: SonarScratch::default(),
+            draws: Vec::new(),
+            quiet: ayllu_core::Value::vector(&vec![config.sonar_range; config.sonar_beams]),
+            config,
         }
     }
 
@@ -360,16 +370,10 @@ impl World {
     /// open space), the port value holding it, one for every robot: writing it bumps a count
     /// on a line every sweep touches instead of allocating and copying a vector. `None` for
     /// any other sweep.
-    pub fn quiet_sweep(&mut self, sweep: &[f64]) -> Option<&ayllu_core::Value> {
+    pub fn quiet_sweep(&self, sweep: &[f64]) -> Option<&ayllu_core::Value> {
         let range = self.config.sonar_range.to_bits();
-        if !sweep.iter().all(|r| r.to_bits() == range) {
-            return None;
-        }
-        let fits = |v: &ayllu_core::Value| matches!(v, ayllu_core::Value::Vector(q) if q.len() == sweep.len() && q.iter().all(|r| r.to_bits() == range));
-        if !self.quiet.as_ref().is_some_and(fits) {
-            self.quiet = Some(ayllu_core::Value::vector(sweep));
-        }
-        self.quiet.as_ref()
+        let quiet = sweep.len() == self.config.sonar_beams && sweep.iter().all(|r| r.to_bits() == range);
+        quiet.then_some(&self.quiet)
     }
 
     /// Advance by `dt` seconds: targets move, live robots follow `commands` (clamped to the
@@ -538,17 +542,42 @@ impl World {
     /// targets; echoes from beyond the range are not heard. Call [`World::index`] once after
     /// the robots moved, before the sweeps.
     pub fn sonar(&mut self, i: usize, out: &mut [f64]) {
+        let mut draws = std::mem::take(&mut self.draws);
+        let mut sweep = std::mem::take(&mut self.sweep);
+        self.sonar_draws(out.len(), &mut draws);
+        self.sonar_with(i, &draws, &mut sweep, out);
+        (self.draws, self.sweep) = (draws, sweep);
+    }
+
+    /// The sonar's noise for one sweep of `beams` beams, drawn from the world's noise stream
+    /// into `draws`: a pair of uniform draws for each pair of beams, whether or not the sweep
+    /// will need them (so the stream moves alike). The first half of [`World::sonar`]: a team's
+    /// draws are taken in robot order, and the sweeps ([`World::sonar_with`]) may then run on
+    /// any thread, in any order.
+    pub fn sonar_draws(&mut self, beams: usize, draws: &mut Vec<(f64, f64)>) {
+        draws.clear();
+        for _ in 0..beams.div_ceil(2) {
+            let u = self.noise_rng.f64();
+            let v = self.noise_rng.f64();
+            draws.push((u, v));
+        }
+    }
+
+    /// The second half of [`World::sonar`]: robot `i`'s sweep into `out` (`out.len()` beams),
+    /// its noise from `draws` ([`World::sonar_draws`] for as many beams), `scratch` for room.
+    /// Reads the world only.
+    pub fn sonar_with(&self, i: usize, draws: &[(f64, f64)], scratch: &mut SonarScratch, out: &mut [f64]) {
         let c = &self.config;
         let p = self.robots[i].pose;
         let [w, h] = c.arena;
         let (rr, range, sn) = (c.robot_radius, c.sonar_range, c.sonar_noise);
         let beams = out.len();
-        if self.beams.len() != beams {
-            self.beams = (0..beams).map(|k| (k as f64 * TAU / beams as f64).sin_cos()).collect();
+        if scratch.beams.len() != beams {
+            scratch.beams = (0..beams).map(|k| (k as f64 * TAU / beams as f64).sin_cos()).collect();
         }
         // The circles a beam can hit within range, once per sweep rather than once per beam.
         let reach = range + rr;
-        let mut circles = std::mem::take(&mut self.circles);
+        let mut circles = std::mem::take(&mut scratch.circles);
         circles.clear();
         let mut consider = |x: f64, y: f64, r: f64| {
             let (dx, dy) = (x - p.x, y - p.y);
@@ -580,10 +609,10 @@ impl World {
         let walls = !(rr >= 0.0 && range > 0.0 && p.x >= far && w - p.x >= far && p.y >= far && h - p.y >= far);
         if walls || !circles.is_empty() {
             let (s0, c0) = p.theta.sin_cos();
-            let (mut xs, mut ys) = std::mem::take(&mut self.dirs);
+            let (mut xs, mut ys) = std::mem::take(&mut scratch.dirs);
             xs.resize(beams, 0.0);
             ys.resize(beams, 0.0);
-            for (((slot, &(sk, ck)), x), y) in out.iter_mut().zip(&self.beams).zip(&mut xs).zip(&mut ys) {
+            for (((slot, &(sk, ck)), x), y) in out.iter_mut().zip(&scratch.beams).zip(&mut xs).zip(&mut ys) {
                 // Beam direction = heading rotated by the beam's fixed offset (one sin_cos a
                 // sweep).
                 let (dx, dy) = (c0 * ck - s0 * sk, s0 * ck + c0 * sk);
@@ -599,24 +628,24 @@ impl World {
                     *slot = slot.min(e.hit_or_infinity(dx, dy));
                 }
             }
-            self.dirs = (xs, ys);
+            scratch.dirs = (xs, ys);
         } else {
             out.fill(f64::INFINITY);
         }
         // Noise comes in pairs (Box-Muller): an even beam and the next share one draw.
-        for pair in out.chunks_mut(2) {
+        assert_eq!(draws.len(), beams.div_ceil(2), "a sweep's draws are for its beams");
+        for (pair, &(u, v)) in out.chunks_mut(2).zip(draws) {
             if pair.iter().all(|&best| saturated(best)) {
-                skip_gauss_pair(&mut self.noise_rng);
                 pair.fill(range);
                 continue;
             }
-            let noise = gauss_pair(&mut self.noise_rng);
+            let noise = gauss_from(u, v);
             for (slot, n) in pair.iter_mut().zip([noise.0, noise.1]) {
                 let r = *slot - rr + sn * n;
                 *slot = r.clamp(0.0, range);
             }
         }
-        self.circles = circles;
+        scratch.circles = circles;
     }
 
     /// Rebuild the spatial index after robots moved (the sonar uses it).
