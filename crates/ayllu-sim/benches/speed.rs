@@ -32,7 +32,7 @@ use std::time::Instant as WallClock;
 
 use ayllu_sim::controller::Controller;
 use ayllu_sim::radio::Partition;
-use ayllu_sim::scenario::{Kill, Scenario, Sim};
+use ayllu_sim::scenario::{run_on, Kill, Scenario, Sim};
 
 const SEED: u64 = 1;
 const TARGETS: usize = 5;
@@ -161,12 +161,7 @@ fn hashes(threads: usize) {
     runs.push(("BLE 100 robots".to_owned(), Scenario::sized(Controller::Ble, 100, TARGETS, SEED).duration(120.0)));
     runs.push(("BLE 1000 robots".to_owned(), Scenario::sized(Controller::Ble, 1000, TARGETS, SEED).duration(10.0)));
     for (name, s) in runs {
-        let mut sim = Sim::new(&s).expect("the scenario builds");
-        sim.set_threads(threads).expect("the threads start");
-        while !sim.done() {
-            sim.step().expect("a tick runs");
-        }
-        let out = sim.finish();
+        let out = run_on(&s, threads).expect("the scenario runs");
         println!("{name}: {} {:?} {:?}", out.trace_hash, out.radio, out.metrics);
     }
 }

@@ -232,9 +232,10 @@ fn load_ports(radio: &Radio, robots: &[RobotNode], base: usize, k: usize) {
     }
 }
 
-/// Robots a thread takes at the least: below this a share's visits take about as long as
-/// starting the thread that would run them (tens of microseconds), so a smaller team runs on
-/// fewer threads, down to one.
+/// Robots a thread takes at the least: below this a share's visits are a few microseconds,
+/// no more than handing them to a worker and waiting for it (crate::workers), so a smaller
+/// team runs on fewer threads, down to one. Measured: 100 robots on two threads ran 1.4-1.8x
+/// faster than on one (docs/performance.md, eighth pass).
 const ROBOTS_PER_THREAD: usize = 50;
 
 /// Robots a thread visits in turn before it takes the next block of a tick ([`Sim::set_threads`]):
