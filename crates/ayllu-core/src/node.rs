@@ -51,6 +51,12 @@ const ANSWERED_MAX: usize = 1_024;
 /// And how many bytes they may take together (estimated, [`answer_bytes`]): a thousand LIST
 /// answers of a large node held 262 MB for good; the oldest answers go first.
 const ANSWERED_BYTES: usize = 2 << 20;
+/// How many bytes of answers may wait in the outbox (estimated, [`answer_bytes`]) before
+/// further control requests are dropped unanswered until it is sent (D9.3). A turn receives
+/// everything waiting on its socket, and a flood of LIST requests from invented ids (each
+/// its own sender, so under every per-sender rate) made one answer each: 3 000 of them, 70 KB
+/// each, held 210 MB at once before the turn sent or dropped them.
+const ANSWERS_WAITING_BYTES: usize = 2 << 20;
 /// Control requests are retried this often until answered...
 const RETRY_INTERVAL: Duration = Duration::from_millis(200);
 /// ...and given up after this many sends.
@@ -451,6 +457,8 @@ pub struct NodeCore {
     answered_order: VecDeque<(NodeId, u64)>,
     /// Estimated bytes of `answered`.
     answered_bytes: usize,
+    /// Estimated bytes of the answers put in `outbox` since it was last found empty.
+    answers_waiting: usize,
     pub(crate) warnings: Vec<String>,
     pub(crate) transport_counters: Vec<(String, u64)>,
     /// Control-request token buckets by sender: tokens left and when last refilled.
@@ -499,6 +507,7 @@ impl NodeCore {
             answered: HashMap::new(),
             answered_order: VecDeque::new(),
             answered_bytes: 0,
+            answers_waiting: 0,
             warnings: Vec::new(),
             transport_counters: Vec::new(),
             access: Access::default(),
@@ -1611,7 +1620,19 @@ impl NodeCore {
                     self.counters.add(DropCause::RateLimited);
                     return;
                 }
+                // The outbox is emptied by whoever sends it (the transport takes it all): an
+                // empty one holds no answers.
+                if self.outbox.is_empty() {
+                    self.answers_waiting = 0;
+                }
+                if self.answers_waiting >= ANSWERS_WAITING_BYTES {
+                    // As over the rate: the requester retries (N2) once this turn's answers
+                    // have gone.
+                    self.counters.add(DropCause::RateLimited);
+                    return;
+                }
                 if let Some(result) = self.answered.get(&(from, c.id)) {
+                    self.answers_waiting += answer_bytes(result);
                     result.clone()
                 } else {
                     let result = self.unjournaled(|core| core.apply_control(from, body));
@@ -1633,6 +1654,7 @@ impl NodeCore {
                     self.answered.insert((from, c.id), result.clone());
                     self.answered_order.push_back((from, c.id));
                     self.answered_bytes += bytes;
+                    self.answers_waiting += bytes;
                     result
                 }
             }

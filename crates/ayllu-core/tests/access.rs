@@ -197,6 +197,37 @@ fn remembered_answers_are_bounded_in_bytes_not_only_in_count() {
 }
 
 #[test]
+fn answers_waiting_to_be_sent_are_bounded_in_bytes() {
+    // A turn receives everything waiting on its socket: a flood of LIST requests, each from an
+    // invented id (so under every per-sender rate), made a large answer each, all waiting in
+    // the outbox at once. Beyond 2 MiB of answers waiting (estimated), requests are dropped
+    // unanswered (`rate_limited`) until the outbox has been sent; requesters retry (N2).
+    let mut n = node();
+    let mut big = BehaviorClass::new("Big");
+    for p in 0..40 {
+        big.port(PortSpec::new(&format!("P{p}"), 0i64)).unwrap();
+    }
+    n.define(big).unwrap();
+    for b in 0..100 {
+        n.create("Big", &format!("B{b}")).unwrap();
+    }
+    let list = || Message::Control(ControlMessage { id: 1, body: ControlBody::List });
+    for from in 100..300 {
+        n.receive(ms(1), NodeId(from), list());
+    }
+    let mut answered = 0;
+    while n.pop_outgoing().is_some() {
+        answered += 1;
+    }
+    assert!((2..200).contains(&answered), "{answered} answers waited together");
+    assert_eq!(n.counters().get(DropCause::RateLimited), 200 - answered);
+    // Once sent, the next requests are answered again, a repeat from memory included.
+    n.receive(ms(2), NodeId(100), list());
+    n.receive(ms(2), NodeId(299), list());
+    assert_eq!(std::iter::from_fn(|| n.pop_outgoing()).count(), 2);
+}
+
+#[test]
 fn requests_over_a_senders_rate_are_dropped_unanswered() {
     // D9.3: a burst of 100 requests, then 50 a second, per sender; beyond that no answer (an
     // answer is the traffic the limit bounds) and a count. Other senders are not affected.

@@ -1029,6 +1029,17 @@ impl<S: DatagramSocket> UdpTransport<S> {
         if addrs.is_empty() {
             self.route_buf = addrs;
             return match to {
+                // A reply is never held: its requester was heard a moment ago and has gone from
+                // the peer table since (evicted by a flood of invented ids, or refused by a
+                // full table). Holding it kept a whole LIST report per forged requester (256
+                // of 150 KB each); the requester retries (N2), and a retry it sends once it is
+                // a peer again is answered from the core's memory (D-S10.2).
+                Destination::Node(_)
+                    if matches!(message, Message::Control(ControlMessage { body: ControlBody::Reply { .. }, .. })) =>
+                {
+                    self.count("no_route");
+                    Sent::Dropped
+                }
                 Destination::Node(n) => self.hold(*n, message.clone()),
                 Destination::Group(_) => {
                     self.count("no_route");

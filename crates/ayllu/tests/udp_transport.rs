@@ -396,6 +396,27 @@ fn a_write_before_the_greeting_is_held_until_the_peer_greets_never_reported_sent
 }
 
 #[test]
+fn a_reply_to_a_node_no_longer_known_is_dropped_not_held() {
+    // D-S10.2: what is held waits for a node *not heard from yet*. A reply goes to a node heard
+    // a moment ago; if the peer table has lost it since (a flood of invented ids evicted it),
+    // holding the reply kept a whole LIST report per forged requester. It is dropped
+    // (`no_route`); the requester retries (N2). A request to an unknown node is still held.
+    use ayllu::{ControlBody, ControlMessage, Destination, Message, Outgoing, ReplyBody, Sent, Transport};
+    let bus = DatagramBus::new();
+    let mut t = UdpTransport::with_socket(NodeId(1), UdpConfig::new(addr(1)), bus.bind(addr(1)).unwrap()).unwrap();
+    let to = |id: u64, body: ControlBody| Outgoing {
+        to: Destination::Node(NodeId(9)),
+        message: Message::Control(ControlMessage { id, body }),
+    };
+    let reply = ControlBody::Reply { result: Ok(ReplyBody::Value(Value::Int(1))) };
+    assert_eq!(t.send(to(1, reply)), Sent::Dropped);
+    assert_eq!(t.send(to(2, ControlBody::List)), Sent::Held);
+    let counters = t.counters();
+    let count = |name: &str| counters.iter().find(|(c, _)| c == name).map_or(0, |(_, n)| *n);
+    assert_eq!((count("no_route"), count("held")), (1, 1), "{counters:?}");
+}
+
+#[test]
 fn a_held_write_to_a_node_that_never_greets_expires_and_is_counted() {
     let bus = DatagramBus::new();
     let mut team = Lockstep::new("udp-held-expiry");
