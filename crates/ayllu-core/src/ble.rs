@@ -131,6 +131,22 @@ pub fn check_inhibit_period(
     )))
 }
 
+/// What `ble_join` refuses in `config` alone, whatever the node holds: a claim rate that is
+/// not a usable frequency, a zero inhibit period, an empty group name, and what
+/// [`check_inhibit_period`] refuses. Shared with a transaction's PREPARE
+/// (`NodeCore::validate_changes`), so that a part that prepared also switches (R8).
+pub(crate) fn check_ble_config(config: &BleConfig) -> Result<(), Error> {
+    Duration::try_from_hz(config.claim_rate_hz)?;
+    if config.inhibit_period.is_zero() {
+        return Err(Error::ZeroPeriod { kind: ConnectionKind::WriteInhibit(config.inhibit_period) });
+    }
+    if config.group.is_empty() {
+        return Err(Error::EmptyName { what: "group" });
+    }
+    check_inhibit_period(config.claim_rate_hz, config.inhibit_period, config.network_delay)?;
+    Ok(())
+}
+
 /// What `ble_join` made.
 #[derive(Clone, Debug, PartialEq)]
 pub struct BleGroup {
@@ -193,13 +209,8 @@ impl NodeCore {
     }
 
     fn join_ble_group(&mut self, behavior: &str, config: &BleConfig) -> Result<BleGroup, Error> {
+        check_ble_config(config)?;
         let claim_period = Duration::try_from_hz(config.claim_rate_hz)?;
-        if config.inhibit_period.is_zero() {
-            return Err(Error::ZeroPeriod { kind: ConnectionKind::WriteInhibit(config.inhibit_period) });
-        }
-        if config.group.is_empty() {
-            return Err(Error::EmptyName { what: "group" });
-        }
         let output = self.port(behavior, &config.output)?.port();
         if self.behavior(self.behavior_index(behavior)?).is_some_and(|b| b.ble.is_some()) {
             return Err(Error::Ble { reason: format!("`{behavior}` already belongs to a BLE group") });

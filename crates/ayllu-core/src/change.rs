@@ -225,11 +225,28 @@ impl NodeCore {
 
     /// Whether every change of `changes` would apply, in order, against this node's structure
     /// as it stands (a transaction's PREPARE): the first refusal, with its position, or `Ok`.
-    /// Nothing is changed: the list is tried on the names the node holds plus those the list
-    /// itself creates and removes.
+    /// Nothing is changed: the list is tried on a model of the node's structure (its behaviors
+    /// and their classes, which are in a BLE group, its connections) plus what the list itself
+    /// creates, removes, connects and disconnects, with the same checks as the changes' own
+    /// functions (R8: a part that prepared switches whole; an outside test found a BLE join of
+    /// a behavior already in a group, and one at a rate of NaN, prepared and then refused at
+    /// the switch).
     pub fn validate_changes(&self, changes: &[Change]) -> Result<(), (usize, Error)> {
+        let me = self.id();
+        let local = |e: &Endpoint| match e {
+            Endpoint::Node { node, behavior, port } if *node == me => Endpoint::local(behavior, port),
+            other => other.clone(),
+        };
         let mut created: Vec<(&str, &str)> = Vec::new();
         let mut removed: Vec<&str> = Vec::new();
+        // Behaviors this list put in a BLE group (each name until it is removed or re-created).
+        let mut ble_joined: Vec<&str> = Vec::new();
+        // The node's connections this list removes, and those it makes: their ids (numbered
+        // on from the node's next, as `connect` will) and local endpoints.
+        let mut gone: Vec<ConnectionId> = Vec::new();
+        let mut made: Vec<(ConnectionId, Endpoint, Endpoint)> = Vec::new();
+        let mut next_id = self.next_connection_id();
+        let existing = self.connection_infos();
         let class_of = |name: &str, created: &[(&str, &str)], removed: &[&str]| -> Option<String> {
             if let Some((_, class)) = created.iter().rev().find(|(n, _)| *n == name) {
                 return Some((*class).to_owned());
@@ -239,24 +256,27 @@ impl NodeCore {
             }
             self.behavior_ref(name).ok().and_then(|_| self.class_name_of(name))
         };
+        let touches = |e: &Endpoint, name: &str| matches!(e, Endpoint::Local { behavior, .. } if &**behavior == name);
         for (i, change) in changes.iter().enumerate() {
             change.check().map_err(|e| (i, e))?;
-            let port_of = |e: &Endpoint, created: &[(&str, &str)], removed: &[&str]| -> Result<(), Error> {
+            // The type of a port of this node (`None` for another node's or a group's).
+            let port_of = |e: &Endpoint, created: &[(&str, &str)], removed: &[&str]| -> Result<Option<_>, Error> {
                 let remote = match e {
-                    Endpoint::Node { node, .. } => *node != self.id(),
+                    Endpoint::Node { node, .. } => *node != me,
                     Endpoint::Group { .. } => true,
                     Endpoint::Local { .. } => false,
                 };
                 if remote {
-                    return Ok(());
+                    return Ok(None);
                 }
                 let class = class_of(e.behavior(), created, removed)
                     .ok_or_else(|| Error::UnknownBehavior { behavior: e.behavior().to_owned() })?;
-                let has = self.class_port(&class, e.port()).ok_or(Error::UnknownClass { class })?;
-                if has {
-                    Ok(())
-                } else {
-                    Err(Error::UnknownPort { behavior: e.behavior().to_owned(), port: e.port().to_owned() })
+                match self.class_port_type(&class, e.port()) {
+                    Some(ty) => Ok(Some(ty)),
+                    None if self.has_class(&class) => {
+                        Err(Error::UnknownPort { behavior: e.behavior().to_owned(), port: e.port().to_owned() })
+                    }
+                    None => Err(Error::UnknownClass { class }),
                 }
             };
             match change {
@@ -275,29 +295,59 @@ impl NodeCore {
                     }
                     created.retain(|(n, _)| n != name);
                     removed.push(name);
+                    ble_joined.retain(|n| n != name);
+                    // Its connections go with it (`remove`), from it and to it.
+                    for c in &existing {
+                        if (touches(&local(&c.source), name) || touches(&local(&c.destination), name))
+                            && !gone.contains(&c.id)
+                        {
+                            gone.push(c.id);
+                        }
+                    }
+                    made.retain(|(_, s, d)| !touches(s, name) && !touches(d, name));
                 }
-                Change::Connect { source, destination, .. } => {
-                    if matches!(source, Endpoint::Node { node, .. } if *node != self.id()) {
+                Change::Connect { source, destination, kind, .. } => {
+                    if matches!(source, Endpoint::Node { node, .. } if *node != me) {
                         return Err((
                             i,
-                            Error::NotLocal { what: format!("the source {source} of a change on node {}", self.id()) },
+                            Error::NotLocal { what: format!("the source {source} of a change on node {me}") },
                         ));
                     }
-                    port_of(source, &created, &removed).map_err(|e| (i, e))?;
-                    port_of(destination, &created, &removed).map_err(|e| (i, e))?;
+                    let from = port_of(source, &created, &removed).map_err(|e| (i, e))?;
+                    let to = port_of(destination, &created, &removed).map_err(|e| (i, e))?;
+                    // As `connect` refuses it (D6.7).
+                    if let (Some(found), Some(expected)) = (from, to) {
+                        if kind.writes() && found != expected {
+                            let what = format!("port {}.{}", destination.behavior(), destination.port());
+                            return Err((i, Error::TypeMismatch { what, expected, found }));
+                        }
+                    }
+                    made.push((ConnectionId(next_id), local(source), local(destination)));
+                    next_id += 1;
                 }
                 Change::Disconnect { conn } => {
-                    if self.connection(*conn).is_none() {
+                    if let Some(k) = made.iter().position(|(id, _, _)| id == conn) {
+                        made.remove(k);
+                    } else if self.connection(*conn).is_none() || gone.contains(conn) {
                         return Err((i, Error::UnknownConnection { id: conn.0 }));
+                    } else {
+                        gone.push(*conn);
                     }
                 }
                 Change::DisconnectBetween { source, destination } => {
-                    if self.connections_between(source, destination).is_empty() {
+                    let (s, d) = (local(source), local(destination));
+                    let mut ids: Vec<ConnectionId> = self.connections_between(source, destination);
+                    ids.retain(|id| !gone.contains(id));
+                    let before = made.len();
+                    made.retain(|(_, ms, md)| !(*ms == s && *md == d));
+                    if ids.is_empty() && made.len() == before {
                         return Err((i, no_connection(source, destination)));
                     }
+                    gone.extend(ids);
                 }
                 Change::Join { .. } | Change::Leave { .. } => {}
                 Change::BleJoin { behavior, config } => {
+                    crate::ble::check_ble_config(config).map_err(|e| (i, e))?;
                     let class = class_of(behavior, &created, &removed)
                         .ok_or_else(|| (i, Error::UnknownBehavior { behavior: behavior.clone() }))?;
                     if self.class_port(&class, &config.output) != Some(true) {
@@ -305,6 +355,21 @@ impl NodeCore {
                             i,
                             Error::UnknownPort { behavior: behavior.clone(), port: config.output.clone() },
                         ));
+                    }
+                    let new_here = created.iter().any(|(n, _)| n == behavior);
+                    if ble_joined.contains(&behavior.as_str()) || (!new_here && self.in_ble_group(behavior)) {
+                        let reason = format!("`{behavior}` already belongs to a BLE group");
+                        return Err((i, Error::Ble { reason }));
+                    }
+                    ble_joined.push(behavior);
+                    // `ble_join` connects Local to the group's Best and Inhibit to the group's
+                    // output, in that order.
+                    for (port, to) in
+                        [(crate::behavior::LOCAL, crate::behavior::BEST), (crate::behavior::INHIBIT, &*config.output)]
+                    {
+                        let destination = Endpoint::group(&config.group, behavior, to);
+                        made.push((ConnectionId(next_id), Endpoint::local(behavior, port), destination));
+                        next_id += 1;
                     }
                 }
             }

@@ -716,6 +716,22 @@ impl NodeCore {
         self.classes.get(class).map(|c| c.port_handle(port).is_some())
     }
 
+    /// The value type of port `port` of class `class`, if both exist.
+    pub(crate) fn class_port_type(&self, class: &str, port: &str) -> Option<crate::value::ValueType> {
+        let c = self.classes.get(class)?;
+        c.port_handle(port).map(|h| c.ports[usize::from(h.0)].ty())
+    }
+
+    /// The id the next connection made on this node will get (ids are never reused).
+    pub(crate) fn next_connection_id(&self) -> u64 {
+        self.next_conn_id
+    }
+
+    /// Whether the existing behavior `name` is in a BLE group.
+    pub(crate) fn in_ble_group(&self, name: &str) -> bool {
+        self.behavior_index(name).ok().and_then(|b| self.behavior(b)).is_some_and(|b| b.ble.is_some())
+    }
+
     /// The class of behavior `name`, if it exists.
     pub(crate) fn class_name_of(&self, name: &str) -> Option<String> {
         let b = self.behavior_index(name).ok()?;

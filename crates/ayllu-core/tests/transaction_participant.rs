@@ -172,3 +172,198 @@ fn r9_transactions_obey_the_access_rules_like_connect() {
     };
     assert!(too_long.is_err(), "a hold beyond max_remote_period is refused");
 }
+
+/// `change` put to node `n` in a PREPARE of its own (transaction `txn`): the refusal's text, or
+/// `None` if it prepared (then aborted, so the next can prepare).
+fn refusal(n: &mut NodeCore, txn: u64, changes: Vec<Change>) -> Option<String> {
+    let r = ask(n, ms(txn), txn * 2, ControlBody::Prepare { txn, changes, hold: Duration::from_secs(1) });
+    if r.is_ok() {
+        ask(n, ms(txn), txn * 2 + 1, ControlBody::Abort { txn }).unwrap();
+    }
+    r.err()
+}
+
+fn ble_join(behavior: &str, group: &str, rate: f64) -> Change {
+    let inhibit_period = Duration::from_millis(2_500);
+    let config = BleConfig {
+        group: group.into(),
+        output: "Out".into(),
+        claim_rate_hz: rate,
+        inhibit_period,
+        network_delay: Duration::from_millis(50),
+    };
+    Change::BleJoin { behavior: behavior.into(), config }
+}
+
+#[test]
+fn r8_prepare_refuses_what_the_switch_would_refuse() {
+    // An outside test found parts that prepared, committed, and were then refused change by
+    // change at the switch (the coordinator reported "switched"): a BLE join of a behavior
+    // already in a group, one at a claim rate of NaN. PREPARE now applies the same checks.
+    let mut n = node();
+    n.ble_join("A", &BleConfig::new("G1", "Out", 1.0).unwrap()).unwrap();
+    let mut text = BehaviorClass::new("Text");
+    text.port(PortSpec::new("T", "")).unwrap();
+    n.define(text).unwrap();
+    n.create("Text", "T").unwrap();
+    let conn = n
+        .connect(
+            &Endpoint::local("A", "Out"),
+            &Endpoint::local("B", "In"),
+            ConnectionKind::Normal,
+            ConnectOptions::default(),
+        )
+        .unwrap();
+    let a_to_b =
+        || Change::DisconnectBetween { source: Endpoint::local("A", "Out"), destination: Endpoint::local("B", "In") };
+    let cases: Vec<(Vec<Change>, &str)> = vec![
+        (vec![ble_join("A", "G2", 1.0)], "already belongs to a BLE group"),
+        (vec![ble_join("B", "G2", 1.0), ble_join("B", "G3", 1.0)], "change 2"),
+        (vec![ble_join("B", "G2", f64::NAN)], "change 1"),
+        (vec![ble_join("B", "G2", 0.0)], "change 1"),
+        (
+            vec![Change::BleJoin {
+                behavior: "B".into(),
+                config: BleConfig { inhibit_period: Duration::ZERO, ..BleConfig::new("G2", "Out", 1.0).unwrap() },
+            }],
+            "change 1",
+        ),
+        (
+            vec![Change::Connect {
+                source: Endpoint::local("A", "Out"),
+                destination: Endpoint::node(NodeId(2), "T", "T"),
+                kind: ConnectionKind::Normal,
+                priority: 0,
+            }],
+            "holds text values",
+        ),
+        (vec![Change::Disconnect { conn }, Change::Disconnect { conn }], "change 2"),
+        (vec![a_to_b(), a_to_b()], "change 2"),
+        (vec![Change::Remove { name: "A".into() }, Change::Disconnect { conn }], "change 2"),
+    ];
+    for (k, (changes, expected)) in cases.into_iter().enumerate() {
+        let described: Vec<String> = changes.iter().map(Change::describe).collect();
+        let e = refusal(&mut n, 10 + k as u64, changes).unwrap_or_else(|| panic!("{described:?} prepared"));
+        assert!(e.contains(expected), "{described:?}: {e}");
+    }
+    // Still valid: a BLE join of a behavior created, or removed and re-created, in the part;
+    // a disconnection of what the part itself connected.
+    let ok: Vec<Vec<Change>> = vec![
+        vec![Change::Create { class: "Layer".into(), name: "C".into() }, ble_join("C", "G2", 1.0)],
+        vec![
+            Change::Remove { name: "A".into() },
+            Change::Create { class: "Layer".into(), name: "A".into() },
+            ble_join("A", "G2", 1.0),
+        ],
+        vec![
+            a_to_b(),
+            Change::Connect {
+                source: Endpoint::local("A", "Out"),
+                destination: Endpoint::local("B", "In"),
+                kind: ConnectionKind::Normal,
+                priority: 0,
+            },
+            a_to_b(),
+        ],
+    ];
+    for (k, changes) in ok.into_iter().enumerate() {
+        let described: Vec<String> = changes.iter().map(Change::describe).collect();
+        assert_eq!(refusal(&mut n, 100 + k as u64, changes), None, "{described:?}");
+    }
+}
+
+mod validation_matches_application {
+    //! The property behind R8: `validate_changes` refuses a list exactly when applying it in
+    //! order would refuse a change, and names that change.
+    use super::*;
+    use proptest::prelude::*;
+
+    /// Behaviors A, B (Layer: int In, Out) and T (Text: text T, int Out); A in BLE group G1;
+    /// connections A.Out -> B.In (Normal) and B.Out -> A.In (Suppress 1 s).
+    fn fixture() -> NodeCore {
+        let mut n = node();
+        let mut text = BehaviorClass::new("Text");
+        text.port(PortSpec::new("T", "")).unwrap();
+        text.port(PortSpec::new("Out", 0i64)).unwrap();
+        n.define(text).unwrap();
+        n.create("Text", "T").unwrap();
+        n.ble_join("A", &BleConfig::new("G1", "Out", 1.0).unwrap()).unwrap();
+        let o = ConnectOptions::default();
+        n.connect(&Endpoint::local("A", "Out"), &Endpoint::local("B", "In"), ConnectionKind::Normal, o).unwrap();
+        let suppress = ConnectionKind::Suppress(Duration::from_secs(1));
+        n.connect(&Endpoint::local("B", "Out"), &Endpoint::local("A", "In"), suppress, o).unwrap();
+        n
+    }
+
+    fn name() -> impl Strategy<Value = String> {
+        prop_oneof![Just("A"), Just("B"), Just("C"), Just("T")].prop_map(String::from)
+    }
+
+    fn endpoint() -> impl Strategy<Value = Endpoint> {
+        let port = prop_oneof![Just("In"), Just("Out"), Just("T"), Just("Bad")];
+        (name(), port, 0u8..4).prop_map(|(b, p, at)| match at {
+            0 | 1 => Endpoint::local(&b, p),
+            2 => Endpoint::node(NodeId(2), &b, p),
+            _ => Endpoint::node(NodeId(3), &b, p),
+        })
+    }
+
+    fn kind() -> impl Strategy<Value = ConnectionKind> {
+        prop_oneof![
+            Just(ConnectionKind::Normal),
+            Just(ConnectionKind::Suppress(Duration::from_secs(1))),
+            Just(ConnectionKind::WriteInhibit(Duration::from_secs(1))),
+            Just(ConnectionKind::Inhibit(Duration::ZERO)),
+        ]
+    }
+
+    fn change() -> impl Strategy<Value = Change> {
+        let rate = prop_oneof![Just(1.0), Just(20.0), Just(0.0), Just(f64::NAN), Just(-1.0)];
+        let inhibit =
+            prop_oneof![Just(Duration::from_millis(2_500)), Just(Duration::ZERO), Just(Duration::from_millis(10))];
+        let output = prop_oneof![Just("Out"), Just("T"), Just("Bad")];
+        let group = prop_oneof![Just("G1"), Just("G2"), Just("")];
+        prop_oneof![
+            (prop_oneof![Just("Layer"), Just("Text"), Just("None")], name())
+                .prop_map(|(class, name)| Change::Create { class: class.into(), name }),
+            name().prop_map(|name| Change::Remove { name }),
+            (endpoint(), endpoint(), kind()).prop_map(|(source, destination, kind)| Change::Connect {
+                source,
+                destination,
+                kind,
+                priority: 0
+            }),
+            (1u64..6).prop_map(|c| Change::Disconnect { conn: ConnectionId(c) }),
+            (endpoint(), endpoint())
+                .prop_map(|(source, destination)| Change::DisconnectBetween { source, destination }),
+            group.clone().prop_map(|g| Change::Join { group: g.into() }),
+            (name(), group, output, rate, inhibit).prop_map(
+                |(behavior, group, output, claim_rate_hz, inhibit_period)| {
+                    Change::BleJoin {
+                        behavior,
+                        config: BleConfig {
+                            group: group.into(),
+                            output: output.into(),
+                            claim_rate_hz,
+                            inhibit_period,
+                            network_delay: Duration::from_millis(50),
+                        },
+                    }
+                }
+            ),
+        ]
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 2_000, ..ProptestConfig::default() })]
+        #[test]
+        fn prepare_refuses_exactly_what_the_switch_would(changes in proptest::collection::vec(change(), 1..7)) {
+            let n = fixture();
+            let validated = n.validate_changes(&changes).map_err(|(i, _)| i);
+            let mut applied = fixture();
+            let first_refused = changes.iter().position(|c| applied.apply_change(c).is_err());
+            let described: Vec<String> = changes.iter().map(Change::describe).collect();
+            prop_assert_eq!(validated.err(), first_refused, "{:?}", described);
+        }
+    }
+}
