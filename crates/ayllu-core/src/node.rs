@@ -1095,6 +1095,17 @@ impl NodeCore {
         Some(r.status)
     }
 
+    /// Request `id` to `to` cannot be sent at all (the transport says why: larger than a
+    /// datagram, ...): it fails now with `reason` instead of being retried until it gives up.
+    /// Nothing happens if it is not pending.
+    pub fn fail_request(&mut self, to: NodeId, id: u64, reason: String) {
+        let Some(r) = self.requests.iter_mut().rev().find(|r| r.id == id && r.to == to) else { return };
+        if matches!(r.status, RequestStatus::Pending { .. }) {
+            r.status = RequestStatus::Failed(reason);
+            self.request_finished();
+        }
+    }
+
     /// How many requests this node holds (pending and finished): bounded, see
     /// [`NodeCore::request_status`].
     pub fn requests_held(&self) -> usize {

@@ -75,6 +75,8 @@ pub struct Node {
     lost: Vec<NodeId>,
     /// Scratch list of the transport's new warnings.
     new_warnings: Vec<String>,
+    /// Requests the transport found unsendable (reused).
+    failed_requests: Vec<(NodeId, u64, String)>,
     /// The flight recorder, drained every turn (see [`Node::record`]).
     recorder: Option<crate::recording::Recorder>,
 }
@@ -115,6 +117,7 @@ impl Node {
             transport_due: None,
             lost: Vec::new(),
             new_warnings: Vec::new(),
+            failed_requests: Vec::new(),
             recorder: None,
         }
     }
@@ -327,6 +330,12 @@ impl Node {
             self.stats.sent += tally.sent;
             self.stats.held += tally.held;
             self.stats.dropped += tally.dropped;
+            if tally.dropped > 0 {
+                self.transport.take_failed_requests(&mut self.failed_requests);
+                for (to, id, why) in self.failed_requests.drain(..) {
+                    self.core.fail_request(to, id, why);
+                }
+            }
         }
         self.transport.flush();
     }

@@ -93,6 +93,13 @@ pub trait Transport: Send {
     fn take_warnings(&mut self, out: &mut Vec<String>) {
         let _ = out;
     }
+    /// Move the control requests found unsendable since the last call into `out`: (the node
+    /// it was for, its id, why), e.g. larger than one datagram. The node fails each at once
+    /// ([`ayllu_core::NodeCore::fail_request`]) rather than retrying it for 5 s. Transports
+    /// that carry any size report none.
+    fn take_failed_requests(&mut self, out: &mut Vec<(NodeId, u64, String)>) {
+        let _ = out;
+    }
     /// Where peers reach this node, as a peer's URL would name it (`127.0.0.1:45125` for
     /// `udp://`), once bound: a node bound to port 0 learns its real port here. `None` for
     /// transports without addresses (`mem://`).
@@ -156,6 +163,9 @@ impl Transport for Box<dyn Transport> {
     }
     fn take_warnings(&mut self, out: &mut Vec<String>) {
         (**self).take_warnings(out)
+    }
+    fn take_failed_requests(&mut self, out: &mut Vec<(NodeId, u64, String)>) {
+        (**self).take_failed_requests(out)
     }
     fn address(&self) -> Option<String> {
         (**self).address()

@@ -273,6 +273,8 @@ pub struct UdpTransport<S: DatagramSocket = OsSocket> {
     next_save: Instant,
     /// Messages for nodes not heard from yet (never reported as sent, see [`Sent::Held`]).
     held: VecDeque<Held>,
+    /// Requests found larger than a datagram, for [`Transport::take_failed_requests`].
+    failed_requests: Vec<(NodeId, u64, String)>,
     /// The first datagram sequence number this transport used: datagrams carrying our id and
     /// a number in `[seq_start, seq)` from our own address are our own, looped back.
     seq_start: u64,
@@ -453,6 +455,7 @@ impl<S: DatagramSocket> UdpTransport<S> {
             replay_dirty: false,
             next_save: Instant::ZERO,
             held: VecDeque::new(),
+            failed_requests: Vec::new(),
             seq_start: boot,
             duplicates: Vec::new(),
             warnings,
@@ -1059,8 +1062,32 @@ impl<S: DatagramSocket> UdpTransport<S> {
             }
             self.unflushed += 1;
         } else {
-            match WireMessage::from_core(message, self.config.mtu, self.config.key.is_some()) {
+            let (mtu, keyed) = (self.config.mtu, self.config.key.is_some());
+            let parts = match WireMessage::from_core(message, mtu, keyed) {
+                // A report larger than a reply may carry: answered with an error that says so,
+                // rather than silently not at all (the requester waited for 5 s, then reported
+                // the node as not answering).
+                Err(EncodeError::ReportTooLarge { bytes, max_parts }) => {
+                    self.count("report_too_large");
+                    let Message::Control(c) = message else { unreachable!("only replies carry reports") };
+                    let why = format!(
+                        "the answer is a report of {bytes} bytes, more than {max_parts} datagrams carry at this \
+                         node's mtu of {mtu} bytes: ask for less (one port: `why`), or give this node a larger \
+                         mtu= in its URL (at most 8192)"
+                    );
+                    ayllu_wire::reply::reply_messages(c.id, &Err(why), mtu, keyed)
+                }
+                other => other,
+            };
+            match parts {
                 Ok(mut parts) => {
+                    if let (Destination::Node(n), Some(too_big)) = (to, self.oversized_request(&parts)) {
+                        let Message::Control(c) = message else { unreachable!("requests are control messages") };
+                        self.count("too_large");
+                        self.failed_requests.push((*n, c.id, too_big));
+                        self.route_buf = addrs;
+                        return Sent::Dropped;
+                    }
                     if let Destination::Node(n) = to {
                         if !self.may_answer(*n, &parts) {
                             self.route_buf = addrs;
@@ -1083,6 +1110,35 @@ impl<S: DatagramSocket> UdpTransport<S> {
         }
         self.route_buf = addrs;
         sent
+    }
+
+    /// Why the request among `parts` cannot leave, if it is larger than one datagram at this
+    /// node's MTU (the wire has no fragments for requests: a PREPARE of many changes must fit).
+    fn oversized_request(&self, parts: &[WireMessage]) -> Option<String> {
+        let auth = if self.config.key.is_some() { ayllu_wire::MAC_LEN } else { 0 };
+        parts.iter().find_map(|m| {
+            let WireMessage::Request { body, .. } = m else { return None };
+            // A signature may be added after this check: count its room.
+            let signature =
+                if self.config.operator_secret.is_some() { 1 + ayllu_wire::operator::SIGNATURE_LEN } else { 0 };
+            // One that cannot be encoded at all is counted `unencodable` when pushed.
+            let len = ayllu_wire::encoded_len(m).ok()?;
+            let bytes = ayllu_wire::HEADER_LEN + auth + len + signature;
+            (bytes > self.config.mtu).then(|| {
+                let hint = match body {
+                    ControlBody::Prepare { changes, .. } => format!(
+                        " ({} changes): split the plan into smaller transactions, or give the nodes a larger mtu= in \
+                         their URLs (at most 8192)",
+                        changes.len()
+                    ),
+                    _ => ": give both nodes a larger mtu= in their URLs (at most 8192)".to_owned(),
+                };
+                format!(
+                    "the request takes {bytes} bytes, more than one datagram carries at mtu {}{hint}",
+                    self.config.mtu
+                )
+            })
+        })
     }
 
     /// Whether an answer made of `parts` may go to node `n` now (spec "Return routability"):
@@ -1292,6 +1348,9 @@ impl<S: DatagramSocket> Transport for UdpTransport<S> {
     }
     fn take_lost_peers(&mut self, out: &mut Vec<NodeId>) {
         out.append(&mut self.lost);
+    }
+    fn take_failed_requests(&mut self, out: &mut Vec<(NodeId, u64, String)>) {
+        out.append(&mut self.failed_requests);
     }
     fn take_warnings(&mut self, out: &mut Vec<String>) {
         out.append(&mut self.warnings);

@@ -601,6 +601,59 @@ fn a_request_retried_before_the_greeting_is_held_once() {
 }
 
 #[test]
+fn a_report_too_large_for_a_reply_is_answered_with_an_error_that_says_so() {
+    // A LIST of a node whose report needs more than 64 datagrams was not answered at all (the
+    // requester waited 5 s and called the node silent). It is answered with an error naming
+    // the size and what to do.
+    let bus = DatagramBus::new();
+    let mut team = Lockstep::new("udp-report-too-large");
+    let a = node(&mut team, &bus, 1, None, TEAM);
+    let b = node(&mut team, &bus, 2, None, TEAM);
+    for i in 0..400 {
+        team.node(b).create("Relay", &format!("R{i:03}")).unwrap();
+    }
+    team.advance(Duration::from_millis(250), TICK);
+    let id = team.node(a).core_mut().request(NodeId(2), ayllu::ControlBody::List).unwrap();
+    team.advance(Duration::from_millis(100), TICK);
+    match team.nodes()[a].core().request_status(id) {
+        Some(ayllu::RequestStatus::Failed(e)) => {
+            assert!(e.contains("more than 64 datagrams") && e.contains("mtu"), "{e}");
+        }
+        other => panic!("{other:?}; {:?}", team.nodes()[b].transport_counters()),
+    }
+    assert_eq!(count(&team.nodes()[b], "report_too_large"), 1);
+    assert_eq!(count(&team.nodes()[b], "unencodable"), 0);
+}
+
+#[test]
+fn a_request_larger_than_a_datagram_fails_at_once_with_the_reason() {
+    // A PREPARE of 130 changes at the default MTU was never sent (counted `too_large`) and
+    // retried for 5 s: the coordinator reported "no answer to PREPARE", as if the node were
+    // dead. The request now fails at its first send, saying why and what to do.
+    let bus = DatagramBus::new();
+    let mut team = Lockstep::new("udp-request-too-large");
+    let a = node(&mut team, &bus, 1, None, TEAM);
+    node(&mut team, &bus, 2, None, TEAM);
+    team.advance(Duration::from_millis(250), TICK);
+    let changes: Vec<ayllu::Change> =
+        (0..130).map(|i| ayllu::Change::Create { class: "Relay".into(), name: format!("C{i:03}") }).collect();
+    let hold = Duration::from_secs(5);
+    let id = team.node(a).core_mut().request(NodeId(2), ayllu::ControlBody::Prepare { txn: 1, changes, hold }).unwrap();
+    team.step();
+    match team.nodes()[a].core().request_status(id) {
+        Some(ayllu::RequestStatus::Failed(e)) => {
+            assert!(e.contains("more than one datagram") && e.contains("130 changes"), "{e}");
+        }
+        other => panic!("{other:?}"),
+    }
+    assert_eq!(count(&team.nodes()[a], "too_large"), 1);
+    // A small request to the same node still goes.
+    let id = team.node(a).core_mut().request(NodeId(2), ayllu::ControlBody::List).unwrap();
+    team.advance(Duration::from_millis(50), TICK);
+    assert!(matches!(team.nodes()[a].core().request_status(id), Some(ayllu::RequestStatus::Done(_))));
+}
+
+#[test]
 fn n4_forged_hellos_and_reply_parts_are_bounded_in_bytes_not_only_in_entries() {
     let bus = DatagramBus::new();
     let mut team = Lockstep::new("udp-bytes");
