@@ -1063,19 +1063,33 @@ impl<S: DatagramSocket> UdpTransport<S> {
             self.unflushed += 1;
         } else {
             let (mtu, keyed) = (self.config.mtu, self.config.key.is_some());
+            // An answer larger than a reply may carry (a report over 64 parts, a value over one
+            // datagram) is answered with an error that says so, rather than silently not at
+            // all (the requester waited for 5 s, then reported the node as not answering).
+            let error_reply = |why: String| {
+                let Message::Control(c) = message else { unreachable!("only replies carry answers") };
+                ayllu_wire::reply::reply_messages(c.id, &Err(why), mtu, keyed)
+            };
             let parts = match WireMessage::from_core(message, mtu, keyed) {
-                // A report larger than a reply may carry: answered with an error that says so,
-                // rather than silently not at all (the requester waited for 5 s, then reported
-                // the node as not answering).
                 Err(EncodeError::ReportTooLarge { bytes, max_parts }) => {
                     self.count("report_too_large");
-                    let Message::Control(c) = message else { unreachable!("only replies carry reports") };
-                    let why = format!(
+                    error_reply(format!(
                         "the answer is a report of {bytes} bytes, more than {max_parts} datagrams carry at this \
                          node's mtu of {mtu} bytes: ask for less (one port: `why`), or give this node a larger \
                          mtu= in its URL (at most 8192)"
-                    );
-                    ayllu_wire::reply::reply_messages(c.id, &Err(why), mtu, keyed)
+                    ))
+                }
+                Ok(parts) if matches!(parts.as_slice(), [WireMessage::Reply { .. }]) => {
+                    match self.datagram_bytes(&parts[0]) {
+                        Some(bytes) if bytes > mtu => {
+                            self.count("too_large");
+                            error_reply(format!(
+                                "the answer takes {bytes} bytes, more than one datagram carries at this node's \
+                                 mtu of {mtu} bytes: give both nodes a larger mtu= in their URLs (at most 8192)"
+                            ))
+                        }
+                        _ => Ok(parts),
+                    }
                 }
                 other => other,
             };
@@ -1112,18 +1126,22 @@ impl<S: DatagramSocket> UdpTransport<S> {
         sent
     }
 
+    /// The bytes of a datagram holding `m` alone (header and MAC included); `None` if it
+    /// cannot be encoded at all (counted `unencodable` when pushed).
+    fn datagram_bytes(&self, m: &WireMessage) -> Option<usize> {
+        let auth = if self.config.key.is_some() { ayllu_wire::MAC_LEN } else { 0 };
+        Some(ayllu_wire::HEADER_LEN + auth + ayllu_wire::encoded_len(m).ok()?)
+    }
+
     /// Why the request among `parts` cannot leave, if it is larger than one datagram at this
     /// node's MTU (the wire has no fragments for requests: a PREPARE of many changes must fit).
     fn oversized_request(&self, parts: &[WireMessage]) -> Option<String> {
-        let auth = if self.config.key.is_some() { ayllu_wire::MAC_LEN } else { 0 };
         parts.iter().find_map(|m| {
             let WireMessage::Request { body, .. } = m else { return None };
             // A signature may be added after this check: count its room.
             let signature =
                 if self.config.operator_secret.is_some() { 1 + ayllu_wire::operator::SIGNATURE_LEN } else { 0 };
-            // One that cannot be encoded at all is counted `unencodable` when pushed.
-            let len = ayllu_wire::encoded_len(m).ok()?;
-            let bytes = ayllu_wire::HEADER_LEN + auth + len + signature;
+            let bytes = self.datagram_bytes(m)? + signature;
             (bytes > self.config.mtu).then(|| {
                 let hint = match body {
                     ControlBody::Prepare { changes, .. } => format!(

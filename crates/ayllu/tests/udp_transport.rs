@@ -626,6 +626,29 @@ fn a_report_too_large_for_a_reply_is_answered_with_an_error_that_says_so() {
 }
 
 #[test]
+fn a_value_too_large_for_a_reply_is_answered_with_an_error_that_says_so() {
+    // A READ of a text port holding more than a datagram's worth was never answered (counted
+    // `too_large` at each retry); `ayllu echo` and `write` read first and reported the node as
+    // silent. It is answered with an error naming the size and the remedy.
+    let bus = DatagramBus::new();
+    let mut team = Lockstep::new("udp-value-too-large");
+    let a = node(&mut team, &bus, 1, None, TEAM);
+    let b = node(&mut team, &bus, 2, None, TEAM);
+    team.node(b).write("R", "Txt", "x".repeat(2_000).as_str()).unwrap();
+    team.advance(Duration::from_millis(250), TICK);
+    let read = ayllu::ControlBody::Read { behavior: "R".into(), port: "Txt".into() };
+    let id = team.node(a).core_mut().request(NodeId(2), read).unwrap();
+    team.advance(Duration::from_millis(100), TICK);
+    match team.nodes()[a].core().request_status(id) {
+        Some(ayllu::RequestStatus::Failed(e)) => {
+            assert!(e.contains("more than one datagram") && e.contains("mtu"), "{e}")
+        }
+        other => panic!("{other:?}; {:?}", team.nodes()[b].transport_counters()),
+    }
+    assert_eq!(count(&team.nodes()[b], "too_large"), 1, "counted once: the retry is answered from memory");
+}
+
+#[test]
 fn a_request_larger_than_a_datagram_fails_at_once_with_the_reason() {
     // A PREPARE of 130 changes at the default MTU was never sent (counted `too_large`) and
     // retried for 5 s: the coordinator reported "no answer to PREPARE", as if the node were
