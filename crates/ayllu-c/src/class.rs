@@ -252,8 +252,8 @@ pub unsafe extern "C" fn ay_class_port_bool(
 /// Ownership: borrows `cls` and `name` for the call. Thread-safety: one thread at a time per
 /// class. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE` (class not live), `AY_ERR_INVALID` (empty,
 /// reserved or taken name, unknown kind), `AY_ERR_TYPE` (a kind this type cannot have, e.g. a
-/// Max text port), `AY_ERR_PERIOD` (negative/NaN lifespan or window, a window on a Normal
-/// port).
+/// Max text port), `AY_ERR_PERIOD` (negative/NaN lifespan or window), `AY_ERR_INVALID` also
+/// for a window on a Normal port.
 ///
 /// # Safety
 /// `cls` is NULL or a pointer from this library; `name` is NULL or NUL-terminated; `out` is

@@ -95,7 +95,8 @@ pub enum Error {
         /// The seconds given.
         seconds: f64,
     },
-    /// Rates must be finite and above zero.
+    /// Rates must be finite and above zero, with a period of at least 1 ns and under 584
+    /// years.
     InvalidRate {
         /// The rate given, in hertz.
         hz: f64,
@@ -209,7 +210,10 @@ impl fmt::Display for Error {
                 write!(f, "period of {seconds} s is negative; periods must be above zero")
             }
             Error::InvalidDuration { seconds } => write!(f, "{seconds} s is not a usable duration"),
-            Error::InvalidRate { hz } => write!(f, "rate of {hz} Hz is invalid; rates must be finite and above zero"),
+            Error::InvalidRate { hz } => write!(
+                f,
+                "rate of {hz} Hz is invalid; rates must be finite and above zero, with a period from 1 ns to 584 years"
+            ),
             Error::ZeroProcessPeriod { process } => {
                 write!(f, "process `{process}`: a periodic process needs a period above zero")
             }

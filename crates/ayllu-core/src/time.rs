@@ -106,11 +106,12 @@ impl Duration {
         if !(hz.is_finite() && hz > 0.0) {
             return Err(Error::InvalidRate { hz });
         }
-        let d = Duration::try_from_secs_f64(1.0 / hz)?;
-        if d.is_zero() {
-            return Err(Error::InvalidRate { hz });
+        // A rate so low that its period overflows, or so high that it rounds to zero, is a
+        // bad rate (said as such, not as a bad duration the caller never wrote).
+        match Duration::try_from_secs_f64(1.0 / hz) {
+            Ok(d) if !d.is_zero() => Ok(d),
+            _ => Err(Error::InvalidRate { hz }),
         }
-        Ok(d)
     }
     /// The span in nanoseconds.
     pub const fn as_nanos(self) -> u64 {

@@ -188,8 +188,9 @@ fn negative_or_unusable_periods_are_errors() {
 
 #[test]
 fn rates_must_be_finite_and_above_zero() {
-    // S7: ratepersecond(0), negative, NaN or infinite rates are errors.
-    for hz in [0.0, -1.0, -0.0, f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+    // S7: ratepersecond(0), negative, NaN or infinite rates are errors; so are rates whose
+    // period a Duration cannot hold (D7.4: a period error for a period never written misled).
+    for hz in [0.0, -1.0, -0.0, f64::NAN, f64::INFINITY, f64::NEG_INFINITY, 1e-300, 1e-11, 1e300] {
         let mut c = BehaviorClass::new("C");
         let e = c.every_hz("P", hz, |_| {}).unwrap_err();
         assert!(matches!(e, Error::InvalidRate { .. }), "{hz}: {e:?}");
