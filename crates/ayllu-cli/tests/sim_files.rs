@@ -164,3 +164,32 @@ fn a_misspelt_field_is_named() {
     ayllu(&["sim", "run", file.to_str().unwrap()], LIMIT).fails(1, "unknown field `radio.los`");
     ayllu(&["sim", "run", "/nonexistent/scenario.toml"], LIMIT).fails(1, "reading /nonexistent/scenario.toml");
 }
+
+/// A scenario out of the simulator's bounds (docs/cmommt.md, "What a scenario may hold") is
+/// refused when the file is read, naming the field, the value and what it takes, with no
+/// panic and no abort (an empty arena used to panic, a 1e7 m one to abort asking for 44 TB);
+/// a sweep's cell, and a sweep with no controller, likewise.
+#[test]
+fn a_scenario_out_of_bounds_is_refused_naming_its_field() {
+    let dir = scratch("bounds");
+    let write = |name: &str, text: &str| {
+        let path = dir.join(name);
+        std::fs::write(&path, text).unwrap();
+        path.to_str().unwrap().to_owned()
+    };
+    let empty = write("empty.toml", "duration = 10.0\n[world]\narena = [0.0, 0.0]\n");
+    ayllu(&["sim", "run", &empty], LIMIT)
+        .fails(1, "empty.toml: world.arena: [0, 0] is not a usable arena: each side must be finite and in (0, 1e6] m");
+    let huge = write("huge.toml", "duration = 10.0\n[world]\narena = [1e7, 1e7]\n");
+    ayllu(&["sim", "run", &huge], LIMIT).fails(1, "world.arena: [1e7, 1e7] is not a usable arena");
+    let nan = write("nan.toml", "duration = nan\n");
+    ayllu(&["sim", "run", &nan, "--json"], LIMIT).fails(1, "duration: NaN is not a usable duration");
+    let grid = write("grid.toml", "seeds = 1\ncontrollers = [\"BLE\"]\n[grid]\n\"world.arena\" = [[0.0, 0.0]]\n");
+    let out = dir.join("out");
+    ayllu(&["sim", "sweep", &grid, "--out", out.to_str().unwrap()], LIMIT)
+        .fails(1, "cell1 (world.arena = [0.0,0.0]): world.arena");
+    let none = write("none.toml", "seeds = 1\ncontrollers = []\n");
+    ayllu(&["sim", "sweep", &none, "--out", out.to_str().unwrap()], LIMIT)
+        .fails(1, "controllers: [] names no controller");
+    assert!(!out.exists(), "nothing ran, no report");
+}

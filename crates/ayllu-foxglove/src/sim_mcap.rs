@@ -43,8 +43,8 @@ pub struct McapSummary {
 /// Why a run could not be written.
 #[derive(Debug)]
 pub enum SimMcapError {
-    /// The simulation failed.
-    Sim(ayllu_core::Error),
+    /// The simulation failed (a scenario out of bounds, a controller that cannot be built...).
+    Sim(ayllu_sim::scenario::SimError),
     /// The file could not be made or written.
     Mcap(foxglove::FoxgloveError),
 }
@@ -93,7 +93,7 @@ pub fn run_to_mcap(scenario: &Scenario, path: &Path) -> Result<(Outcome, McapSum
     let mut ports = vec![snapshot(&sim, robots)];
     let mut tick = 0u64;
     while !sim.done() {
-        sim.step().map_err(SimMcapError::Sim)?;
+        sim.step().map_err(|e| SimMcapError::Sim(e.into()))?;
         tick += 1;
         if tick.is_multiple_of(frame_every) {
             ports.push(snapshot(&sim, robots));

@@ -16,7 +16,7 @@ use std::sync::Arc;
 use ayllu::stdlib;
 use ayllu_core::{Error as CoreError, NodeCore};
 use ayllu_sim::controller::{Brain, Controller, ControllerConfig};
-use ayllu_sim::scenario::{node_id, Scenario, Sim};
+use ayllu_sim::scenario::{node_id, Scenario, Sim, SimError};
 use pyo3::exceptions::PyRuntimeError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
@@ -39,6 +39,8 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
 #[pyfunction]
 fn scenario_json(controller: &str, robots: usize, targets: usize, seed: u64) -> PyResult<String> {
     let c = parse_controller(controller)?;
+    // The targets' list is made here: its bound is asked first (the team's is asked by a run).
+    ayllu_sim::bounds::targets("targets", Some(targets as u64), targets).map_err(sim_error)?;
     wiring::json(&Scenario::sized(c, robots, targets, seed))
 }
 
@@ -54,8 +56,13 @@ fn parse_controller(name: &str) -> PyResult<Controller> {
     })
 }
 
-fn sim_error(e: CoreError) -> PyErr {
-    errors::core(e)
+/// A scenario out of bounds is a `ValueError` naming its field (its message is the library's:
+/// `ayllu_sim::bounds`); a node's refusal is the core error's exception.
+fn sim_error(e: impl Into<SimError>) -> PyErr {
+    match e.into() {
+        SimError::Scenario(e) => errors::value_error(e.to_string()),
+        SimError::Node(e) => errors::core(e),
+    }
 }
 
 /// One robot's node while a Python controller builds on it: the same building methods as

@@ -19,7 +19,7 @@ use ayllu_core::{
 };
 
 use crate::controller::Controller;
-use crate::scenario::{node_id, Scenario, Sim};
+use crate::scenario::{node_id, Scenario, Sim, SimError};
 
 /// The coordinator's node id (above any robot's).
 pub const COORDINATOR: NodeId = NodeId(1000);
@@ -141,14 +141,14 @@ pub fn plan(robots: usize, order: &[u32], options: ApplyOptions) -> Plan {
     Plan { parts, options }
 }
 
-/// Run it (see the module docs). Errors: a scenario that cannot be built, an order that is
-/// not a permutation of the targets.
-pub fn run(o: &RedistributionOptions) -> Result<RedistributionReport, Error> {
+/// Run it (see the module docs). Errors: a scenario out of bounds or that cannot be built, an
+/// order that is not a permutation of the targets.
+pub fn run(o: &RedistributionOptions) -> Result<RedistributionReport, SimError> {
     let m = o.scenario.world.targets.len();
     let mut sorted = o.order.clone();
     sorted.sort_unstable();
     if sorted != (1..=m as u32).collect::<Vec<_>>() {
-        return Err(Error::NotLocal { what: format!("the order {:?} as a permutation of 1..={m}", o.order) });
+        return Err(Error::NotLocal { what: format!("the order {:?} as a permutation of 1..={m}", o.order) }.into());
     }
     let mut sim = Sim::new(&o.scenario)?;
     let robots = o.scenario.robots;

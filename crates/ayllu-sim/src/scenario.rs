@@ -25,6 +25,7 @@ use std::sync::atomic::{AtomicUsize, Ordering::Relaxed};
 use std::sync::Mutex;
 
 use crate::body::Body;
+use crate::bounds::InvalidScenario;
 use crate::classes::SharedClasses;
 use crate::controller::{build_planner, build_shared, chain_quiet, Brain, Controller, ControllerConfig, PLANNER_NODE};
 use crate::metrics::{Meter, Metrics};
@@ -37,6 +38,7 @@ use crate::world::{wrap, Command, SonarScratch, World, WorldConfig};
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Kill {
     /// Seconds into the run.
+    #[serde(deserialize_with = "crate::bounds::number_de")]
     pub at: f64,
     /// The robot's node id; `None`: the robot observing the highest-priority observed target
     /// at that moment (lowest id on ties; robot 1 if none observes anything) — the failure
@@ -59,6 +61,7 @@ pub struct Scenario {
     /// The radio medium.
     pub radio: RadioConfig,
     /// Run length (s of virtual time).
+    #[serde(deserialize_with = "crate::bounds::number_de")]
     pub duration: f64,
     /// Seed of the placement, target-motion, sensor-noise and radio streams (the wander seed is
     /// `controllers.wander_seed`).
@@ -69,8 +72,10 @@ pub struct Scenario {
     pub record: bool,
     /// Virtual seconds between frames (hashed, sampled for coverage, recorded if `record`),
     /// rounded to a whole number of ticks.
+    #[serde(deserialize_with = "crate::bounds::number_de")]
     pub frame_dt: f64,
     /// Tick length (s of virtual time); 0.05 is the observers' 20 Hz.
+    #[serde(deserialize_with = "crate::bounds::number_de")]
     pub dt: f64,
     /// Ticks between camera frames and sonar sweeps (2: 10 Hz at 50 ms ticks).
     pub sense_every: u32,
@@ -194,6 +199,39 @@ pub struct RadioStats {
     #[serde(default)]
     pub bytes: u64,
 }
+
+/// Why a run could not be built or stopped.
+#[derive(Clone, Debug, PartialEq)]
+pub enum SimError {
+    /// The scenario has a field out of bounds ([`Scenario::validate`]): nothing was built.
+    Scenario(InvalidScenario),
+    /// A node refused something while the run was built or stepped (a controller that cannot be
+    /// built, a port written with a value of another type...).
+    Node(Error),
+}
+
+impl From<InvalidScenario> for SimError {
+    fn from(e: InvalidScenario) -> Self {
+        SimError::Scenario(e)
+    }
+}
+
+impl From<Error> for SimError {
+    fn from(e: Error) -> Self {
+        SimError::Node(e)
+    }
+}
+
+impl std::fmt::Display for SimError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            SimError::Scenario(e) => e.fmt(f),
+            SimError::Node(e) => e.fmt(f),
+        }
+    }
+}
+
+impl std::error::Error for SimError {}
 
 /// What a run produced.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -406,9 +444,10 @@ pub fn node_id(i: usize) -> NodeId {
 }
 
 impl Sim {
-    /// A simulation of `scenario` at time 0: world, bodies and controllers built; errors if a
-    /// controller cannot be built.
-    pub fn new(scenario: &Scenario) -> Result<Sim, Error> {
+    /// A simulation of `scenario` at time 0: world, bodies and controllers built. Errors if the
+    /// scenario has a field out of bounds ([`Scenario::validate`], checked before anything is
+    /// built) or a controller cannot be built.
+    pub fn new(scenario: &Scenario) -> Result<Sim, SimError> {
         let controller = scenario.controller;
         // One copy of each controller class for the whole team (crate::classes).
         let mut classes = SharedClasses::new();
@@ -419,8 +458,10 @@ impl Sim {
     /// `scenario.controller`'s (which still names the run and, for `Centralized`, runs the
     /// planner). `build` gets each robot's node with its body (VISION, SONAR, BASE) installed,
     /// the targets' priorities in decreasing order, and `scenario.controllers`; it is how
-    /// controllers written elsewhere (the Python package's) run beside the built-in ones.
-    pub fn with_controller(scenario: &Scenario, build: &mut BuildController<'_>) -> Result<Sim, Error> {
+    /// controllers written elsewhere (the Python package's) run beside the built-in ones. The
+    /// scenario is validated first, so `build` is not called for one out of bounds.
+    pub fn with_controller(scenario: &Scenario, build: &mut BuildController<'_>) -> Result<Sim, SimError> {
+        scenario.validate()?;
         let mut scenario = scenario.clone();
         scenario.world = scenario.world.by_priority();
         let prios: Vec<f64> = scenario.world.targets.iter().map(|t| t.priority).collect();
@@ -448,7 +489,7 @@ impl Sim {
         } else {
             None
         };
-        let frame_every = ((scenario.frame_dt / scenario.dt).round() as u64).max(1);
+        let frame_every = scenario.frame_every();
         let n = scenario.robots;
         let mut sim = Sim {
             meter: Meter::new(&prios, n),
@@ -859,14 +900,14 @@ impl Sim {
 /// // Deterministic: the same scenario, the same run.
 /// assert_eq!(run(&s).unwrap().trace_hash, out.trace_hash);
 /// ```
-pub fn run(scenario: &Scenario) -> Result<Outcome, Error> {
+pub fn run(scenario: &Scenario) -> Result<Outcome, SimError> {
     run_on(scenario, 1)
 }
 
 /// [`run`] with up to `threads` threads visiting the robots ([`Sim::set_threads`]): the same
 /// outcome bit for bit, sooner for a large team. If the system refuses a thread, the run uses
-/// fewer (the outcome does not depend on them).
-pub fn run_on(scenario: &Scenario, threads: usize) -> Result<Outcome, Error> {
+/// fewer (the outcome does not depend on them). Errors as [`Sim::new`], or if a step fails.
+pub fn run_on(scenario: &Scenario, threads: usize) -> Result<Outcome, SimError> {
     let mut sim = Sim::new(scenario)?;
     let _ = sim.set_threads(threads);
     while !sim.done() {

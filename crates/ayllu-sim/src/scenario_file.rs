@@ -27,10 +27,14 @@
 //!
 //! Promises: every key must be a field of the scenario (a misspelt key is an error naming it,
 //! never silently ignored); tables merge into the defaults, arrays and values replace them;
-//! errors name the file's part that is wrong. Nothing here runs a simulation.
+//! every scenario read, and every run of a sweep, is held to the scenario's bounds
+//! ([`Scenario::validate`], crate::bounds) as it is read, so a file out of bounds is refused
+//! before anything runs; errors name the file's part that is wrong. Nothing here runs a
+//! simulation.
 
 use serde_json::{Map, Value as Json};
 
+use crate::bounds;
 use crate::controller::Controller;
 use crate::scenario::Scenario;
 
@@ -89,7 +93,7 @@ pub fn sweep(text: &str) -> Result<Sweep, String> {
         None => 10,
         Some(v) => v.as_u64().filter(|n| (1..=1000).contains(n)).ok_or("`seeds` must be a number from 1 to 1000")?,
     };
-    let controllers = match take_controller_list(&mut table) {
+    let controllers: Vec<Controller> = match take_controller_list(&mut table) {
         None => Controller::ALL.to_vec(),
         Some(v) => v
             .as_array()
@@ -98,6 +102,10 @@ pub fn sweep(text: &str) -> Result<Sweep, String> {
             .map(|c| c.as_str().and_then(Controller::parse).ok_or(format!("unknown controller {c}")))
             .collect::<Result<_, _>>()?,
     };
+    if controllers.is_empty() {
+        let names: Vec<&str> = Controller::ALL.iter().map(|c| c.name()).collect();
+        return Err(format!("controllers: [] names no controller: a sweep runs at least one of {}", names.join(", ")));
+    }
     let grid = match table.remove("grid") {
         None => Map::new(),
         Some(Json::Object(g)) => g,
@@ -119,9 +127,27 @@ pub fn sweep(text: &str) -> Result<Sweep, String> {
         }
         cells = next;
     }
-    let cells = cells
+    let cells: Vec<SweepCell> = cells
         .into_iter()
-        .map(|(values, t)| Ok(SweepCell { scenario: scenario_from(t)?, values }))
+        .enumerate()
+        .map(|(i, (values, t))| {
+            // Each run of the cell, as `Sweep::runs` makes it, is held to the bounds (a partition
+            // may name the Planner's base station only in the Planner's runs).
+            let checked = scenario_from(t).and_then(|scenario| {
+                for &c in &controllers {
+                    Scenario { controller: c, ..scenario.clone() }.validate().map_err(|e| e.to_string())?;
+                }
+                Ok(scenario)
+            });
+            let scenario = checked.map_err(|e| {
+                if values.is_empty() {
+                    return e;
+                }
+                let at: Vec<String> = values.iter().map(|(k, v)| format!("{k} = {v}")).collect();
+                format!("cell{} ({}): {e}", i + 1, at.join(", "))
+            })?;
+            Ok(SweepCell { scenario, values })
+        })
         .collect::<Result<_, String>>()?;
     Ok(Sweep { seeds, controllers, cells })
 }
@@ -142,9 +168,25 @@ fn take_controller_list(table: &mut Map<String, Json>) -> Option<Json> {
 
 fn parse(text: &str) -> Result<Map<String, Json>, String> {
     let value: toml::Value = toml::from_str(text).map_err(|e| format!("not a valid TOML file: {e}"))?;
-    match serde_json::to_value(value).map_err(|e| e.to_string())? {
+    match json(value) {
         Json::Object(m) => Ok(m),
         _ => Err("expected a TOML table".into()),
+    }
+}
+
+/// A TOML value as the scenario's JSON data: TOML's `nan` and `inf`, which JSON cannot write,
+/// become the strings the scenario's numbers read (crate::bounds), so that the bounds, not the
+/// parser, refuse them and name their field; dates become their text.
+fn json(value: toml::Value) -> Json {
+    match value {
+        toml::Value::String(s) => Json::String(s),
+        toml::Value::Integer(i) => Json::from(i),
+        toml::Value::Float(f) if f.is_finite() => Json::from(f),
+        toml::Value::Float(f) => Json::String(bounds::non_finite_text(f).to_owned()),
+        toml::Value::Boolean(b) => Json::Bool(b),
+        toml::Value::Datetime(d) => Json::String(d.to_string()),
+        toml::Value::Array(a) => Json::Array(a.into_iter().map(json).collect()),
+        toml::Value::Table(t) => Json::Object(t.into_iter().map(|(k, v)| (k, json(v))).collect()),
     }
 }
 
@@ -153,13 +195,15 @@ fn scenario_from(mut table: Map<String, Json>) -> Result<Scenario, String> {
         None => Controller::Ble,
         Some(v) => v.as_str().and_then(Controller::parse).ok_or(format!("unknown controller {v}"))?,
     };
+    // The room is sized for the team and the targets' list made before the scenario exists:
+    // their bounds are asked first.
     let robots = match table.get("robots") {
         None => 3,
-        Some(v) => v.as_u64().filter(|n| (1..=10_000).contains(n)).ok_or("`robots` must be a number from 1")? as usize,
+        Some(v) => bounds::robots(v.as_u64(), v).map_err(|e| e.to_string())?,
     };
     let targets = match table.remove("targets") {
         None => 4,
-        Some(v) => v.as_u64().filter(|n| (1..=1000).contains(n)).ok_or("`targets` must be a number from 1")? as usize,
+        Some(v) => bounds::targets("targets", v.as_u64(), &v).map_err(|e| e.to_string())?,
     };
     let seed = table.get("seed").and_then(Json::as_u64).unwrap_or(1);
     if let Some(Json::Object(c)) = table.get_mut("controllers") {
@@ -175,7 +219,9 @@ fn scenario_from(mut table: Map<String, Json>) -> Result<Scenario, String> {
     let base = Scenario::sized(controller, robots, targets, seed);
     let mut merged = serde_json::to_value(&base).map_err(|e| e.to_string())?;
     merge(&mut merged, Json::Object(table), "")?;
-    serde_json::from_value(merged).map_err(|e| format!("the scenario does not fit: {e}"))
+    let scenario: Scenario = serde_json::from_value(merged).map_err(|e| format!("the scenario does not fit: {e}"))?;
+    scenario.validate().map_err(|e| e.to_string())?;
+    Ok(scenario)
 }
 
 /// Merge `over` into `base`: tables field by field (every key must exist in `base`), anything

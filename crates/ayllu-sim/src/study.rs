@@ -13,12 +13,11 @@
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::Mutex;
 
-use ayllu_core::Error;
 use serde::{Deserialize, Serialize};
 
 use crate::controller::Controller;
 use crate::metrics::Metrics;
-use crate::scenario::{self, Outcome, Scenario};
+use crate::scenario::{self, Outcome, Scenario, SimError};
 
 /// One cell of a table: a controller in one setting, metrics averaged over `seeds` runs.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -311,7 +310,7 @@ pub fn run_all<R: Send>(
     jobs: usize,
     done: &(dyn Fn() + Sync),
     keep: &(dyn Fn(Outcome) -> R + Sync),
-) -> Result<Vec<R>, Error> {
+) -> Result<Vec<R>, SimError> {
     run_indexed(scenarios, jobs, done, &|_, outcome| keep(outcome))
 }
 
@@ -321,7 +320,7 @@ fn run_indexed<R: Send>(
     jobs: usize,
     done: &(dyn Fn() + Sync),
     keep: &(dyn Fn(usize, Outcome) -> R + Sync),
-) -> Result<Vec<R>, Error> {
+) -> Result<Vec<R>, SimError> {
     run_each(scenarios, jobs, done, &|i, s| scenario::run(s).map(|outcome| keep(i, outcome)))
 }
 
@@ -379,7 +378,7 @@ fn cost(s: &Scenario) -> f64 {
 }
 
 /// Run the whole plan on up to `jobs` threads; `done` is called after each run.
-pub fn run_plan(plan: &Plan, jobs: usize, done: &(dyn Fn() + Sync)) -> Result<Results, Error> {
+pub fn run_plan(plan: &Plan, jobs: usize, done: &(dyn Fn() + Sync)) -> Result<Results, SimError> {
     let (results, _) = run_plan_recording::<()>(plan, jobs, done, &|_, _, _| false, &|_, _, _, _| ())?;
     Ok(results)
 }
@@ -396,7 +395,7 @@ pub fn run_plan_recording<R: Send>(
     done: &(dyn Fn() + Sync),
     record: &(dyn Fn(Table, &Cell, u64) -> bool + Sync),
     keep: &(dyn Fn(Table, &Cell, u64, Outcome) -> R + Sync),
-) -> Result<(Results, Vec<(Table, Cell, u64, R)>), Error> {
+) -> Result<(Results, Vec<(Table, Cell, u64, R)>), SimError> {
     let cells: Vec<&Cell> = plan.cells().collect();
     let runs: Vec<(Table, &Cell, u64)> =
         plan.cells_by_table().flat_map(|(t, c)| (1..=u64::from(c.seeds)).map(move |seed| (t, c, seed))).collect();
@@ -404,7 +403,8 @@ pub fn run_plan_recording<R: Send>(
         .iter()
         .map(|&(t, c, seed)| {
             let s = c.scenario(seed);
-            if record(t, c, seed) {
+            // A recording too large for memory (crate::bounds) is not made: the run still is.
+            if record(t, c, seed) && s.clone().recorded().validate().is_ok() {
                 s.recorded()
             } else {
                 s

@@ -24,7 +24,7 @@ use std::io::{self, Write};
 use ayllu_core::Error;
 use serde::Serialize;
 
-use crate::scenario::{Outcome, Scenario, Sim};
+use crate::scenario::{Outcome, Scenario, Sim, SimError};
 
 /// How a trace is written.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -191,14 +191,21 @@ pub fn run_traced_on(
 /// Why a traced run failed: the run itself, or writing its trace.
 #[derive(Debug)]
 pub enum TraceError {
-    /// The simulation failed (a controller could not be built, ...).
-    Run(Error),
+    /// The simulation failed (a scenario out of bounds, a controller that could not be
+    /// built, ...).
+    Run(SimError),
     /// The trace could not be written.
     Io(io::Error),
 }
 
 impl From<Error> for TraceError {
     fn from(e: Error) -> Self {
+        TraceError::Run(SimError::Node(e))
+    }
+}
+
+impl From<SimError> for TraceError {
+    fn from(e: SimError) -> Self {
         TraceError::Run(e)
     }
 }

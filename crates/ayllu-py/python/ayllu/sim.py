@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import copy
 import json
+import math
 import os
 from collections.abc import Iterable, Sequence
 from concurrent.futures import Executor, ProcessPoolExecutor
@@ -152,7 +153,10 @@ class Scenario:
         return float(self.data["duration"])
 
     def to_json(self) -> str:
-        return json.dumps(self.data)
+        """The scenario's data as the simulator reads it. JSON has no NaN or infinity: they are
+        written as the strings ``"NaN"``, ``"inf"``, ``"-inf"``, which the simulator reads back,
+        so that its bounds refuse them with the field's name."""
+        return json.dumps(_json_safe(self.data), allow_nan=False)
 
     def __eq__(self, other: object) -> bool:
         return isinstance(other, Scenario) and self.data == other.data
@@ -162,6 +166,18 @@ class Scenario:
             f"Scenario({self.controller}, robots={self.robots}, targets={len(self.data['world']['targets'])}, "
             f"seed={self.seed}, duration={self.duration}, loss={self.data['radio']['loss']})"
         )
+
+
+def _json_safe(value: Any) -> Any:
+    """``value`` with every non-finite float spelled as the simulator reads it (see
+    :meth:`Scenario.to_json`)."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return "NaN" if math.isnan(value) else ("inf" if value > 0 else "-inf")
+    if isinstance(value, dict):
+        return {k: _json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_json_safe(v) for v in value]
+    return value
 
 
 @dataclass
@@ -249,7 +265,13 @@ def run(
     ``threads``: up to this many threads share each tick's robots (built-in controllers
     only; a thread takes at least 50 robots). The outcome is the same bit for bit whatever
     the number; a large team finishes sooner. ``ValueError`` if it is below 1, or above 1
-    with a Python ``controller``."""
+    with a Python ``controller``.
+
+    ``TypeError`` if ``scenario`` is not a :class:`Scenario`; ``ValueError`` naming the field
+    if one is out of the simulator's bounds (docs/cmommt.md, "What a scenario may hold"), before
+    anything runs."""
+    if not isinstance(scenario, Scenario):
+        raise TypeError(f"sim.run takes a sim.Scenario, got {type(scenario).__name__}")
     out_json, tr, errs = _native.run_scenario(scenario.to_json(), controller, trace, threads)
     o = json.loads(out_json)
     return Outcome(
