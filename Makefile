@@ -113,7 +113,7 @@ soak:
 	scripts/install-test-tools
 	SOAK_MINUTES=$(MINUTES) $(CARGO) test --release -p ayllu-cli --test cross_subsumption_processes soak -- --ignored --nocapture
 
-## Fuzz every target (decoder, node, udp:// URLs, command lines) for SECONDS each (needs a
+## Fuzz every target (decoder, node, recordings, udp:// URLs, command lines) for SECONDS each (needs a
 ## nightly toolchain; installs cargo-fuzz), then AylluLite C's decoders (a datagram, a datagram
 ## into a lite node, a URL) under clang's libFuzzer (installs Debian's clang).
 SECONDS ?= 60

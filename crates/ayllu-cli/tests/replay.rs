@@ -107,3 +107,23 @@ fn bad_recordings_and_arguments_fail_with_a_reason() {
     ayllu(&["node", "--id", "1", "--record-max-bytes", "100000"], LIMIT).fails(2, "--record");
     ayllu(&["node", "--id", "1", "--record", "x.mcap", "--record-max-bytes", "10"], LIMIT).fails(2, "10");
 }
+
+/// The files that made the MCAP reader panic (crates/ayllu/tests/malformed_recordings/, see
+/// crates/ayllu/tests/recording_malformed.rs) are refused with a reason by every command that
+/// reads a recording: exit 1, no "internal error".
+#[test]
+fn files_that_made_the_mcap_reader_panic_are_refused_with_a_reason() {
+    let inputs = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../ayllu/tests/malformed_recordings");
+    let garbage = inputs.join("garbage.mcap").display().to_string();
+    for command in ["check", "list"] {
+        let run = ayllu(&["replay", &garbage, command], LIMIT).fails(1, "not an Ayllu flight recording");
+        assert!(run.stderr.contains("at byte 8: a record (opcode 0xff) of 18446744073709551615 bytes"), "{run:?}");
+    }
+    ayllu(&["play", &garbage, "--udp", "udp://127.0.0.1:0"], LIMIT).fails(1, "cannot read");
+    for name in ["message-length-max.mcap", "attachment-short.mcap"] {
+        let file = inputs.join(name).display().to_string();
+        let run = ayllu(&["replay", &file, "check"], LIMIT);
+        assert!(!run.stderr.contains("panicked") && !run.stderr.contains("internal error"), "{name}: {run:?}");
+        ayllu(&["play", &file, "--udp", "udp://127.0.0.1:0"], LIMIT).fails(1, "cannot read");
+    }
+}

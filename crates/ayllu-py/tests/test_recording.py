@@ -86,3 +86,19 @@ def test_misuse_is_refused_with_a_reason(tmp_path: Path) -> None:
     (tmp_path / "bad.mcap").write_bytes(b"not a recording")
     with pytest.raises(ayllu.InvalidError, match="not an MCAP file"):
         ayllu.check_recording(tmp_path / "bad.mcap")
+
+
+def test_files_that_made_the_mcap_reader_panic_raise_invalid_error() -> None:
+    # The MCAP magic then 0xff bytes (a record length of 2**64 - 1) used to panic inside the
+    # mcap crate: a PanicException, not an ayllu error. Every malformed file of the Rust
+    # tests (crates/ayllu/tests/malformed_recordings/) is an InvalidError or a recording.
+    inputs = Path(__file__).parents[2] / "ayllu" / "tests" / "malformed_recordings"
+    with pytest.raises(ayllu.InvalidError, match="not an Ayllu flight recording .*at byte 8"):
+        ayllu.check_recording(inputs / "garbage.mcap")
+    files = sorted(inputs.glob("*.mcap"))
+    assert len(files) == 8
+    for f in files:
+        try:
+            ayllu.check_recording(f)
+        except ayllu.AylluError:
+            pass

@@ -14,6 +14,7 @@ pub mod error;
 pub mod faults;
 pub mod graph;
 pub mod lockstep;
+mod mcap_records;
 pub mod mem;
 pub mod node;
 pub mod operator;

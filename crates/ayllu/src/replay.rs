@@ -16,7 +16,9 @@
 //!   with a [`Divergence`] saying where (journal position, node time) and what.
 //! * A replay stopped at `t` answers as the live node would have at `t`: every input up to
 //!   `t` was applied, none after.
-//! * A bad or cut file gives an error or a shorter recording ([`Ending`]), never a panic.
+//! * A bad or cut file gives an error or a shorter recording ([`Ending`]), never a panic
+//!   (the records are framed by `mcap_records`, not by the `mcap` crate's readers, which
+//!   panic on some damaged files).
 
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -26,10 +28,9 @@ use ayllu_core::{
     BehaviorClass, ConnectOptions, Ctx, Entry, Event, Instant, Mono, NodeCore, NodeId, NodeReport, Port, PortReport,
     Slot, Value,
 };
-use mcap::read::{ChunkFlattener, Options};
-use mcap::records::Record;
 
 use crate::error::Error;
+use crate::mcap_records::{self, McapRecord};
 use crate::recording::segment_path;
 use crate::recording_format::{decode, same_bits, Topic, METADATA, VERSION};
 
@@ -100,9 +101,6 @@ impl Recording {
                 break;
             }
             let bytes = std::fs::read(&p).map_err(|e| bad(&p, e))?;
-            if !bytes.starts_with(mcap::MAGIC) {
-                return Err(bad(&p, "not an MCAP file (no magic bytes at its start)"));
-            }
             let (seg_node, seg_ending) = read_segment(&p, &bytes, &mut entries)?;
             if let Some(other) = node.filter(|&x| x != seg_node) {
                 return Err(bad(&p, format!("a segment of node {seg_node}, after segments of node {other}")));
@@ -115,6 +113,20 @@ impl Recording {
                 break;
             }
         }
+        Ok(Recording::assemble(node.unwrap_or(NodeId(0)), segments, entries, ending))
+    }
+
+    /// Read a one-segment recording held in memory: `bytes` as [`Recording::open`] reads a
+    /// segment file, with the same errors and endings (errors name the file `<bytes>`). For
+    /// a recording that came another way than as a file, and for fuzzing the reader.
+    pub fn from_bytes(bytes: &[u8]) -> Result<Recording, Error> {
+        let mut entries = Vec::new();
+        let (node, ending) = read_segment(Path::new("<bytes>"), bytes, &mut entries)?;
+        Ok(Recording::assemble(node, Vec::new(), entries, ending))
+    }
+
+    /// The journal put back in order, and its first hole found.
+    fn assemble(node: NodeId, segments: Vec<PathBuf>, mut entries: Vec<(u64, Entry)>, ending: Ending) -> Recording {
         entries.sort_by_key(|(seq, _)| *seq);
         let mut gap = None;
         for (i, (seq, e)) in entries.iter().enumerate() {
@@ -123,13 +135,7 @@ impl Recording {
                 break;
             }
         }
-        Ok(Recording {
-            node: node.unwrap_or(NodeId(0)),
-            segments,
-            entries: entries.into_iter().map(|(_, e)| e).collect(),
-            ending,
-            gap,
-        })
+        Recording { node, segments, entries: entries.into_iter().map(|(_, e)| e).collect(), ending, gap }
     }
 
     /// The node time of the last entry (zero for an empty recording).
@@ -140,48 +146,52 @@ impl Recording {
 
 /// Read one segment's messages into `out`; its node and how it ends.
 fn read_segment(path: &Path, bytes: &[u8], out: &mut Vec<(u64, Entry)>) -> Result<(NodeId, Ending), Error> {
-    let mut topics: Vec<(u16, Topic)> = Vec::new();
+    let mut topics: Vec<u16> = Vec::new();
     let mut node = None;
     let mut ending = Ending::Cut { reason: "the file has no end record (was the node killed?)".into() };
-    let reader = ChunkFlattener::new_with_options(bytes, Options::IgnoreEndMagic.into()).map_err(|e| bad(path, e))?;
+    let reader = mcap_records::records(bytes).map_err(|e| bad(path, e.what))?;
     for record in reader {
         let record = match record {
             Ok(r) => r,
             Err(e) => {
-                ending = Ending::Cut { reason: format!("the file ends inside a record: {e}") };
+                ending = Ending::Cut { reason: format!("unreadable {e}") };
+                // Before its metadata, a file that cannot be read is not a recording at all:
+                // the reason it cannot be read is the useful part of the error.
+                if node.is_none() {
+                    return Err(bad(path, format!("not an Ayllu flight recording (unreadable {e})")));
+                }
                 break;
             }
         };
-        match record {
-            Record::Channel(c) => {
-                if let Some(t) = Topic::from_name(&c.topic) {
-                    topics.push((c.id, t));
+        match &record {
+            McapRecord::Channel { id, topic } => {
+                if Topic::from_name(topic).is_some() {
+                    topics.push(*id);
                 }
             }
-            Record::Metadata(m) if m.name == METADATA => {
-                let version = m.metadata.get("version").map_or("", String::as_str);
+            McapRecord::Metadata { name, .. } if *name == METADATA => {
+                let version = record.get("version").unwrap_or("");
                 if version != VERSION {
                     return Err(bad(path, format!("flight recording version `{version}`; this build reads {VERSION}")));
                 }
-                let id = m.metadata.get("node").and_then(|n| n.parse::<u32>().ok());
+                let id = record.get("node").and_then(|n| n.parse::<u32>().ok());
                 node = Some(NodeId(id.ok_or_else(|| bad(path, "no node id in its metadata"))?));
             }
-            Record::Metadata(m) if m.name == format!("{METADATA}.end") => {
-                let capped = m.metadata.get("capped").is_some_and(|c| c == "true");
-                let dropped = m.metadata.get("dropped_cap").and_then(|d| d.parse().ok()).unwrap_or(0);
+            McapRecord::Metadata { name, .. } if name.strip_prefix(METADATA) == Some(".end") => {
+                let capped = record.get("capped") == Some("true");
+                let dropped = record.get("dropped_cap").and_then(|d| d.parse().ok()).unwrap_or(0);
                 ending = if capped { Ending::Capped { dropped } } else { Ending::Closed };
             }
-            Record::Message { header, data } => {
-                if !topics.iter().any(|(id, _)| *id == header.channel_id) {
+            McapRecord::Message { channel, sequence, data, .. } => {
+                if !topics.contains(channel) {
                     continue;
                 }
-                let json: serde_json::Value = serde_json::from_slice(&data)
-                    .map_err(|e| bad(path, format!("message {} is not JSON: {e}", header.sequence)))?;
-                let d = decode(&json).map_err(|e| bad(path, format!("message {}: {e}", header.sequence)))?;
+                let json: serde_json::Value = serde_json::from_slice(data)
+                    .map_err(|e| bad(path, format!("message {sequence} is not JSON: {e}")))?;
+                let d = decode(&json).map_err(|e| bad(path, format!("message {sequence}: {e}")))?;
                 out.push((d.seq, d.entry));
             }
-            Record::Footer(_) | Record::DataEnd(_) => {}
-            _ => {}
+            McapRecord::Metadata { .. } | McapRecord::DataEnd | McapRecord::Footer => {}
         }
     }
     let node = node.ok_or_else(|| bad(path, "not an Ayllu flight recording (no ayllu.flight_recording metadata)"))?;

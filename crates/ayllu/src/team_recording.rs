@@ -28,6 +28,7 @@ use std::time::{Duration as StdDuration, SystemTime, UNIX_EPOCH};
 
 use ayllu_core::{ConnectionKind, Endpoint, Message, NodeId, NodeReport, Outgoing, Value, ValueType};
 
+use crate::mcap_records::{self, McapRecord};
 use crate::team_channels::{self, PortChannel, Via};
 use crate::transport::{PeerInfo, Sent, Transport};
 
@@ -401,22 +402,31 @@ pub struct Recorded {
 }
 
 /// Every message of the team channel layout in an MCAP file, ordered by `log_time` (stable).
-/// Channels outside the layout are skipped. Errors: not MCAP, or a message that is not the
-/// layout's JSON on a layout topic.
+/// Channels outside the layout are skipped. Errors: not MCAP, a file cut short or damaged,
+/// or a message that is not the layout's JSON on a layout topic. Never a panic, whatever the
+/// bytes: the records are framed by `mcap_records`, not by the `mcap` crate's readers.
 pub fn read_recording(bytes: &[u8]) -> std::io::Result<Vec<Recorded>> {
+    let invalid = |what: String| std::io::Error::new(std::io::ErrorKind::InvalidData, what);
+    let mut topics: HashMap<u16, &str> = HashMap::new();
     let mut out = Vec::new();
-    for m in mcap::MessageStream::new(bytes).map_err(mcap_error)? {
-        let m = m.map_err(mcap_error)?;
-        if PortChannel::parse_topic(&m.channel.topic).is_none() {
-            continue;
+    for record in mcap_records::records(bytes).map_err(|e| invalid(e.to_string()))? {
+        match record.map_err(|e| invalid(e.to_string()))? {
+            McapRecord::Channel { id, topic } => {
+                topics.insert(id, topic);
+            }
+            McapRecord::Message { channel, log_time, data, .. } => {
+                let Some(topic) = topics.get(&channel) else {
+                    return Err(invalid(format!("a message on channel {channel}, which the file does not declare")));
+                };
+                if PortChannel::parse_topic(topic).is_none() {
+                    continue;
+                }
+                let (channel, value) = team_channels::parse_message(data)
+                    .ok_or_else(|| invalid(format!("a message on {topic} is not a team channel message")))?;
+                out.push(Recorded { channel, value, log_time });
+            }
+            McapRecord::Metadata { .. } | McapRecord::DataEnd | McapRecord::Footer => {}
         }
-        let (channel, value) = team_channels::parse_message(&m.data).ok_or_else(|| {
-            std::io::Error::new(
-                std::io::ErrorKind::InvalidData,
-                format!("a message on {} is not a team channel message", m.channel.topic),
-            )
-        })?;
-        out.push(Recorded { channel, value, log_time: m.log_time });
     }
     out.sort_by_key(|r| r.log_time);
     Ok(out)
