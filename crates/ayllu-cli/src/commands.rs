@@ -11,8 +11,8 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration as StdDuration, Instant as StdInstant};
 
 use ayllu::{
-    BehaviorClass, ConnectOptions, ConnectionId, ConnectionKind, ControlBody, DropCause, Duration, Endpoint, Instant,
-    NodeId, PortReport, PortSpec, ReplyBody, Source, Value, ValueType, WindowKind,
+    BehaviorClass, ConnectOptions, ConnectionId, ConnectionKind, ControlBody, Counters, DropCause, Duration, Endpoint,
+    Instant, Limits, NodeId, PortReport, PortSpec, ReplyBody, Source, Value, ValueType, WindowKind,
 };
 use serde_json::json;
 
@@ -312,6 +312,56 @@ fn judge(report: &PortReport, kind: ConnectionKind, me: Source) -> Verdict {
     Verdict::Unseen
 }
 
+/// What a node refuses before a port message reaches the port: the message leaves no trace on
+/// the port, no answer comes back (port messages have none), and the node only counts it,
+/// node-wide, under one of these.
+const NODE_REFUSALS: [DropCause; 2] = [DropCause::TooLong, DropCause::NotAllowed];
+
+/// Whether the node counted this write's resends as refused before the port ([`NODE_REFUSALS`]).
+/// Its counters (LIST) are read after the first unseen send (`counts` keeps them, with how many
+/// sends had gone), and again after each resend: a cause that rose by at least the resends is
+/// the node's reason. Another sender's refusals can only add to the count, and a resend lost on
+/// the way adds nothing, so a loss is never taken for a refusal. A node that does not answer
+/// LIST gives no reason (`None`).
+fn dropped_by_node(
+    client: &mut Client,
+    node: NodeId,
+    counts: &mut Option<(Counters, u32)>,
+    sent: u32,
+) -> Option<DropCause> {
+    let now = match client.ask(node, ControlBody::List, &format!("LIST {node}")) {
+        Ok(ReplyBody::Node(report)) => report.counters,
+        _ => return None,
+    };
+    let (before, sent_before) = counts.replace((now.clone(), sent))?;
+    let resends = u64::from(sent - sent_before);
+    NODE_REFUSALS.into_iter().find(|&c| now.get(c).saturating_sub(before.get(c)) >= resends)
+}
+
+/// The message for a write the node refused before its port, with what to change.
+fn node_refusal(
+    node: NodeId,
+    path: &PortPath,
+    value: &Value,
+    kind: ConnectionKind,
+    cause: DropCause,
+    me: NodeId,
+) -> String {
+    let why = match (cause, kind.period()) {
+        (DropCause::TooLong, Some(period)) => format!(
+            "its {} window of {period} is longer than the node takes from the network (its --max-window, {} \
+             unless set); use a shorter --period",
+            kind.name(),
+            Limits::default().max_remote_period
+        ),
+        (DropCause::NotAllowed, _) => {
+            format!("the node does not let {me} write its ports (its --allow-write)")
+        }
+        _ => "the node refused it before the port".to_owned(),
+    };
+    format!("{node}:{path} refused {}: {why}; counted as `{cause}` (see `ayllu list {}`)", human(value), node.0)
+}
+
 /// The windows behind a refusal, for the message: "suppress by n7/c1 for 2.1s more".
 fn blockers(report: &PortReport, cause: DropCause) -> String {
     let kind = match cause {
@@ -407,6 +457,7 @@ pub fn write(args: &WriteArgs) -> Result<(), Fail> {
     // Send, then ask whether it arrived; resend what was lost.
     let mut sent = 0u32;
     let mut report;
+    let mut node_counts = None;
     loop {
         client.node.write("WRITE", "Out", value.clone())?;
         sent += 1;
@@ -426,8 +477,14 @@ pub fn write(args: &WriteArgs) -> Result<(), Fail> {
                     blockers(&report, cause)
                 )));
             }
-            Verdict::Unseen if sent >= WRITE_ATTEMPTS || client.expired() => break,
-            Verdict::Unseen => {}
+            Verdict::Unseen => {
+                if let Some(cause) = dropped_by_node(&mut client, node, &mut node_counts, sent) {
+                    return Err(Fail::error(node_refusal(node, path, &value, kind, cause, client.id())));
+                }
+                if sent >= WRITE_ATTEMPTS || client.expired() {
+                    break;
+                }
+            }
         }
     }
     let confirmed = judge(&report, kind, me) == Verdict::Confirmed;
@@ -497,7 +554,7 @@ pub fn write(args: &WriteArgs) -> Result<(), Fail> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use ayllu::{Counters, PortKind, WindowReport};
+    use ayllu::{PortKind, WindowReport};
 
     fn report(windows: Vec<WindowReport>, supplier: Option<Source>, input_blocked: Option<DropCause>) -> PortReport {
         PortReport {

@@ -413,16 +413,34 @@ fn a_killed_echos_connection_expires_with_its_lease() {
 #[test]
 fn a_node_can_refuse_rewiring_and_writes_from_the_network() {
     // D9.2: `--allow-rewire none` refuses the CONNECT an echo needs, with the reason; port
-    // writes stay open. `--allow-write none` drops port messages, counted as not_allowed.
+    // writes stay open. `--allow-write none` drops port messages, counted as not_allowed; the
+    // node sends no answer to a port message, so write reads that count back and reports the
+    // refusal (exit 1).
     let relay = Relay::start_with(&["--allow-rewire", "none"]);
     relay.cli(&["echo", "1", "RELAY.Out", "--count", "1"]).fails(1, "not allowed");
     relay.write("RELAY.In", "4", &[]).ok();
     let relay = Relay::start_with(&["--allow-write", "none", "--max-window", "10"]);
-    let run = relay.write("RELAY.In", "4", &["--json"]).ok();
-    assert_eq!(run.json()["confirmed"], false, "{run:?}");
+    let run = relay.write("RELAY.In", "4", &["--json"]).fails(1, "refused 4: the node does not let");
+    assert!(run.stderr.contains("(its --allow-write); counted as `not_allowed`"), "{run:?}");
     let report = relay.cli(&["list", "1", "--json"]).ok().json();
     assert!(report["counted"]["not_allowed"].as_u64().unwrap_or(0) >= 1, "{report}");
     ayllu(&["node", "--id", "1", "--allow-write", "robots"], LIMIT).fails(2, "not a node id");
+}
+
+#[test]
+fn a_window_longer_than_the_nodes_limit_is_reported_as_refused_with_the_reason() {
+    // D9.3: the node drops a port message whose window is longer than its --max-window and
+    // only counts it (`too_long`): write reads the count back and says so, exit 1. Within
+    // the limit the same write is confirmed.
+    let relay = Relay::start_with(&["--max-window", "10"]);
+    let run = relay.write("RELAY.Out", "3", &["--kind", "inhibit", "--period", "11"]).fails(1, "refused 3");
+    assert!(run.stderr.contains("inhibit window of 11.000s is longer than the node takes"), "{run:?}");
+    assert!(run.stderr.contains("counted as `too_long`"), "{run:?}");
+    assert!(run.stdout.is_empty(), "{run:?}");
+    let report = relay.cli(&["list", "1", "--json"]).ok().json();
+    assert!(report["counted"]["too_long"].as_u64().unwrap_or(0) >= 2, "{report}");
+    let run = relay.write("RELAY.Out", "3", &["--kind", "inhibit", "--period", "10"]).ok();
+    assert!(run.stdout.contains("confirmed"), "{run:?}");
 }
 
 #[test]
