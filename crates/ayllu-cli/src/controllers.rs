@@ -125,12 +125,33 @@ fn feed_vision(node: &mut Node, args: &NodeArgs) -> Result<(), Fail> {
     Ok(())
 }
 
+/// `--record FILE` never replaces a recording, as `sim run --mcap` and `keygen` never replace
+/// their files: a robot restarted with the same command line would otherwise lose the flight
+/// recording of the run before, the one wanted after a crash. The runtime (`Node::record`)
+/// removes the segments that follow FILE (`FILE.1.mcap`, ...) so that they are not read as this
+/// recording's; they belong to the earlier recording too, so they are refused as well.
+fn refuse_existing_recording(path: &std::path::Path) -> Result<(), Fail> {
+    for n in 0..2 {
+        let segment = ayllu::recording::segment_path(path, n);
+        if segment.symlink_metadata().is_ok() {
+            return Err(Fail::error(format!(
+                "{} exists (a flight recording is never replaced): move or remove it, or record into another file",
+                segment.display()
+            )));
+        }
+    }
+    Ok(())
+}
+
 /// `ayllu node`.
 pub fn run(args: &NodeArgs) -> Result<(), Fail> {
     if let Some(&(t, _)) = args.sight.0.iter().find(|(t, _)| *t > args.layers) {
         return Err(Fail::usage(format!("--sight names target {t}, but there are only {} layers", args.layers)));
     }
     crate::client::network_url(&args.udp)?;
+    if let Some(path) = &args.record {
+        refuse_existing_recording(path)?;
+    }
     let open = ayllu::transport::url_setting(&args.udp, "key").is_none();
     let transport = ayllu::transport::open_named(&args.udp, args.id, &format!("node-{}", args.id.0))?;
     let mut node = Node::new(MonotonicClock::new(), transport);

@@ -127,3 +127,33 @@ fn files_that_made_the_mcap_reader_panic_are_refused_with_a_reason() {
         ayllu(&["play", &file, "--udp", "udp://127.0.0.1:0"], LIMIT).fails(1, "cannot read");
     }
 }
+
+/// `node --record FILE` never replaces a recording (as `sim run --mcap` and `keygen` never
+/// replace their files): a robot restarted with the same command line keeps the recording of
+/// the run before. A following segment left by an earlier recording is refused too (the
+/// recorder would remove it).
+#[test]
+fn node_record_refuses_a_file_that_exists() {
+    let dir = scratch("exists");
+    let file = dir.join("flight.mcap");
+    std::fs::write(&file, b"the run before").unwrap();
+    let path = file.display().to_string();
+    let run = ayllu(&["node", "--id", "5", "--udp", "udp://127.0.0.1:0", "--for", "0.2", "--record", &path], LIMIT)
+        .fails(1, "flight.mcap exists");
+    assert!(run.stderr.contains("move or remove it, or record into another file"), "{run:?}");
+    assert!(run.stdout.is_empty(), "refused before the node started: {run:?}");
+    assert_eq!(std::fs::read(&file).unwrap(), b"the run before");
+
+    let fresh = dir.join("fresh.mcap");
+    std::fs::write(dir.join("fresh.1.mcap"), b"a segment of the run before").unwrap();
+    let fresh_path = fresh.display().to_string();
+    ayllu(&["node", "--id", "5", "--udp", "udp://127.0.0.1:0", "--for", "0.2", "--record", &fresh_path], LIMIT)
+        .fails(1, "fresh.1.mcap exists");
+    assert!(!fresh.exists());
+
+    let new = dir.join("new.mcap").display().to_string();
+    ayllu(&["node", "--id", "5", "--udp", "udp://127.0.0.1:0", "--for", "0.2", "--record", &new], LIMIT).ok();
+    ayllu(&["replay", &new, "check"], LIMIT).ok();
+    ayllu(&["node", "--id", "5", "--udp", "udp://127.0.0.1:0", "--for", "0.2", "--record", &new], LIMIT)
+        .fails(1, "new.mcap exists");
+}
