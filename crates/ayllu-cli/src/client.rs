@@ -136,7 +136,16 @@ impl Client {
     }
 
     /// Wait for `node`'s HELLO (or any datagram from it), so that requests have an address.
+    /// The tool's own id cannot be asked about: each side would drop the other's datagrams as
+    /// a duplicate of its own id, and the wait would end in a timeout that blames the URL.
     pub fn find(&mut self, node: NodeId) -> Result<PeerInfo, Fail> {
+        if node == self.id() {
+            return Err(Fail::usage(format!(
+                "--id {} is the id of the node asked about: the tool is a node of the team and needs an id of its \
+                 own (leave --id out and it picks one)",
+                node.0
+            )));
+        }
         loop {
             if let Some(p) = self.node.peers().into_iter().find(|p| p.node == node) {
                 return Ok(p);
@@ -190,6 +199,14 @@ impl Client {
         }
         if counted("bad_mac") > 0 {
             found.push(format!("heard {} datagrams with a bad MAC: the nodes use another key", counted("bad_mac")));
+        }
+        if counted("duplicate_id") > 0 {
+            found.push(format!(
+                "heard {} datagrams from another node with this tool's id {}: ids must be unique in a team, so each \
+                 side drops the other's; give the tool another --id (or leave it out and it picks one)",
+                counted("duplicate_id"),
+                self.id().0
+            ));
         }
         if !found.is_empty() {
             return found.join("; ");

@@ -266,6 +266,18 @@ fn a_tool_run_again_under_the_same_id_is_not_taken_for_its_old_self() {
 }
 
 #[test]
+fn the_tools_id_cannot_be_the_id_of_the_node_asked_about() {
+    // The tool is a node of the team: with the asked node's id, each side would drop the
+    // other's datagrams as its own id's duplicates, and the wait would blame the URL.
+    let relay = Relay::start();
+    let run =
+        relay.cli(&["list", "1", "--id", "1", "--timeout", "2"]).fails(2, "--id 1 is the id of the node asked about");
+    assert!(!run.stderr.contains("check the node id and the URL"), "{run:?}");
+    relay.cli(&["why", "1", "RELAY.In", "--id", "1"]).fails(2, "needs an id of its own");
+    relay.cli(&["list", "1", "--id", "2"]).ok();
+}
+
+#[test]
 fn an_unknown_node_times_out_with_a_clear_message() {
     let relay = Relay::start();
     let run = relay.cli(&["why", "99", "RELAY.In", "--timeout", "1"]).fails(1, "unknown node n99");

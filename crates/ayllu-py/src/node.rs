@@ -27,7 +27,7 @@ use pyo3::types::{PyDict, PyList};
 use crate::behavior::Processes;
 use crate::errors::{self, NodeBusyError};
 use crate::sim::StdlibOptions;
-use crate::value::{duration, secs, to_py, to_value};
+use crate::value::{duration, instant, secs, to_py, to_value};
 use crate::wiring;
 
 /// The longest a real-clock node's thread sleeps on its transport while nobody else asks for
@@ -622,16 +622,21 @@ impl Node {
     /// Manual clock only: set the time to `seconds` (never backwards) and step once.
     fn set_time(&self, py: Python<'_>, seconds: f64) -> PyResult<()> {
         let clock = self.manual()?;
-        clock.set(Instant::ZERO + duration(seconds)?);
+        clock.set(instant(seconds)?);
         self.step_now(py).map(|_| ())
     }
 
     /// Real clock: step and sleep for `seconds`, here, releasing the GIL while asleep.
+    /// `seconds` below 0 or NaN are refused (they used to run nothing, in silence).
     fn run_for(&self, py: Python<'_>, seconds: f64) -> PyResult<()> {
+        if seconds.is_nan() || seconds < 0.0 {
+            return Err(errors::value_error(format!("run_for takes seconds of at least 0, not {seconds}")));
+        }
+        let span = duration(seconds)?;
         if self.clock.is_some() {
             return self.advance(py, seconds, None);
         }
-        let end = std::time::Instant::now() + std::time::Duration::from_secs_f64(seconds.max(0.0));
+        let end = std::time::Instant::now() + std::time::Duration::from_nanos(span.as_nanos());
         let shared = Arc::clone(&self.shared);
         loop {
             let stepping = &self.shared.stepping;
@@ -652,12 +657,15 @@ impl Node {
     }
 
     /// Real clock: run the node on a background thread until `stop()` (or `close()`).
-    fn start(&self) -> PyResult<()> {
+    fn start(&self, py: Python<'_>) -> PyResult<()> {
         if self.clock.is_some() {
             return Err(errors::InvalidError::new_err(
                 "a manual-clock node moves only with advance(); only a real-clock node can start()",
             ));
         }
+        // A closed node has nothing to run: its thread would end at once, and `running` say
+        // True, where every other method raises.
+        self.shared.with(py, |_| Ok(()))?;
         let mut t = self.thread.handle.lock().map_err(|_| errors::closed("this node"))?;
         if t.is_some() {
             return Err(errors::InvalidError::new_err("this node is already running"));
@@ -728,10 +736,11 @@ fn advance(
         clock.advance(total);
         return step(py);
     };
-    let tick = duration(tick)?;
-    if tick.is_zero() {
-        return Err(errors::value_error("tick must be above zero"));
+    // A tick is counted in whole nanoseconds: one that rounds to none would never move time.
+    if tick.is_nan() || tick < 0.5e-9 {
+        return Err(errors::value_error(format!("tick must be at least 1 ns (1e-9 s), not {tick:e} s")));
     }
+    let tick = duration(tick)?;
     use ayllu::Clock;
     let end = clock.now() + total;
     while clock.now() < end {

@@ -64,9 +64,32 @@ pub fn to_py(py: Python<'_>, v: &Value) -> Py<PyAny> {
     }
 }
 
-/// Seconds as a duration; refuses negative, NaN and infinite seconds.
+/// The longest span Ayllu's clock holds (nanoseconds in a `u64`), in whole seconds, for
+/// messages: 18446744073 s, about 584 years.
+const LONGEST_SECS: u64 = u64::MAX / 1_000_000_000;
+
+/// Seconds as a duration; refuses negative, NaN and infinite seconds, and more than the clock
+/// holds. The last says so with the limit: the core's message prints the seconds as they are,
+/// and `1e300` prints as 301 digits.
 pub fn duration(seconds: f64) -> PyResult<Duration> {
+    if seconds.is_finite() && seconds > LONGEST_SECS as f64 {
+        return Err(errors::InvalidError::new_err(format!(
+            "{seconds:e} s is too long: a duration is at most {LONGEST_SECS} s (about 584 years)"
+        )));
+    }
     Duration::try_from_secs_f64(seconds).map_err(errors::core)
+}
+
+/// A node-clock instant given in seconds since the clock's origin (`set_time`): a time, so
+/// refused in words about time, not about periods.
+pub fn instant(seconds: f64) -> PyResult<Instant> {
+    if !(0.0..=LONGEST_SECS as f64).contains(&seconds) {
+        return Err(errors::InvalidError::new_err(format!(
+            "time {seconds} s is not on the node's clock: times are seconds since the clock's start, from 0 to \
+             {LONGEST_SECS} s (about 584 years)"
+        )));
+    }
+    Ok(Instant::ZERO + duration(seconds)?)
 }
 
 /// A node-clock instant in seconds.

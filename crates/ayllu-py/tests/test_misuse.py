@@ -65,6 +65,52 @@ def test_a_manual_node_cannot_start_and_a_real_one_cannot_advance() -> None:
         ayllu.Node(1).advance(1.0)
 
 
+def test_a_closed_node_cannot_start() -> None:
+    # Like every other method of a closed node; it used to start a thread that ended at once
+    # while `running` said True.
+    node = ayllu.Node(1)
+    node.close()
+    with pytest.raises(RuntimeError, match="closed"):
+        node.start()
+    assert not node.running
+
+
+def test_times_and_spans_out_of_range_are_refused_in_their_own_words() -> None:
+    node = ayllu.Node(2, manual=True)
+    with pytest.raises(ayllu.InvalidError, match=r"^1e300 s is too long: a duration is at most 18446744073 s"):
+        node.advance(1e300)
+    with pytest.raises(ValueError, match=r"^tick must be at least 1 ns \(1e-9 s\), not 1e-12 s"):
+        node.advance(1.0, tick=1e-12)
+    with pytest.raises(ValueError, match="tick must be at least 1 ns"):
+        node.advance(1.0, tick=-0.5)
+    with pytest.raises(ValueError, match="tick must be at least 1 ns"):
+        ayllu.Team().advance(1.0, tick=0.0)
+    node.advance(1e-6, tick=1e-9)
+    with pytest.raises(ayllu.InvalidError, match=r"^time -1 s is not on the node's clock: times are seconds since"):
+        node.set_time(-1.0)
+    with pytest.raises(ayllu.InvalidError, match="not on the node's clock"):
+        node.set_time(float("nan"))
+    with pytest.raises(ayllu.InvalidError, match="too long"):
+        node.run_for(1e300)
+    assert node.now == pytest.approx(1e-6)
+
+
+def test_run_for_refuses_negative_and_nan_seconds() -> None:
+    # They used to run nothing, in silence.
+    node = ayllu.Node(3)
+    try:
+        for bad in (float("nan"), -1.0, float("-inf")):
+            with pytest.raises(ValueError, match="run_for takes seconds of at least 0"):
+                node.run_for(bad)
+        with pytest.raises(ayllu.InvalidError, match="inf s is not a usable duration"):
+            node.run_for(float("inf"))
+        node.run_for(0.0)
+    finally:
+        node.close()
+    with pytest.raises(ValueError, match="run_for takes seconds of at least 0"):
+        ayllu.Node(4, manual=True).run_for(-1.0)
+
+
 def test_a_process_calling_its_node_is_told_to_use_ctx() -> None:
     node = ayllu.Node(1, manual=True)
 

@@ -56,6 +56,15 @@ def test_scenarios_set_every_field_of_the_rust_type() -> None:
         sim.Scenario.paper("Nope", 1)
 
 
+def test_a_target_index_that_names_no_target_is_an_index_error() -> None:
+    # Python's negative indexing would change the last target instead of refusing.
+    base = sim.Scenario.sized("BLE", robots=2, targets=3, seed=1)
+    for index in (-1, 3, 99):
+        with pytest.raises(IndexError, match=f"no target {index}: the scenario has 3, numbered from 0"):
+            base.target(index, speed=9.0)
+    assert base.target(2, speed=9.0).data["world"]["targets"][2]["speed"] == 9.0
+
+
 def test_a_recording_has_every_frame() -> None:
     out = sim.run(short(duration=2.0).with_(record=True))
     assert out.recording is not None

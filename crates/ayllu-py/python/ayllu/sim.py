@@ -126,9 +126,14 @@ class Scenario:
         return s
 
     def target(self, index: int, **fields: Any) -> Scenario:
-        """A copy with target ``index`` (0-based) changed: ``priority``, ``speed``, ``motion``."""
+        """A copy with target ``index`` (0-based) changed: ``priority``, ``speed``, ``motion``.
+        ``IndexError`` for an index that names no target (a negative one too: counting from
+        the end would change another target than the one meant)."""
         s = self.with_()
-        t = s.data["world"]["targets"][index]
+        targets = s.data["world"]["targets"]
+        if not 0 <= index < len(targets):
+            raise IndexError(f"no target {index}: the scenario has {len(targets)}, numbered from 0")
+        t = targets[index]
         for k, v in fields.items():
             if k not in t:
                 raise KeyError(f"a target has no field {k!r}; it has {sorted(t)}")
