@@ -46,7 +46,13 @@ pub struct GraphArgs {
 pub fn graph(args: &GraphArgs) -> Result<(), Fail> {
     signals::install();
     let mut client = Client::open(&args.net, args.listen)?;
-    let mut nodes = args.nodes.clone();
+    // A node named twice (`2 n2 0x2`) is drawn once.
+    let mut nodes: Vec<NodeId> = Vec::new();
+    for n in &args.nodes {
+        if !nodes.contains(n) {
+            nodes.push(*n);
+        }
+    }
     if nodes.is_empty() {
         client.listen();
         // Other tools (this one's siblings: ids from 0x7fff0000, name ayllu-cli) are not the team.

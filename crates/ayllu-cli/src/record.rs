@@ -119,13 +119,33 @@ fn ask_briefly(client: &mut Client, node: NodeId, body: ControlBody, what: &str)
 /// `ayllu record -o FILE`.
 pub fn record(args: &RecordArgs) -> Result<(), Fail> {
     signals::install();
+    // A recording is never replaced (as `node --record`, `sim run --mcap`, `foxglove --mcap` and
+    // `keygen` never replace their files): checked before anything goes on the network.
+    let file = std::fs::OpenOptions::new().write(true).create_new(true).open(&args.output).map_err(|e| {
+        if e.kind() == std::io::ErrorKind::AlreadyExists {
+            Fail::error(format!(
+                "{} exists (a recording is never replaced): move or remove it, or record into another file",
+                args.output.display()
+            ))
+        } else {
+            io_fail("cannot create", &args.output, e)
+        }
+    })?;
     let mut log = HeardLog::default();
-    let mut client = Client::open_with(&args.net, 5.0, |t| {
+    let opened = Client::open_with(&args.net, 5.0, |t| {
         let (tap, heard) = Tap::new(t);
         log = heard;
         tap
-    })?;
-    let file = std::fs::File::create(&args.output).map_err(|e| io_fail("cannot create", &args.output, e))?;
+    });
+    let mut client = match opened {
+        Ok(client) => client,
+        Err(e) => {
+            // Nothing was recorded: the empty file would only block the next attempt.
+            drop(file);
+            let _ = std::fs::remove_file(&args.output);
+            return Err(e);
+        }
+    };
     let writer =
         TeamWriter::new(std::io::BufWriter::new(file)).map_err(|e| io_fail("cannot write", &args.output, e))?;
     let mut recorder = Recorder::new(writer);

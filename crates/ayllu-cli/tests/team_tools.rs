@@ -197,6 +197,17 @@ fn the_papers_team_is_graphed_and_recorded() {
     }
     assert_eq!(summary["unresolved"], 0);
     assert!(channels.keys().all(|t| PortChannel::parse_topic(t).is_some()), "{summary}");
+    // A recording is never replaced: a second `record` into the same file refuses, before it
+    // goes on the network, and leaves the file as it was.
+    let size = std::fs::metadata(&file).unwrap().len();
+    let again = ayllu(&["record", "-o", file.to_str().unwrap(), "--for", "1", "--udp", &url], LIMIT);
+    assert_eq!(again.code, Some(1), "{again:?}");
+    assert!(again.stderr.contains("exists") && !again.stderr.contains("panicked"), "{}", again.stderr);
+    assert_eq!(std::fs::metadata(&file).unwrap().len(), size, "the recording was touched");
+    // A node named more than once is drawn once.
+    let twice = ayllu(&["graph", "--format", "json", "1", "n1", "0x1", "--udp", &url], LIMIT).ok().json();
+    let nodes: Vec<u64> = twice["nodes"].as_array().unwrap().iter().map(|n| n["node"].as_u64().unwrap()).collect();
+    assert_eq!(nodes, [1], "{twice}");
 
     // The copy went away with the recorder.
     let n3 = ayllu(&["list", "3", "--json", "--udp", &url], LIMIT).ok().json();
