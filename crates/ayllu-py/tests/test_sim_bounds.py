@@ -33,7 +33,7 @@ def short() -> sim.Scenario:
         ({"robots": 0}, r"^robots: 0 is not a usable team"),
     ],
 )
-def test_a_scenario_out_of_bounds_raises_value_error_naming_the_field(fields: dict, message: str) -> None:
+def test_a_scenario_out_of_bounds_raises_value_error_naming_the_field(fields: dict[str, object], message: str) -> None:
     with pytest.raises(ValueError, match=message):
         sim.run(short().with_(**fields))
 
@@ -52,7 +52,7 @@ def test_kills_and_python_controllers_are_checked_before_anything_is_built() -> 
 
 
 def test_run_takes_a_scenario() -> None:
-    with pytest.raises(TypeError, match="sim.Scenario"):
+    with pytest.raises(TypeError, match=r"sim\.Scenario"):
         sim.run(None)  # type: ignore[arg-type]
     with pytest.raises(TypeError, match="dict"):
         sim.run(short().data)  # type: ignore[arg-type]
