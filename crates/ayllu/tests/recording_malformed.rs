@@ -28,8 +28,12 @@ fn inputs() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/malformed_recordings")
 }
 
+/// A fresh directory of its own for each call: the tests run in parallel in one process, and
+/// two of them writing (and clearing) one directory made a recording read back torn.
 fn dir(name: &str) -> PathBuf {
-    let d = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("malformed-{name}-{}", std::process::id()));
+    static CALLS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let d = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("malformed-{name}-{}-{call}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
     d
@@ -38,8 +42,10 @@ fn dir(name: &str) -> PathBuf {
 /// A small real flight recording (some 10 kB): a class, a behavior, a periodic process, a
 /// write from outside, six steps.
 fn small_recording() -> Vec<u8> {
-    let path = dir("small").join("small.mcap");
-    let team = Lockstep::new("malformed-small");
+    let d = dir("small");
+    let path = d.join("small.mcap");
+    // Its own network too, for the same reason.
+    let team = Lockstep::new(&d.file_name().unwrap().to_string_lossy());
     let clock = team.clock().clone();
     let mut node = Node::new(clock.clone(), team.network().attach(NodeId(7)).unwrap());
     node.record(&path, RecordOptions::default()).unwrap();
