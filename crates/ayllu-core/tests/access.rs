@@ -167,11 +167,8 @@ fn a_lost_requester_takes_its_connections_with_it() {
     assert!(after.iter().any(|(_, by)| by.is_none()), "made here: stays");
 }
 
-#[test]
-fn remembered_answers_are_bounded_in_bytes_not_only_in_count() {
-    // N2 answers repeats from memory; a thousand LIST answers of a large node held 262 MB. The
-    // memory is bounded in bytes (2 MiB): with big reports, old answers are forgotten long
-    // before the count bound, and a repeat is answered afresh.
+/// Node 1 with `R` and 100 behaviors of 40 ports each: a large LIST answer.
+fn large_node() -> NodeCore {
     let mut n = node();
     let mut big = BehaviorClass::new("Big");
     for p in 0..40 {
@@ -181,6 +178,15 @@ fn remembered_answers_are_bounded_in_bytes_not_only_in_count() {
     for b in 0..100 {
         n.create("Big", &format!("B{b}")).unwrap();
     }
+    n
+}
+
+#[test]
+fn remembered_answers_are_bounded_in_bytes_not_only_in_count() {
+    // N2 answers repeats from memory; a thousand LIST answers of a large node held 262 MB. The
+    // memory is bounded in bytes (2 MiB): with big reports, old answers are forgotten long
+    // before the count bound, and a repeat is answered afresh.
+    let mut n = large_node();
     let behaviors = |r: Result<ReplyBody, String>| match r {
         Ok(ReplyBody::Node(report)) => report.behaviors.len(),
         other => panic!("{other:?}"),
@@ -202,15 +208,7 @@ fn answers_waiting_to_be_sent_are_bounded_in_bytes() {
     // invented id (so under every per-sender rate), made a large answer each, all waiting in
     // the outbox at once. Beyond 2 MiB of answers waiting (estimated), requests are dropped
     // unanswered (`rate_limited`) until the outbox has been sent; requesters retry (N2).
-    let mut n = node();
-    let mut big = BehaviorClass::new("Big");
-    for p in 0..40 {
-        big.port(PortSpec::new(&format!("P{p}"), 0i64)).unwrap();
-    }
-    n.define(big).unwrap();
-    for b in 0..100 {
-        n.create("Big", &format!("B{b}")).unwrap();
-    }
+    let mut n = large_node();
     let list = || Message::Control(ControlMessage { id: 1, body: ControlBody::List });
     for from in 100..300 {
         n.receive(ms(1), NodeId(from), list());
