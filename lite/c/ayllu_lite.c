@@ -1016,7 +1016,8 @@ static int copy_value(ayl_value *dst, const ayl_value *src, uint8_t *storage, si
 int ayl_node_init(ayl_node *node, const ayl_node_config *cfg) {
     memset(node, 0, sizeof *node);
     if (cfg->send == NULL || cfg->tx == NULL || cfg->rx == NULL || cfg->tx_cap < AYL_HEADER_LEN + AYL_MAC_LEN ||
-        cfg->rx_cap < AYL_HEADER_LEN + AYL_MAC_LEN || cfg->peers == NULL || cfg->max_peers == 0) {
+        cfg->rx_cap < AYL_HEADER_LEN + AYL_MAC_LEN || cfg->peers == NULL || cfg->max_peers == 0 ||
+        cfg->node_id == 0 /* reserved, as in libayllu and AylluLite Python: ids are 1 to 2^32-1 */) {
         return AYL_E_INVALID;
     }
     node->cfg = *cfg;

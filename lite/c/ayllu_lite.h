@@ -515,8 +515,9 @@ typedef struct {
     uint64_t seq;
 } ayl_conn;
 
-/* Set up a node. Returns 0, or AYL_E_INVALID (missing send, rx/tx buffers smaller than a
- * header plus MAC, no peer table, or a name or group list HELLO cannot carry). Not
+/* Set up a node. Returns 0, or AYL_E_INVALID (node id 0, which is reserved: ids are 1 to
+ * 2^32-1; missing send, rx/tx buffers smaller than a header plus MAC, no peer table, or a name
+ * or group list HELLO cannot carry). Not
  * thread-safe (writes *node). */
 int ayl_node_init(ayl_node *node, const ayl_node_config *cfg);
 

@@ -417,6 +417,24 @@ def _encode_endpoint(e: Endpoint) -> bytes:
     return head + _str8(e.behavior, "endpoint behavior") + _str8(e.port, "endpoint port")
 
 
+def _period_ns(period_s: float) -> int:
+    """``period_s`` seconds as nanoseconds, refusing what no period can be (as Ayllu's
+    ``Duration::try_from_secs_f64`` does): NaN, infinities, negatives, a positive period under
+    1 ns, and one of 584 years or more (beyond a u64 of nanoseconds). 0 is left to
+    :func:`_check_period` (the period of a normal connection, and only of one)."""
+    accepted = "a finite number of seconds from 1 ns to 584 years (0 for a normal connection)"
+    if isinstance(period_s, bool) or not isinstance(period_s, (int, float)):
+        raise TypeError(f"period_s must be {accepted}, not {type(period_s).__name__}")
+    if not math.isfinite(period_s) or period_s < 0:
+        raise EncodeError(f"period_s={period_s!r} is refused: periods are {accepted}")
+    ns = period_s * 1e9
+    if ns >= _U64_MAX:
+        raise EncodeError(f"period_s={period_s:g} is refused: periods are {accepted}")
+    if period_s > 0 and round(ns) == 0:
+        raise EncodeError(f"period_s={period_s:g} is refused (under 1 ns): periods are {accepted}")
+    return round(ns)
+
+
 def _check_period(kind: ConnKind, period_ns: int) -> bytes:
     kind = ConnKind(kind)
     if (kind == ConnKind.NORMAL) != (period_ns == 0):
@@ -1215,7 +1233,9 @@ class LiteNode:
         #: The operator's secret (the 32-byte Ed25519 seed), or None. With it, CONNECT and
         #: DISCONNECT requests are signed, as nodes given the operator's public key require.
         self.operator_secret = operator_secret
-        _u32(node_id, "node id")
+        if isinstance(node_id, bool) or not isinstance(node_id, int) or not 1 <= node_id <= 0xFFFFFFFF:
+            # As libayllu and AylluLite C: 0 is reserved (no node; "nobody" in reports).
+            raise ValueError(f"node id must be from 1 to 4294967295 (0 is reserved), not {node_id!r}")
         _u32(team, "team")
         if hello_interval_ms <= 0:
             raise ValueError("hello interval must be above zero")
@@ -1432,8 +1452,10 @@ class LiteNode:
         priority: int = 0,
     ) -> Connection:
         """A new connection from this node to ``behavior.port`` on node ``to`` (a node id or
-        an address). Special kinds need ``period_s > 0``; normal needs 0."""
-        period_ns = round(period_s * 1e9)
+        an address). Special kinds need ``period_s > 0``; normal needs 0. A period that is
+        NaN, infinite, negative, under 1 ns or 584 years or more is refused with
+        :class:`EncodeError` (a ``ValueError``) naming ``period_s`` and that range."""
+        period_ns = _period_ns(period_s)
         with self._lock:
             conn = self._next_conn
             self._next_conn += 1
@@ -1452,7 +1474,7 @@ class LiteNode:
     ) -> None:
         """Write a remote port. Repeated writes with the same target, kind, period and priority
         travel along one connection, so they hold the same pass on the receiver."""
-        key = (to, behavior, port, ConnKind(kind), round(period_s * 1e9), priority)
+        key = (to, behavior, port, ConnKind(kind), _period_ns(period_s), priority)
         with self._lock:
             c = self._writers.get(key)
             if c is None:
@@ -1536,7 +1558,7 @@ class LiteNode:
         """Ask node ``to`` to connect its ``src_behavior.src_port`` to this lite node's
         ``dest_behavior.dest_port`` (expose it first). Returns the node's connection id."""
         dest = Endpoint(dest_behavior, dest_port, node=self.node_id)
-        req = Request(0, Op.CONNECT, src_behavior, src_port, dest, ConnKind(kind), round(period_s * 1e9), priority)
+        req = Request(0, Op.CONNECT, src_behavior, src_port, dest, ConnKind(kind), _period_ns(period_s), priority)
         conn = self._answer(to, req).conn
         if conn is None:
             raise RequestFailed("CONNECT answered without a connection id")
@@ -1554,7 +1576,7 @@ class LiteNode:
         priority: int = 0,
     ) -> int:
         """Ask node ``to`` to connect its port to any node or group endpoint."""
-        period_ns = round(period_s * 1e9)
+        period_ns = _period_ns(period_s)
         req = Request(0, Op.CONNECT, src_behavior, src_port, destination, ConnKind(kind), period_ns, priority)
         conn = self._answer(to, req).conn
         if conn is None:

@@ -112,7 +112,7 @@ static const uint8_t KEY[AYL_KEY_LEN] = {1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 
                                          17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31, 32};
 static const ayl_str GROUPS[] = {{"Peers", 5}};
 
-static void tnode_init(tnode *t, uint32_t id, uint8_t addr, const uint8_t *key) {
+static void tnode_config(tnode *t, uint32_t id, uint8_t addr, const uint8_t *key, ayl_node_config *out) {
     ayl_node_config cfg;
     memset(t, 0, sizeof *t);
     memset(&cfg, 0, sizeof cfg);
@@ -139,6 +139,12 @@ static void tnode_init(tnode *t, uint32_t id, uint8_t addr, const uint8_t *key) 
     cfg.name = "lite";
     cfg.groups = GROUPS;
     cfg.ngroups = 1;
+    *out = cfg;
+}
+
+static void tnode_init(tnode *t, uint32_t id, uint8_t addr, const uint8_t *key) {
+    ayl_node_config cfg;
+    tnode_config(t, id, addr, key, &cfg);
     CHECK(ayl_node_init(&t->node, &cfg) == 0);
 }
 
@@ -874,7 +880,19 @@ static void test_oversized_receive(void) {
     CHECK(a.node.counters[AYL_OVERSIZED] == 1);
 }
 
+/* Node id 0 is reserved (libayllu's ay_node_new and AylluLite Python refuse it too); every
+ * other u32 is a node id. */
+static void test_node_id_zero_is_refused(void) {
+    static tnode t;
+    ayl_node_config cfg;
+    tnode_config(&t, 0, 1, NULL, &cfg);
+    CHECK(ayl_node_init(&t.node, &cfg) == AYL_E_INVALID);
+    tnode_config(&t, 0xFFFFFFFFu, 1, NULL, &cfg);
+    CHECK(ayl_node_init(&t.node, &cfg) == 0);
+}
+
 int main(void) {
+    test_node_id_zero_is_refused();
     test_port_writes_and_datagram_contents();
     test_stale_and_windows();
     test_group_membership();

@@ -420,3 +420,32 @@ def test_keyed_team_authenticates_and_refuses_replays() -> None:
     finally:
         for n in (a, b, intruder, open_node):
             n.close()
+
+
+@pytest.mark.parametrize("node_id", [0, -1, 1 << 32])
+def test_a_node_id_outside_1_to_u32_max_is_refused(node_id: int) -> None:
+    # 0 is reserved (libayllu's ay_node_new and AylluLite C refuse it too).
+    with pytest.raises(ValueError, match=r"node id must be from 1 to 4294967295 \(0 is reserved\)"):
+        al.LiteNode(node_id, TEAM, bind=LOOP)
+
+
+UNUSABLE_PERIODS = [float("nan"), float("inf"), -float("inf"), -1.0, 1e300, 584 * 366 * 86400.0, 1e-12]
+
+
+@pytest.mark.parametrize("period_s", UNUSABLE_PERIODS)
+def test_an_unusable_period_is_refused_naming_the_argument_and_the_range(
+    pair: tuple[al.LiteNode, al.LiteNode], period_s: float
+) -> None:
+    a = pair[0]
+    needle = r"period_s=.* is refused.*from 1 ns to 584 years"
+    with pytest.raises(al.EncodeError, match=needle):
+        a.connection(2, "b", "p", kind=al.ConnKind.SUPPRESS, period_s=period_s)
+    with pytest.raises(al.EncodeError, match=needle):
+        a.write(2, "b", "p", 1, kind=al.ConnKind.SUPPRESS, period_s=period_s)
+    with pytest.raises(al.EncodeError, match=needle):
+        a.connect(2, "s", "o", "b", "p", kind=al.ConnKind.SUPPRESS, period_s=period_s)
+    with pytest.raises(TypeError, match="period_s must be a finite number of seconds"):
+        a.connection(2, "b", "p", kind=al.ConnKind.SUPPRESS, period_s="0.5")  # type: ignore[arg-type]
+    # The largest and smallest usable periods still pass.
+    a.connection(2, "b", "p", kind=al.ConnKind.SUPPRESS, period_s=1e-9)
+    a.connection(2, "b", "p", kind=al.ConnKind.SUPPRESS, period_s=584 * 365 * 86400.0)
