@@ -101,7 +101,8 @@ test-zenoh:
 bench-zenoh:
 	$(ZENOH_CARGO) test --release --test zenoh_bench -- --ignored --nocapture
 
-## Simulation speed against real time (10, 100, 1000 robots, BLE and Random), one thread.
+## Simulation speed against real time (10, 100, 1000 robots, BLE and Random; the 1000-robot team
+## also on every CPU), with a verdict per goal that this host's noise cannot fake (about 2 min).
 bench-sim:
 	$(CARGO) bench -p ayllu-sim --bench speed
 

@@ -47,6 +47,9 @@
 #[path = "machine/mod.rs"]
 mod machine;
 use machine::machine;
+#[path = "spread/mod.rs"]
+mod spread;
+use spread::{spread, Spread};
 
 use std::hint::black_box;
 use std::net::{SocketAddr, UdpSocket};
@@ -893,65 +896,6 @@ struct RoundTrips {
     raw_node_loop: Latency,
     ratios: Spread,
     node_loop_ratios: Spread,
-}
-
-/// Per-run (or per-pair) ratios: their median, quartiles, range, and an interval that holds
-/// the true median with about 95 % confidence whatever the distribution (order statistics:
-/// the median lies below each ratio with probability one half).
-#[derive(Clone, Copy, Debug)]
-struct Spread {
-    runs: usize,
-    q1: f64,
-    median: f64,
-    q3: f64,
-    min: f64,
-    max: f64,
-    low: f64,
-    high: f64,
-}
-
-fn spread(mut v: Vec<f64>) -> Spread {
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    let at = |q: f64| v[((n - 1) as f64 * q).round() as usize];
-    // 1-based rank k = floor((n + 1) / 2 - 0.98 sqrt(n)), at least 1: [x_(k), x_(n + 1 - k)].
-    let k = (((n + 1) as f64 / 2.0 - 0.98 * (n as f64).sqrt()).floor() as usize).max(1);
-    Spread {
-        runs: n,
-        q1: at(0.25),
-        median: at(0.5),
-        q3: at(0.75),
-        min: v[0],
-        max: v[n - 1],
-        low: v[k - 1],
-        high: v[n - k],
-    }
-}
-
-impl Spread {
-    /// Whether the goal `ratio <= goal` (`at_most`) or `ratio >= goal` holds beyond this
-    /// host's noise: met or not met when the median's 95 % interval lies on one side of the
-    /// goal, otherwise "within noise", with the side the median is on.
-    fn verdict(&self, goal: f64, at_most: bool) -> &'static str {
-        let (good, bad, median_good) = if at_most {
-            (self.high <= goal, self.low > goal, self.median <= goal)
-        } else {
-            (self.low >= goal, self.high < goal, self.median >= goal)
-        };
-        match (good, bad, median_good) {
-            (true, _, _) => "MET",
-            (_, true, _) => "NOT met",
-            (_, _, true) => "median met, within noise",
-            _ => "median not met, within noise",
-        }
-    }
-
-    fn describe(&self) -> String {
-        format!(
-            "  {} runs: median in {:.2}-{:.2}x (95 %); quartiles {:.2}-{:.2}x, all {:.2}-{:.2}x",
-            self.runs, self.low, self.high, self.q1, self.q3, self.min, self.max
-        )
-    }
 }
 
 /// `runs` pairs of raw and Ayllu round-trip runs with the threads placed as `place` says
