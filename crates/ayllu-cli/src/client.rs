@@ -63,6 +63,40 @@ pub fn network_url(url: &str) -> Result<(), Fail> {
     Ok(())
 }
 
+/// How long [`refuse_a_heard_nodes_id`] listens for a node with the tool's `--id`. A node
+/// greets a newcomer at once (its first datagram teaches the node its address), so this only
+/// bounds a slow or lossy link.
+const ID_CHECK: f64 = 1.0;
+
+/// The refusal of a tool whose id is `id`, the id of `whose`, a node it talks to: each side
+/// would drop the other's datagrams as a duplicate of its own id (counted `duplicate_id`), so
+/// the tool would wait for a node it can never hear, or leave it out in silence.
+fn id_taken(id: NodeId, whose: &str) -> Fail {
+    Fail::usage(format!(
+        "--id {} is the id of {whose}: the tool is a node of the team and needs an id of its own (leave --id out and \
+         it picks one)",
+        id.0
+    ))
+}
+
+/// For the commands that talk to every node they hear rather than to nodes named on the
+/// command line (`foxglove`, `record`): with `--id` given, listen briefly under another id and
+/// refuse an id that a node heard there already has ([`Client::find`]'s refusal for a named
+/// node). Without `--id` the tool's id is its own ([`default_id`]) and nothing is checked.
+pub fn refuse_a_heard_nodes_id(net: &Net) -> Result<(), Fail> {
+    let Some(id) = net.id else { return Ok(()) };
+    let other = if default_id() == id { NodeId(id.0 ^ 1) } else { default_id() };
+    let look = Net { udp: net.udp.clone(), timeout: Some(ID_CHECK), json: false, id: Some(other) };
+    let mut client = Client::open(&look, ID_CHECK)?;
+    while !client.expired() && !signals::stopped() {
+        if let Some(p) = client.node.peers().into_iter().find(|p| p.node == id) {
+            return Err(id_taken(id, &format!("a node heard on the network ({} at {})", p.name, p.addr)));
+        }
+        client.pump(SLICE);
+    }
+    Ok(())
+}
+
 impl Client {
     /// Join the network `net.udp` names. Waits give up after `--timeout`, else `default_timeout`.
     pub fn open(net: &Net, default_timeout: f64) -> Result<Client, Fail> {
@@ -140,11 +174,7 @@ impl Client {
     /// a duplicate of its own id, and the wait would end in a timeout that blames the URL.
     pub fn find(&mut self, node: NodeId) -> Result<PeerInfo, Fail> {
         if node == self.id() {
-            return Err(Fail::usage(format!(
-                "--id {} is the id of the node asked about: the tool is a node of the team and needs an id of its \
-                 own (leave --id out and it picks one)",
-                node.0
-            )));
+            return Err(id_taken(node, "the node asked about"));
         }
         loop {
             if let Some(p) = self.node.peers().into_iter().find(|p| p.node == node) {

@@ -74,6 +74,12 @@ pub fn serve(args: &FoxgloveArgs) -> Result<(), Fail> {
         renew_after: args.renew_after,
     };
     config.check().map_err(Fail::usage)?;
+    if let Some(path) = &args.mcap {
+        check_new_file(path)?;
+    }
+    // The watcher talks to every node it hears: an --id one of them has would hide that node.
+    let net = crate::Net { udp: args.udp.clone(), timeout: None, json: false, id: args.id };
+    crate::client::refuse_a_heard_nodes_id(&net)?;
     let mut server = LiveServer::start(config, &args.host, args.port, args.mcap.as_deref())
         .map_err(|e| Fail::error(format!("foxglove: {e}")))?;
     let port = server.port();
@@ -108,8 +114,26 @@ pub fn serve(args: &FoxgloveArgs) -> Result<(), Fail> {
         }
     }
     // The MCAP file is finished also after Ctrl-C or a closed stdout.
-    server.stop().map_err(|e| Fail::error(format!("foxglove: closing: {e}")))?;
+    let writing = args.mcap.as_ref().map_or(String::new(), |p| format!(" (writing {})", p.display()));
+    server.stop().map_err(|e| Fail::error(format!("foxglove: closing{writing}: {e}")))?;
     printed
+}
+
+/// `--mcap FILE` must be a new file the tool can create: checked (by creating it, then removing
+/// it for the server to create) before anything goes on the network, so that the message names
+/// the file. The server's own error for it says only what the system said.
+fn check_new_file(path: &std::path::Path) -> Result<(), Fail> {
+    match std::fs::OpenOptions::new().write(true).create_new(true).open(path) {
+        Ok(file) => {
+            drop(file);
+            std::fs::remove_file(path).map_err(|e| Fail::error(format!("cannot create {}: {e}", path.display())))
+        }
+        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => Err(Fail::error(format!(
+            "{} exists (an MCAP file is never replaced): move or remove it, or give --mcap another file",
+            path.display()
+        ))),
+        Err(e) => Err(Fail::error(format!("cannot create {}: {e}", path.display()))),
+    }
 }
 
 /// `sim run FILE --mcap OUT`: the run written to a new MCAP file; prints what was written on

@@ -398,14 +398,24 @@ pub fn parse_port_path(s: &str) -> Result<PortPath, String> {
 /// any run, and small enough for every duration type (1e300 used to panic).
 pub const MAX_SECS: f64 = 1e9;
 
+/// A number as a message prints it: as usual for everyday sizes, in exponent form for the very
+/// large and the very small (`1e300`, not its 301 digits; `1e-300`, not 300 zeros).
+pub fn compact(x: f64) -> String {
+    if x == 0.0 || !x.is_finite() || (1e-3..1e9).contains(&x.abs()) {
+        format!("{x}")
+    } else {
+        format!("{x:e}")
+    }
+}
+
 /// Seconds: finite, above zero, at most [`MAX_SECS`].
 pub fn positive_secs(s: &str) -> Result<f64, String> {
     let x: f64 = s.parse().map_err(|_| format!("`{s}` is not a number"))?;
     if !x.is_finite() || x <= 0.0 {
-        return Err(format!("must be greater than 0 (got {s})"));
+        return Err(format!("must be greater than 0 (got {})", compact(x)));
     }
     if x > MAX_SECS {
-        return Err(format!("must be at most {MAX_SECS:e} (got {s})"));
+        return Err(format!("must be greater than 0 and at most {MAX_SECS:e} (got {})", compact(x)));
     }
     Ok(x)
 }
@@ -416,7 +426,7 @@ pub fn positive_secs(s: &str) -> Result<f64, String> {
 pub fn positive_hz(s: &str) -> Result<f64, String> {
     let hz = positive_secs(s)?;
     if hz < 1.0 / MAX_SECS {
-        return Err(format!("must be at least {:e} (got {s})", 1.0 / MAX_SECS));
+        return Err(format!("must be at least {:e} and at most {MAX_SECS:e} (got {})", 1.0 / MAX_SECS, compact(hz)));
     }
     Ok(hz)
 }
@@ -536,6 +546,17 @@ mod tests {
         for bad in ["0", "-1", "nan", "inf", "x", "1e300", "1e10"] {
             assert!(positive_secs(bad).is_err(), "{bad}");
         }
+    }
+
+    #[test]
+    fn numbers_out_of_range_print_compactly_with_the_range() {
+        assert_eq!(positive_secs("1e300"), Err("must be greater than 0 and at most 1e9 (got 1e300)".to_owned()));
+        assert_eq!(positive_secs("-1e300"), Err("must be greater than 0 (got -1e300)".to_owned()));
+        assert_eq!(positive_secs("0"), Err("must be greater than 0 (got 0)".to_owned()));
+        assert_eq!(positive_hz("1e-300"), Err("must be at least 1e-9 and at most 1e9 (got 1e-300)".to_owned()));
+        assert_eq!(compact(12.5), "12.5");
+        assert_eq!(compact(1e297), "1e297");
+        assert_eq!(compact(f64::NAN), "NaN");
     }
 
     #[test]

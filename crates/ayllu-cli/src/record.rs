@@ -38,6 +38,15 @@ pub struct CopyPattern {
     pub port: String,
 }
 
+impl std::fmt::Display for CopyPattern {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if let Some(n) = self.node {
+            write!(f, "{n}:")?;
+        }
+        write!(f, "{}.{}", self.behavior, self.port)
+    }
+}
+
 impl CopyPattern {
     fn matches(&self, node: NodeId, behavior: &str, port: &str) -> bool {
         self.node.is_none_or(|n| n == node)
@@ -62,7 +71,7 @@ pub fn parse_copy(s: &str) -> Result<CopyPattern, String> {
 
 #[derive(Args, Debug)]
 pub struct RecordArgs {
-    /// The MCAP file to write (replaced if it exists).
+    /// The MCAP file to write (a new file: a recording is never replaced).
     #[arg(short = 'o', long = "output", value_name = "FILE")]
     pub output: std::path::PathBuf,
     /// Also record these ports by asking their nodes for a copy (a Normal connection to the
@@ -132,10 +141,13 @@ pub fn record(args: &RecordArgs) -> Result<(), Fail> {
         }
     })?;
     let mut log = HeardLog::default();
-    let opened = Client::open_with(&args.net, 5.0, |t| {
-        let (tap, heard) = Tap::new(t);
-        log = heard;
-        tap
+    // The recorder hears every node: an --id one of them has would leave that node out.
+    let opened = crate::client::refuse_a_heard_nodes_id(&args.net).and_then(|()| {
+        Client::open_with(&args.net, 5.0, |t| {
+            let (tap, heard) = Tap::new(t);
+            log = heard;
+            tap
+        })
     });
     let mut client = match opened {
         Ok(client) => client,
@@ -172,6 +184,7 @@ pub fn record(args: &RecordArgs) -> Result<(), Fail> {
     let mut known: BTreeSet<NodeId> = BTreeSet::new();
     let mut joined: BTreeSet<String> = BTreeSet::new();
     let mut copies: Vec<(NodeId, ConnectionId)> = Vec::new();
+    let mut patterns = CopyWatch::new(&args.copy);
     let mut next_survey = StdInstant::now();
     let mut failure: Option<Fail> = None;
     while !signals::stopped() && end.is_none_or(|e| StdInstant::now() < e) {
@@ -196,7 +209,7 @@ pub fn record(args: &RecordArgs) -> Result<(), Fail> {
                     }
                 }
                 if known.insert(peer.node) {
-                    survey(&mut client, &mut recorder, &args.copy, peer.node, &mut copies);
+                    survey(&mut client, &mut recorder, &mut patterns, peer.node, &mut copies);
                 }
             }
         }
@@ -210,6 +223,12 @@ pub fn record(args: &RecordArgs) -> Result<(), Fail> {
 
     for (node, conn) in copies {
         disconnect(&mut client, node, conn);
+    }
+    let unmatched = patterns.unmatched();
+    for (pattern, why) in &unmatched {
+        if !why.is_empty() {
+            eprintln!("ayllu: warning: --copy {pattern} copied nothing: {why}");
+        }
     }
     if let Err(e) = recorder.heard(log.take()).and_then(|_| recorder.finish()) {
         return Err(failure.unwrap_or_else(|| io_fail("cannot write", &args.output, e)));
@@ -235,7 +254,8 @@ pub fn record(args: &RecordArgs) -> Result<(), Fail> {
             channels.iter().map(|(t, n)| (t.clone(), serde_json::json!(n))).collect();
         return emit(
             &serde_json::json!({"file": args.output.display().to_string(), "messages": recorder.messages(),
-                "unresolved": recorder.unresolved(), "secs": started.elapsed().as_secs_f64(), "channels": per})
+                "unresolved": recorder.unresolved(), "secs": started.elapsed().as_secs_f64(), "channels": per,
+                "unmatched": unmatched.iter().map(|(p, _)| p.to_string()).collect::<Vec<_>>()})
             .to_string(),
         );
     }
@@ -246,14 +266,68 @@ pub fn record(args: &RecordArgs) -> Result<(), Fail> {
     emit(&text)
 }
 
+/// Which `--copy` patterns matched a port, so that one that matches none is said: at once for
+/// a pattern naming a node, as soon as that node's ports are known; at the end for the others
+/// (a node heard later could have had the port).
+struct CopyWatch<'a> {
+    patterns: &'a [CopyPattern],
+    matched: Vec<bool>,
+    /// Patterns already warned about (at their node's survey).
+    warned: Vec<bool>,
+    /// Every node surveyed (its ports looked at).
+    surveyed: BTreeSet<NodeId>,
+}
+
+impl<'a> CopyWatch<'a> {
+    fn new(patterns: &'a [CopyPattern]) -> CopyWatch<'a> {
+        CopyWatch {
+            patterns,
+            matched: vec![false; patterns.len()],
+            warned: vec![false; patterns.len()],
+            surveyed: BTreeSet::new(),
+        }
+    }
+
+    /// `node`'s ports were looked at; `hits[i]` says whether pattern i matched one of them.
+    fn surveyed(&mut self, node: NodeId, hits: &[bool]) {
+        self.surveyed.insert(node);
+        for (i, p) in self.patterns.iter().enumerate() {
+            self.matched[i] |= hits[i];
+            if p.node == Some(node) && !self.matched[i] && !self.warned[i] {
+                self.warned[i] = true;
+                eprintln!("ayllu: warning: --copy {p} matches no port of {node}: nothing is copied for it");
+            }
+        }
+    }
+
+    /// The patterns that matched no port, each with what to say now (empty: said already).
+    fn unmatched(&self) -> Vec<(&'a CopyPattern, String)> {
+        let heard: Vec<String> = self.surveyed.iter().map(|n| n.to_string()).collect();
+        (0..self.patterns.len())
+            .filter(|&i| !self.matched[i])
+            .map(|i| {
+                let p = &self.patterns[i];
+                let why = match p.node {
+                    _ if self.warned[i] => String::new(),
+                    Some(n) => format!("{n} was not heard, or gave no list of its ports, while recording"),
+                    None if heard.is_empty() => "no node was heard while recording".to_owned(),
+                    None => format!("no port of the nodes heard ({}) matches it", heard.join(", ")),
+                };
+                (p, why)
+            })
+            .collect()
+    }
+}
+
 /// A new node: learn its connections, and ask for the copies `--copy` names.
 fn survey(
     client: &mut Client,
     recorder: &mut Recorder<std::io::BufWriter<std::fs::File>>,
-    patterns: &[CopyPattern],
+    watch: &mut CopyWatch,
     node: NodeId,
     copies: &mut Vec<(NodeId, ConnectionId)>,
 ) {
+    let patterns = watch.patterns;
     let report = match ask_briefly(client, node, ControlBody::List, &format!("LIST {node}")) {
         Ok(ReplyBody::Node(report)) => report,
         Ok(_) => return, // An AylluLite node: no connections to learn, no CONNECT.
@@ -263,6 +337,11 @@ fn survey(
         }
     };
     recorder.learn(&report);
+    let hits: Vec<bool> = patterns
+        .iter()
+        .map(|c| report.behaviors.iter().any(|b| b.ports.iter().any(|p| c.matches(node, &b.name, &p.name))))
+        .collect();
+    watch.surveyed(node, &hits);
     for b in &report.behaviors {
         for p in &b.ports {
             if !patterns.iter().any(|c| c.matches(node, &b.name, &p.name)) {

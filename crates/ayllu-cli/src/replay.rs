@@ -76,19 +76,46 @@ pub fn parse_time(s: &str) -> Result<Instant, String> {
         (t, 1.0)
     };
     let x: f64 = number.trim().parse().map_err(|_| format!("`{s}` is not a time (e.g. 12.5s or 1500ms)"))?;
-    if !x.is_finite() || x < 0.0 {
-        return Err(format!("`{s}` is not a time at or after the node's start"));
+    // The value in seconds, printed compactly (`1e300 s`, not the core's 301 digits).
+    let secs = x * scale;
+    if !secs.is_finite() || secs < 0.0 || Duration::try_from_secs_f64(secs).is_err() {
+        return Err(format!(
+            "`{s}` ({} s) is not a time on the node's clock: times are seconds since the node's start, from 0 to \
+             {LATEST_SECS} s (about 584 years)",
+            crate::compact(secs)
+        ));
     }
-    let d = Duration::try_from_secs_f64(x * scale).map_err(|e| format!("`{s}`: {e}"))?;
+    let d = Duration::try_from_secs_f64(secs).map_err(|e| format!("`{s}`: {e}"))?;
     Ok(Instant::ZERO + d)
 }
+
+/// The latest whole second a node's clock holds (nanoseconds in 64 bits).
+const LATEST_SECS: u64 = u64::MAX / 1_000_000_000;
 
 fn secs(t: Instant) -> f64 {
     (t.as_secs_f64() * 1000.0).round() / 1000.0
 }
 
+/// `echo --from` after the end of its range (`--to`, else `--at`): an empty range is a mistake
+/// in the arguments, refused before the file is read.
+fn check_range(args: &ReplayArgs) -> Result<(), Fail> {
+    let ReplayCommand::Echo { from: Some(from), to, .. } = &args.what else { return Ok(()) };
+    let (name, to) = match (to, args.at) {
+        (Some(to), _) => ("--to", *to),
+        (None, Some(at)) => ("--at", at),
+        (None, None) => return Ok(()),
+    };
+    if *from > to {
+        return Err(Fail::usage(format!(
+            "--from {from} is after {name} {to}: nothing lies between them; give --from at or before {name}"
+        )));
+    }
+    Ok(())
+}
+
 /// `ayllu replay`.
 pub fn run(args: &ReplayArgs) -> Result<(), Fail> {
+    check_range(args)?;
     let rec = Recording::open(&args.file)?;
     let end = rec.end();
     let at = args.at.unwrap_or(end);
@@ -128,6 +155,13 @@ pub fn run(args: &ReplayArgs) -> Result<(), Fail> {
         ReplayCommand::Echo { target, from, to } => {
             let from = from.unwrap_or(Instant::ZERO);
             let to = to.or(args.at).unwrap_or(end);
+            if from > end {
+                eprintln!(
+                    "replay: warning: --from {:.3}s is after the recording's end ({:.3}s)",
+                    secs(from),
+                    secs(end)
+                );
+            }
             replay.run_until(to).map_err(|d| Fail::error(d.to_string()))?;
             let core = replay.core();
             core.port(&target.behavior, &target.port)?;
@@ -180,5 +214,19 @@ mod tests {
         assert!(parse_time("soon").is_err());
         assert!(parse_time("1e300").is_err());
         assert!(parse_time("NaN").is_err());
+    }
+
+    #[test]
+    fn times_beyond_the_clock_are_printed_compactly_with_the_range() {
+        let e = parse_time("1e300").unwrap_err();
+        assert_eq!(
+            e,
+            "`1e300` (1e300 s) is not a time on the node's clock: times are seconds since the node's start, from 0 \
+             to 18446744073 s (about 584 years)"
+        );
+        assert!(parse_time("1e300ms").unwrap_err().contains("(1e297 s)"));
+        assert!(parse_time("-1").unwrap_err().contains("(-1 s) is not a time on the node's clock"));
+        assert!(parse_time("18446744073s").is_ok());
+        assert!(parse_time("18446744074s").is_err());
     }
 }

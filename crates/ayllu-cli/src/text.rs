@@ -8,7 +8,8 @@
 use std::fmt::Write as _;
 
 use ayllu::{
-    Counters, Node, NodeReport, PeerInfo, PortReport, Trigger, Value, ValueType, BEST, BLE_SELECT, INHIBIT, LOCAL,
+    Counters, Endpoint, Node, NodeId, NodeReport, PeerInfo, PortReport, Trigger, Value, ValueType, BEST, BLE_SELECT,
+    INHIBIT, LOCAL,
 };
 use serde_json::{json, Map, Value as Json};
 
@@ -239,14 +240,16 @@ pub fn node_report_text(r: &NodeReport, peer: Option<&PeerInfo>) -> String {
         if let Some(n) = c.requested_by {
             prio.push_str(&format!(" (requested by {n}: lasts while it lives)"));
         }
+        // Only a connection to another node or a group sends messages; one inside the node
+        // delivers in place, and its count would always read 0.
+        let sent = if is_remote(&c.destination, r.node) { format!(" (sent {})", c.sent) } else { String::new() };
         let _ = writeln!(
             out,
-            "  {:<5} {:<22} {} -> {}{prio} (sent {})",
+            "  {:<5} {:<22} {} -> {}{prio}{sent}",
             c.id.to_string(),
             c.kind.to_string(),
             c.source,
-            c.destination,
-            c.sent
+            c.destination
         );
     }
     let core: Vec<String> = r.counters.nonzero().map(|(d, n)| format!("{d}: {n}")).collect();
@@ -259,6 +262,16 @@ pub fn node_report_text(r: &NodeReport, peer: Option<&PeerInfo>) -> String {
         let _ = writeln!(out, "warning: {w}");
     }
     out
+}
+
+/// Whether a connection's destination is reached through the network (another node, a group)
+/// rather than inside `node` (a local port, or a port named with `node`'s own id).
+fn is_remote(destination: &Endpoint, node: NodeId) -> bool {
+    match destination {
+        Endpoint::Local { .. } => false,
+        Endpoint::Node { node: to, .. } => *to != node,
+        Endpoint::Group { .. } => true,
+    }
 }
 
 /// Seconds rounded to the millisecond (positions to the millimetre), for people reading

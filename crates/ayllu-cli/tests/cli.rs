@@ -277,6 +277,74 @@ fn the_tools_id_cannot_be_the_id_of_the_node_asked_about() {
     relay.cli(&["list", "1", "--id", "2"]).ok();
 }
 
+/// `foxglove` and `record` talk to every node they hear, not to one named on the command line:
+/// with an `--id` a node of the team has, that node would be left out in silence (each side
+/// drops the other's datagrams). They look first, under another id, and refuse as `list 1
+/// --id 1` does; `record` leaves no file behind.
+#[test]
+fn tools_that_watch_every_node_refuse_an_id_a_node_has() {
+    let relay = Relay::start();
+    let dir = std::env::temp_dir().join(format!("ayllu-cli-id-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("team.mcap");
+    let out = file.display().to_string();
+    let run = relay
+        .cli(&["record", "-o", &out, "--for", "1", "--id", "1"])
+        .fails(2, "--id 1 is the id of a node heard on the network (node-1 at 127.0.0.1:");
+    assert!(run.stderr.contains("needs an id of its own"), "{run:?}");
+    assert!(!file.exists(), "nothing recorded, no file left: {run:?}");
+    relay.cli(&["record", "-o", &out, "--for", "0.5", "--id", "2"]).ok();
+    #[cfg(feature = "foxglove")]
+    {
+        relay
+            .cli(&["foxglove", "--port", "0", "--for", "1", "--id", "1"])
+            .fails(2, "--id 1 is the id of a node heard on the network");
+        relay.cli(&["foxglove", "--port", "0", "--for", "0.5", "--id", "2"]).ok();
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Only a connection to another node or a group sends anything: `list NODE` prints `(sent N)`
+/// for those, and nothing for a connection inside the node (its count would always be 0).
+#[test]
+fn list_says_sent_only_for_connections_that_leave_the_node() {
+    let relay = Relay::start();
+    let text = relay.cli(&["list", "1"]).ok().stdout;
+    let local = text.lines().find(|l| l.contains("RELAY.Out -> RELAY.Aux")).expect("the relay's connection");
+    assert!(!local.contains("sent"), "{text}");
+    // Robot 2 of the paper's Fig. 2: its BLE claims go to the group Peers.
+    let mut cmd = Command::new(BIN);
+    cmd.args(["node", "--id", "2", "--layers", "1", "--status-ms", "100", "--for", "60", "--udp", "udp://127.0.0.1:0"]);
+    let mut robot = Proc::spawn("robot", cmd);
+    let url = format!("udp://127.0.0.1:0?peer={}", robot.wait_ready());
+    let text = ayllu(&["list", "2", "--udp", &url], LIMIT).ok().stdout;
+    let group = text.lines().find(|l| l.contains("-> *Peers:")).unwrap_or_else(|| panic!("a group connection: {text}"));
+    assert!(group.contains("(sent "), "{text}");
+    for line in text.lines().filter(|l| l.contains(" -> ") && !l.contains("*Peers:")) {
+        assert!(!line.contains("sent"), "{line}\n{text}");
+    }
+    // The JSON keeps every connection's count.
+    let json = ayllu(&["list", "2", "--json", "--udp", &url], LIMIT).ok().json();
+    assert!(json["connections"].as_array().unwrap().iter().all(|c| c["sent"].is_u64()), "{json}");
+}
+
+/// Numbers out of an argument's range are printed as typed in exponent form (`1e300`, not 301
+/// digits) with the range the argument takes.
+#[test]
+fn arguments_out_of_range_say_the_range_compactly() {
+    for args in [
+        &["list", "1", "--timeout", "1e300"][..],
+        &["hz", "1", "A.B", "--every", "1e300"],
+        &["write", "1", "A.B", "1", "--kind", "inhibit", "--period", "1e300"],
+        &["node", "--id", "1", "--max-window", "1e300"],
+    ] {
+        let run = ayllu(args, LIMIT).fails(2, "must be greater than 0 and at most 1e9 (got 1e300)");
+        assert!(!run.stderr.contains("0000000000"), "{run:?}");
+    }
+    ayllu(&["write", "1", "A.B", "1", "--repeat-hz", "1e-300"], LIMIT)
+        .fails(2, "must be at least 1e-9 and at most 1e9 (got 1e-300)");
+}
+
 #[test]
 fn an_unknown_node_times_out_with_a_clear_message() {
     let relay = Relay::start();

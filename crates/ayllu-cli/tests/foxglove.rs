@@ -216,3 +216,24 @@ fn a_simulator_run_written_to_mcap_reads_back_with_the_reference_reader() {
     assert!(std::fs::read(&file).unwrap() == std::fs::read(&again).unwrap(), "two runs of one seed differ");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// `foxglove --mcap FILE` names FILE when it cannot write it: a file that exists (never
+/// replaced, left as it was) or one it cannot create. Checked before the server starts.
+#[test]
+fn foxglove_names_the_mcap_file_it_cannot_create() {
+    let dir = scratch("live-mcap");
+    let existing = dir.join("earlier.mcap");
+    std::fs::write(&existing, b"an earlier session").unwrap();
+    let foxglove = |file: &std::path::Path| {
+        let file = file.display().to_string();
+        ayllu(&["foxglove", "--port", "0", "--for", "1", "--udp", "udp://127.0.0.1:0", "--mcap", &file], LIMIT)
+    };
+    let run = foxglove(&existing).fails(1, &format!("{} exists (an MCAP file is never replaced)", existing.display()));
+    assert!(run.stdout.is_empty(), "refused before the server started: {run:?}");
+    assert_eq!(std::fs::read(&existing).unwrap(), b"an earlier session");
+    let unreachable = dir.join("no-such-dir").join("live.mcap");
+    foxglove(&unreachable).fails(1, &format!("cannot create {}", unreachable.display()));
+    let fresh = dir.join("fresh.mcap");
+    foxglove(&fresh).ok();
+    assert!(fresh.exists(), "the server wrote the file the check removed");
+}

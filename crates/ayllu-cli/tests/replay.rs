@@ -157,3 +157,41 @@ fn node_record_refuses_a_file_that_exists() {
     ayllu(&["node", "--id", "5", "--udp", "udp://127.0.0.1:0", "--for", "0.2", "--record", &new], LIMIT)
         .fails(1, "new.mcap exists");
 }
+
+/// A time beyond what a node's clock holds is printed compactly (`1e300 s`, not 301 digits)
+/// with the range times take, for every time argument of `replay`.
+#[test]
+fn times_beyond_the_clock_are_refused_compactly_with_the_range() {
+    let dir = scratch("times");
+    let file = dir.join("none.mcap").display().to_string();
+    for args in [
+        &["replay", &file, "--at", "1e300", "list"][..],
+        &["replay", &file, "echo", "A.B", "--from", "1e300"],
+        &["replay", &file, "echo", "A.B", "--to", "1e300"],
+    ] {
+        let run = ayllu(args, LIMIT).fails(2, "`1e300` (1e300 s) is not a time on the node's clock");
+        assert!(run.stderr.contains("from 0 to 18446744073 s"), "{run:?}");
+        assert!(!run.stderr.contains("0000000000"), "{run:?}");
+    }
+    ayllu(&["replay", &file, "--at", "1e300ms", "list"], LIMIT).fails(2, "(1e297 s) is not a time");
+    ayllu(&["replay", &file, "--at=-1", "list"], LIMIT).fails(2, "(-1 s) is not a time on the node's clock");
+}
+
+/// `replay echo --from X --to Y` with X after Y is an empty range: a usage error (exit 2), not
+/// an empty answer; so is --from after --at when --at ends the range.
+#[test]
+fn echo_refuses_a_from_after_its_to() {
+    let dir = scratch("range");
+    let file = dir.join("relay.mcap");
+    let path = file.display().to_string();
+    let node = ["node", "--id", "5", "--controller", "relay", "--udp", "udp://127.0.0.1:0", "--for", "0.3"];
+    ayllu(&[&node[..], &["--record", &path]].concat(), LIMIT).ok();
+    let run = ayllu(&["replay", &path, "echo", "RELAY.In", "--from", "2", "--to", "1"], LIMIT)
+        .fails(2, "--from 2.000s is after --to 1.000s: nothing lies between them");
+    assert!(run.stdout.is_empty(), "{run:?}");
+    ayllu(&["replay", &path, "--at", "1", "echo", "RELAY.In", "--from", "1500ms"], LIMIT)
+        .fails(2, "--from 1.500s is after --at 1.000s");
+    ayllu(&["replay", &path, "echo", "RELAY.In", "--from", "1", "--to", "1"], LIMIT).ok();
+    let late = ayllu(&["replay", &path, "echo", "RELAY.In", "--from", "100"], LIMIT).ok();
+    assert!(late.stderr.contains("--from 100.000s is after the recording's end"), "{late:?}");
+}

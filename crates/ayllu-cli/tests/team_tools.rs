@@ -382,3 +382,35 @@ fn bad_arguments_are_usage_errors() {
     let _ = std::fs::remove_dir_all(&dir);
     assert!(started.elapsed() < LIMIT);
 }
+
+/// A `--copy` pattern that matches no port copies nothing: `record` says so on stderr, naming
+/// the pattern — at once for a pattern naming a node it has surveyed, at the end for the others
+/// (with the nodes it heard) — and lists them under `unmatched` in its JSON.
+#[test]
+fn record_warns_about_copy_patterns_that_match_no_port() {
+    let (_relay, addrs) = start_on_loopback(
+        1,
+        |_| "relay".to_owned(),
+        |_, url| {
+            ["node", "--id", "1", "--controller", "relay", "--status-ms", "200", "--for", "60", "--udp", url]
+                .map(str::to_owned)
+                .to_vec()
+        },
+    );
+    let url = peers_url(&addrs);
+    let dir = scratch("unmatched");
+    let out = dir.join("copies.mcap").display().to_string();
+    let patterns = ["n1:RELAY.Nope", "*.Zzz", "n7:A.B", "RELAY.Out"];
+    let mut args = vec!["record", "-o", &out, "--for", "2", "--no-groups", "--json", "--udp", &url];
+    for p in &patterns {
+        args.extend(["--copy", p]);
+    }
+    let run = ayllu(&args, LIMIT).ok();
+    assert!(run.stderr.contains("warning: --copy n1:RELAY.Nope matches no port of n1"), "{run:?}");
+    assert!(run.stderr.contains("warning: --copy *.Zzz copied nothing: no port of the nodes heard (n1) matches"));
+    assert!(run.stderr.contains("warning: --copy n7:A.B copied nothing: n7 was not heard"), "{run:?}");
+    assert!(!run.stderr.contains("RELAY.Out copied nothing"), "{run:?}");
+    assert!(run.stderr.contains("copying n1:RELAY.Out"), "{run:?}");
+    assert_eq!(run.json()["unmatched"], serde_json::json!(["n1:RELAY.Nope", "*.Zzz", "n7:A.B"]), "{run:?}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
