@@ -49,8 +49,9 @@ fn rust() -> (f64, f64, f64) {
     let by_ref = best(|| {
         let t = StdInstant::now();
         for i in 0..WRITES {
-            let now = node.now();
-            node.core_mut().write(now, a, Value::Int(i as i64)).expect("write");
+            let core = node.core_mut(); // told the present
+            let now = core.now();
+            core.write(now, a, Value::Int(i as i64)).expect("write");
         }
         t.elapsed().as_nanos() as f64 / WRITES as f64
     });

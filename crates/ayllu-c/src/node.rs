@@ -534,8 +534,9 @@ fn port_ref(s: &NodeState, r: ay_port_ref) -> Result<PortRef, Fail> {
 fn write_ref(node: *mut ay_node, port: ay_port_ref, value: Value) -> Result<(), Fail> {
     with_node(node, |s| {
         let r = port_ref(s, port)?;
-        let now = s.node.now();
-        Ok(s.node.core_mut().write(now, r, value)?)
+        let core = s.node.core_mut();
+        let now = core.now(); // core_mut told it the present
+        Ok(core.write(now, r, value)?)
     })
 }
 
@@ -950,8 +951,9 @@ pub unsafe extern "C" fn ay_node_trigger(
         let (b, m) = unsafe { (text(behavior, "behavior")?, text(mono, "monostable")?) };
         let d = required_secs(seconds, "the period")?;
         with_node(node, |s| {
-            let now = s.node.now();
-            Ok(s.node.core_mut().trigger(now, b, m, d)?)
+            let core = s.node.core_mut();
+            let now = core.now(); // core_mut told it the present
+            Ok(core.trigger(now, b, m, d)?)
         })
     })
 }

@@ -557,6 +557,18 @@ impl NodeCore {
         }
     }
 
+    /// Tell the core the time without running anything. What is called next (a behavior
+    /// created, a BLE join, a connection removed) is dated `now` rather than the last poll's
+    /// time, so a node that has not been polled for a while (wired before it starts, or added
+    /// to a running team) does not date a change in its past: a periodic process keeps the
+    /// phase of its creation (D7.2), a new BLE member listens a whole cycle from its join
+    /// (D11.3). Processes due by then run at the next poll, as they would have. A runtime
+    /// calls it before every change made between polls (`ayllu::Node::core_mut` does).
+    /// Time never goes backwards: an earlier `now` changes nothing.
+    pub fn advance_to(&mut self, now: Instant) {
+        self.advance(now);
+    }
+
     // ----- structure (rule S9) -------------------------------------------------------------
 
     /// Make a behavior class available for [`NodeCore::create`]. A class is immutable once

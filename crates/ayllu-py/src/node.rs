@@ -501,8 +501,9 @@ impl Node {
     fn trigger(&self, py: Python<'_>, behavior: &str, mono: &str, seconds: f64) -> PyResult<()> {
         let d = duration(seconds)?;
         self.shared.with(py, |n| {
-            let now = n.now();
-            n.core_mut().trigger(now, behavior, mono, d).map_err(errors::core)
+            let core = n.core_mut();
+            let now = core.now(); // core_mut told it the present
+            core.trigger(now, behavior, mono, d).map_err(errors::core)
         })
     }
 
@@ -765,8 +766,9 @@ impl PortHandle {
     fn write(&self, py: Python<'_>, value: &Bound<'_, PyAny>) -> PyResult<()> {
         let v = to_value(value)?;
         self.node.get().shared.with(py, |n| {
-            let now = n.now();
-            n.core_mut().write(now, self.port, v).map_err(errors::core)
+            let core = n.core_mut();
+            let now = core.now(); // core_mut told it the present
+            core.write(now, self.port, v).map_err(errors::core)
         })
     }
     /// The port's value now.

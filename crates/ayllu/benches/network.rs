@@ -394,8 +394,9 @@ fn ayllu_round_trips(rounds: usize, place: Placement) -> Vec<u64> {
     for i in 1..=(WARM_UP + rounds) as i64 {
         let t0 = StdInstant::now();
         let mut sent_at = t0;
-        let now = a.now();
-        a.core_mut().write(now, p, i).expect("write");
+        let core = a.core_mut(); // told the present
+        let now = core.now();
+        core.write(now, p, i).expect("write");
         loop {
             let next = a.step();
             if a.core().read(s).ok().and_then(|v| v.as_int()) == Some(i) {
@@ -403,8 +404,9 @@ fn ayllu_round_trips(rounds: usize, place: Placement) -> Vec<u64> {
             }
             // Loopback does not lose datagrams in practice; if one is lost, ask again.
             if sent_at.elapsed() > StdDuration::from_millis(200) {
-                let now = a.now();
-                a.core_mut().write(now, p, i).expect("write");
+                let core = a.core_mut(); // told the present
+                let now = core.now();
+                core.write(now, p, i).expect("write");
                 sent_at = StdInstant::now();
                 continue;
             }
@@ -457,9 +459,10 @@ fn ayllu_flow(ports: usize, mtu: usize) -> Flow {
     let mut v = 0i64;
     while start.elapsed() < FLOW_TIME {
         v += 1;
-        let now = tx.now();
+        let core = tx.core_mut(); // told the present
+        let now = core.now();
         for &h in &handles {
-            tx.core_mut().write(now, h, v).expect("write");
+            core.write(now, h, v).expect("write");
         }
         black_box(tx.step());
     }
@@ -510,9 +513,10 @@ fn lockstep_turns(tx: &mut Node, rx: &mut Node, handles: &[PortRef], turns: i64)
 /// Write every port, then step (which sends). Separate so callgrind can count each side.
 #[inline(never)]
 fn sender_turn(tx: &mut Node, handles: &[PortRef], v: i64) {
-    let now = tx.now();
+    let core = tx.core_mut(); // told the present
+    let now = core.now();
     for &h in handles {
-        tx.core_mut().write(now, h, v).expect("write");
+        core.write(now, h, v).expect("write");
     }
     tx.step();
 }
@@ -526,8 +530,9 @@ fn receiver_turn(rx: &mut Node) {
 #[inline(never)]
 fn lockstep_round_trips(a: &mut Node, b: &mut Node, p: PortRef, s: PortRef, rounds: i64) {
     for i in 1..=rounds {
-        let now = a.now();
-        a.core_mut().write(now, p, i).expect("write");
+        let core = a.core_mut(); // told the present
+        let now = core.now();
+        core.write(now, p, i).expect("write");
         a.step();
         while a.core().read(s).ok().and_then(|v| v.as_int()) != Some(i) {
             b.step();
@@ -768,8 +773,9 @@ fn ayllu_peer_ping(to: SocketAddr, size: usize, rounds: usize) -> Vec<u64> {
     'rounds: while samples.len() < rounds && StdInstant::now() < give_up {
         i += 1;
         let t0 = StdInstant::now();
-        let now = a.now();
-        a.core_mut().write(now, p, peer_value(size, i)).expect("write");
+        let core = a.core_mut(); // told the present
+        let now = core.now();
+        core.write(now, p, peer_value(size, i)).expect("write");
         loop {
             let next = a.step();
             if a.core().read(s).ok().as_ref().and_then(peer_round) == Some(i) {
@@ -806,8 +812,9 @@ fn ayllu_peer_send(to: SocketAddr, size: usize, secs: f64) {
     let (start, mut v) = (StdInstant::now(), 0i64);
     while start.elapsed().as_secs_f64() < secs {
         v += 1;
-        let now = tx.now();
-        tx.core_mut().write(now, h, peer_value(size, v)).expect("write");
+        let core = tx.core_mut(); // told the present
+        let now = core.now();
+        core.write(now, h, peer_value(size, v)).expect("write");
         tx.step();
     }
     println!("flow sent={}", tx.stats().sent - sent_before);

@@ -152,9 +152,14 @@ impl Node {
     pub fn core(&self) -> &NodeCore {
         &self.core
     }
-    /// The core, for everything this wrapper does not forward. Changes take effect (and
-    /// messages leave) at the next step.
+    /// The core, for everything this wrapper does not forward, told the clock's present
+    /// first ([`NodeCore::advance_to`]): a change made through it between steps is dated now,
+    /// not at the last step (a node wired before it starts, or added to a running team, would
+    /// otherwise date its behaviors' creation and its BLE joins in the past). Changes take
+    /// effect (and messages leave) at the next step. `core_mut().now()` is then the present.
     pub fn core_mut(&mut self) -> &mut NodeCore {
+        let now = self.clock.now();
+        self.core.advance_to(now);
         &mut self.core
     }
     /// Traffic figures since the node started.
@@ -199,15 +204,15 @@ impl Node {
 
     /// Define a behavior class on this node (rule S2).
     pub fn define(&mut self, class: BehaviorClass) -> Result<(), Error> {
-        Ok(self.core.define(class)?)
+        Ok(self.core_mut().define(class)?)
     }
     /// Create behavior `name` of class `class` (rule S9: also while running).
     pub fn create(&mut self, class: &str, name: &str) -> Result<BehaviorRef, Error> {
-        Ok(self.core.create(class, name)?)
+        Ok(self.core_mut().create(class, name)?)
     }
     /// Remove behavior `name` and every connection into or out of it (rule S9).
     pub fn remove(&mut self, name: &str) -> Result<(), Error> {
-        Ok(self.core.remove(name)?)
+        Ok(self.core_mut().remove(name)?)
     }
     /// Connect with the default options (priority 0); see [`Node::connect_with`].
     pub fn connect(
@@ -227,25 +232,25 @@ impl Node {
         kind: ConnectionKind,
         options: ConnectOptions,
     ) -> Result<ConnectionId, Error> {
-        Ok(self.core.connect(source, destination, kind, options)?)
+        Ok(self.core_mut().connect(source, destination, kind, options)?)
     }
     /// Remove a connection this node owns; windows it holds here end at once (D6.9).
     pub fn disconnect(&mut self, id: ConnectionId) -> Result<(), Error> {
-        Ok(self.core.disconnect(id)?)
+        Ok(self.core_mut().disconnect(id)?)
     }
     /// Join a broadcast group, on the core and on the transport.
     pub fn join(&mut self, group: &str) {
-        self.core.join(group);
+        self.core_mut().join(group);
         self.sync_groups();
     }
     /// Leave a broadcast group, on the core and on the transport.
     pub fn leave(&mut self, group: &str) {
-        self.core.leave(group);
+        self.core_mut().leave(group);
         self.sync_groups();
     }
     /// Make `behavior` a BLE peer (rule S11) and join the group on the transport.
     pub fn ble_join(&mut self, behavior: &str, config: &BleConfig) -> Result<BleGroup, Error> {
-        let g = self.core.ble_join(behavior, config)?;
+        let g = self.core_mut().ble_join(behavior, config)?;
         self.sync_groups();
         Ok(g)
     }

@@ -479,6 +479,11 @@ impl Replay {
 
     fn apply(&mut self, entry: Entry) -> Result<(), Divergence> {
         let at = entry.at;
+        // Each entry carries the node's time once its call had moved it, and a live node is
+        // told the present before a change made between polls (`Node::core_mut`): a change is
+        // dated as it was live only if the replay is at that time too. For a call that moves
+        // the time itself (a write, a message, a poll) this changes nothing.
+        self.core.advance_to(at);
         let core = &mut self.core;
         // Inputs are applied whatever they returned live: a refused call is refused again, and
         // what it changed (counters) is what the comparison of accepted values checks.
