@@ -111,6 +111,24 @@ pub fn sweep(text: &str) -> Result<Sweep, String> {
         Some(Json::Object(g)) => g,
         Some(_) => return Err("`grid` must be a table of field = [values]".into()),
     };
+    // What `Sweep::runs` sets for every run would be silently overwritten: refused, saying
+    // what sets it instead.
+    let wander_seed = table.get("controllers").and_then(|c| c.get("wander_seed")).is_some();
+    for (path, given) in [
+        ("seed", table.contains_key("seed")),
+        ("controller", table.contains_key("controller")),
+        ("controllers.wander_seed", wander_seed),
+    ] {
+        if given {
+            return Err(set_by_the_sweep(path, ""));
+        }
+        if grid.contains_key(path) {
+            return Err(set_by_the_sweep(path, "grid."));
+        }
+    }
+    // The cell's scenario is read (and held to the bounds) as the first controller's run; every
+    // controller's run is checked below.
+    table.insert("controller".into(), Json::String(controllers[0].name().to_owned()));
     let mut cells: Vec<(Labels, Map<String, Json>)> = vec![(Vec::new(), table)];
     for (path, values) in grid {
         let values =
@@ -150,6 +168,17 @@ pub fn sweep(text: &str) -> Result<Sweep, String> {
         })
         .collect::<Result<_, String>>()?;
     Ok(Sweep { seeds, controllers, cells })
+}
+
+/// Why a sweep file may not set `path` (`at` is `grid.` when the grid names it).
+fn set_by_the_sweep(path: &str, at: &str) -> String {
+    let instead = match path {
+        "seed" | "controllers.wander_seed" => {
+            "every cell runs seeds 1..=`seeds` (each run's wander seed is its seed): set `seeds`, the number of runs a cell"
+        }
+        _ => "list the controllers to run in `controllers` (or `compare`, beside a [controllers] table)",
+    };
+    format!("{at}{path} is set by the sweep for each run, so it would be ignored: {instead}")
 }
 
 /// In a sweep file `controllers` is the list of controllers to run, unless it is a table (the
@@ -201,9 +230,20 @@ fn scenario_from(mut table: Map<String, Json>) -> Result<Scenario, String> {
         None => 3,
         Some(v) => bounds::robots(v.as_u64(), v).map_err(|e| e.to_string())?,
     };
+    let listed = table.get("world").and_then(|w| w.get("targets")).and_then(Json::as_array).map(Vec::len);
     let targets = match table.remove("targets") {
         None => 4,
-        Some(v) => bounds::targets("targets", v.as_u64(), &v).map_err(|e| e.to_string())?,
+        Some(v) => {
+            let n = bounds::targets("targets", v.as_u64(), &v).map_err(|e| e.to_string())?;
+            // The list replaces the targets `targets` made: a count it contradicts would be
+            // silently dropped. (An empty list is the bounds' to refuse, by its own name.)
+            if let Some(listed) = listed.filter(|&l| l != n && l > 0) {
+                return Err(format!(
+                    "targets = {n} but world.targets lists {listed}: give one of them, or make them agree"
+                ));
+            }
+            n
+        }
     };
     let seed = table.get("seed").and_then(Json::as_u64).unwrap_or(1);
     if let Some(Json::Object(c)) = table.get_mut("controllers") {
@@ -344,5 +384,38 @@ mod tests {
         let both = sweep("compare = [\"Planner\"]\n[controllers]\nplan_hz = 4.0\n").unwrap();
         assert_eq!(both.controllers, [Controller::Planner]);
         assert_eq!(both.cells[0].scenario.controllers.plan_hz, 4.0);
+    }
+
+    /// What every run of a sweep sets itself (its seed, its controller, the wander seed that
+    /// follows the seed) was silently overwritten when a sweep file set it, at the top or in
+    /// the grid: every cell then ran the same runs under different titles.
+    #[test]
+    fn a_sweep_refuses_the_fields_it_sets_for_each_run() {
+        for (text, needle) in [
+            ("seed = 5", "seed is set by the sweep"),
+            ("controller = \"Local\"", "controller is set by the sweep"),
+            ("[controllers]\nwander_seed = 3", "controllers.wander_seed is set by the sweep"),
+            ("[grid]\nseed = [5, 6]", "grid.seed is set by the sweep"),
+            ("[grid]\ncontroller = [\"Random\", \"Local\"]", "grid.controller is set by the sweep"),
+            ("[grid]\n\"controllers.wander_seed\" = [3, 4]", "grid.controllers.wander_seed is set by"),
+        ] {
+            let err = sweep(text).unwrap_err();
+            assert!(err.contains(needle), "{text}: {err}");
+            let instead = if needle.contains("controller ") { "`controllers`" } else { "`seeds`" };
+            assert!(err.contains(instead), "{text}: {err}");
+        }
+        // A scenario file (one run) still takes them.
+        assert_eq!(scenario("seed = 5\ncontroller = \"Local\"").unwrap().seed, 5);
+    }
+
+    /// `targets` and a `world.targets` list of another length contradict each other: the list
+    /// replaced the targets the count made, without a word.
+    #[test]
+    fn a_target_count_the_target_list_contradicts_is_refused() {
+        let one = "[world]\ntargets = [{priority = 1.0, speed = 0.1, motion = \"Static\"}]";
+        let err = scenario(&format!("targets = 3\n{one}")).unwrap_err();
+        assert!(err.contains("targets = 3 but world.targets lists 1"), "{err}");
+        assert_eq!(scenario(&format!("targets = 1\n{one}")).unwrap().world.targets.len(), 1);
+        assert_eq!(scenario(one).unwrap().world.targets.len(), 1);
     }
 }

@@ -281,11 +281,9 @@ fn sweeps_check_every_cell_and_controller() {
     assert!(e.contains("radio.loss: NaN is not a usable probability"), "{e}");
     // A partition naming the base station: valid in the Planner's runs only.
     let station = "[[radio.partitions]]\nstart = 1.0\nend = 2.0\nisland = [1, 65535]\n";
-    let e = scenario_file::sweep(&format!("compare = [\"Planner\", \"BLE\"]\ncontroller = \"Planner\"\n{station}"))
-        .unwrap_err();
+    let e = scenario_file::sweep(&format!("compare = [\"Planner\", \"BLE\"]\n{station}")).unwrap_err();
     assert!(e.contains("radio.partitions[0].island: 65535"), "{e}");
-    scenario_file::sweep(&format!("compare = [\"Planner\"]\ncontroller = \"Planner\"\n{station}"))
-        .expect("Planner only");
+    scenario_file::sweep(&format!("compare = [\"Planner\"]\n{station}")).expect("Planner only");
 }
 
 #[test]
