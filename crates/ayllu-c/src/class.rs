@@ -186,7 +186,14 @@ pub(crate) fn optional_secs(secs: f64, what: &str) -> Result<Option<Duration>, F
 pub(crate) fn required_secs(secs: f64, what: &str) -> Result<Duration, Fail> {
     match optional_secs(secs, what)? {
         Some(d) if !d.is_zero() => Ok(d),
-        _ => Err(Fail::new(ay_status::AY_ERR_PERIOD, format!("{what} must be above zero, got {secs} s"))),
+        _ => Err(Fail::new(
+            ay_status::AY_ERR_PERIOD,
+            format!(
+                "{what} must be above zero, from 1 ns to {} s (about 584 years), got {} s",
+                Duration::MAX_SECS,
+                ayllu_core::Compact(secs)
+            ),
+        )),
     }
 }
 

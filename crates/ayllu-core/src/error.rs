@@ -7,6 +7,7 @@ use core::fmt;
 use crate::connection::ConnectionKind;
 use crate::counters::DropCause;
 use crate::port::PortKind;
+use crate::time::{Compact, Duration};
 use crate::value::ValueType;
 
 /// Why an API call was refused. `Display` says what to fix, in words a user can act on;
@@ -206,13 +207,22 @@ impl fmt::Display for Error {
                 "a {} connection needs a period above zero",
                 kind.name()
             ),
-            Error::NegativePeriod { seconds } => {
-                write!(f, "period of {seconds} s is negative; periods must be above zero")
-            }
-            Error::InvalidDuration { seconds } => write!(f, "{seconds} s is not a usable duration"),
+            Error::NegativePeriod { seconds } => write!(
+                f,
+                "{} s is negative; durations are from 0 to {} s (about 584 years), periods from 1 ns",
+                Compact(*seconds),
+                Duration::MAX_SECS
+            ),
+            Error::InvalidDuration { seconds } => write!(
+                f,
+                "{} s is not a usable duration; durations are finite, from 0 to {} s (about 584 years)",
+                Compact(*seconds),
+                Duration::MAX_SECS
+            ),
             Error::InvalidRate { hz } => write!(
                 f,
-                "rate of {hz} Hz is invalid; rates must be finite and above zero, with a period from 1 ns to 584 years"
+                "rate of {} Hz is invalid; rates must be finite and above zero, with a period from 1 ns to 584 years",
+                Compact(*hz)
             ),
             Error::ZeroProcessPeriod { process } => {
                 write!(f, "process `{process}`: a periodic process needs a period above zero")

@@ -78,6 +78,6 @@ pub use message::{ControlBody, ControlMessage, Destination, Message, Outgoing, P
 pub use node::{BehaviorRef, NodeCore, PortRef, RequestId, RequestStatus, RETRIGGER_INTERVAL};
 pub use port::{PortCell, PortKind, PortSpec};
 pub use process::Ctx;
-pub use time::{Duration, Instant};
+pub use time::{Compact, Duration, Instant};
 pub use transaction::{TransactionState, TransactionStatus};
 pub use value::{Value, ValueType};

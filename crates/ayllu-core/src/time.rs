@@ -64,11 +64,39 @@ impl Instant {
     }
 }
 
+/// A number of seconds or hertz as messages print it: plainly from 1e-4 to under 1e6 (`0.25`,
+/// `-1`, `3600`), in scientific notation outside (`1e300`, `1e-12`), so a wild value reads as
+/// what was typed rather than as hundreds of digits. NaN and infinities print as Rust prints
+/// them (`NaN`, `inf`).
+///
+/// ```
+/// use ayllu_core::Compact;
+/// assert_eq!(Compact(1e300).to_string(), "1e300");
+/// assert_eq!(Compact(-0.5).to_string(), "-0.5");
+/// assert_eq!(Compact(1e-12).to_string(), "1e-12");
+/// ```
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct Compact(pub f64);
+
+impl fmt::Display for Compact {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let a = self.0.abs();
+        if self.0.is_finite() && a != 0.0 && !(1e-4..1e6).contains(&a) {
+            write!(f, "{:e}", self.0)
+        } else {
+            write!(f, "{}", self.0)
+        }
+    }
+}
+
 impl Duration {
     /// No time. Refused as a period, window or lifespan (D6.8, D7.4).
     pub const ZERO: Duration = Duration { nanos: 0 };
     /// The longest span, about 584 years; arithmetic saturates here.
     pub const MAX: Duration = Duration { nanos: u64::MAX };
+    /// [`Duration::MAX`] in whole seconds, 18446744073 s (about 584 years), as messages name
+    /// the limit.
+    pub const MAX_SECS: u64 = u64::MAX / 1_000_000_000;
 
     /// `nanos` nanoseconds.
     pub const fn from_nanos(nanos: u64) -> Self {

@@ -187,6 +187,28 @@ fn negative_or_unusable_periods_are_errors() {
 }
 
 #[test]
+fn wild_seconds_and_rates_print_compactly_with_the_accepted_range() {
+    // A period of 1e300 s used to print as a 301-digit number of seconds, and a rate of
+    // 1e-300 Hz as 300 zeros.
+    let cases = [
+        (Duration::try_from_secs_f64(1e300).unwrap_err(), "1e300 s", "from 0 to 18446744073 s (about 584 years)"),
+        (Duration::try_from_secs_f64(-1e300).unwrap_err(), "-1e300 s", "from 0 to 18446744073 s (about 584 years)"),
+        (Duration::try_from_secs_f64(f64::NAN).unwrap_err(), "NaN s", "from 0 to 18446744073 s (about 584 years)"),
+        (Duration::try_from_secs_f64(-0.5).unwrap_err(), "-0.5 s", "from 0 to 18446744073 s (about 584 years)"),
+        (Duration::try_from_hz(1e-300).unwrap_err(), "1e-300 Hz", "a period from 1 ns to 584 years"),
+        (Duration::try_from_hz(1e300).unwrap_err(), "1e300 Hz", "a period from 1 ns to 584 years"),
+    ];
+    for (e, value, range) in cases {
+        says(&e, &[value, range]);
+        assert!(e.to_string().len() < 160, "not compact: {e}");
+    }
+    assert_eq!(ayllu_core::Compact(3600.0).to_string(), "3600");
+    assert_eq!(ayllu_core::Compact(0.25).to_string(), "0.25");
+    assert_eq!(ayllu_core::Compact(2e6).to_string(), "2e6");
+    assert_eq!(ayllu_core::Compact(f64::INFINITY).to_string(), "inf");
+}
+
+#[test]
 fn rates_must_be_finite_and_above_zero() {
     // S7: ratepersecond(0), negative, NaN or infinite rates are errors; so are rates whose
     // period a Duration cannot hold (D7.4: a period error for a period never written misled).

@@ -74,7 +74,10 @@ struct ChangeFile {
 
 fn seconds(x: f64, what: &str) -> Result<Duration, String> {
     if !(x.is_finite() && x > 0.0 && x < 1e9) {
-        return Err(format!("{what} = {x}: a number of seconds above zero"));
+        return Err(format!(
+            "{what} = {}: must be a number of seconds above zero and under 1e9",
+            ayllu_core::Compact(x)
+        ));
     }
     Ok(Duration::from_nanos((x * 1e9).round() as u64))
 }

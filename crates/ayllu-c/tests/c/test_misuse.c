@@ -136,6 +136,13 @@ static void periods_and_rates(void) {
     FAILS(ay_node_connect(node_, &a, &b, AY_OVERRIDE_OUT, -0.5, 0, NULL), AY_ERR_PERIOD, "negative");
     FAILS(ay_node_connect(node_, &a, &b, AY_INHIBIT, NAN, 0, NULL), AY_ERR_PERIOD, "NaN");
     FAILS(ay_node_connect(node_, &a, &b, AY_INHIBIT, INFINITY, 0, NULL), AY_ERR_PERIOD, "inf");
+    /* A wild period reads as typed (not 301 digits of seconds), with the accepted range. */
+    FAILS(ay_node_connect(node_, &a, &b, AY_INHIBIT, 1e300, 0, NULL), AY_ERR_PERIOD, "1e300 s is not a usable");
+    FAILS(ay_node_connect(node_, &a, &b, AY_INHIBIT, 1e300, 0, NULL), AY_ERR_PERIOD, "18446744073 s (about 584 years)");
+    CHECK(strlen(ay_last_error()) < 200);
+    FAILS(ay_node_connect(node_, &a, &b, AY_INHIBIT, 1e-300, 0, NULL), AY_ERR_PERIOD, "got 1e-300 s");
+    FAILS(ay_node_connect(node_, &a, &b, AY_INHIBIT, 1e-300, 0, NULL), AY_ERR_PERIOD, "from 1 ns to 18446744073 s");
+    FAILS(ay_clock_advance(clock_, -1e300), AY_ERR_PERIOD, "-1e300 s is negative");
     FAILS(ay_node_connect(node_, &a, &b, AY_NORMAL, 0.2, 0, NULL), AY_ERR_PERIOD, "Normal");
     FAILS(ay_node_connect(node_, &a, &b, 42, 0.2, 0, NULL), AY_ERR_INVALID, "42 is not a connection kind");
     FAILS(ay_node_connect(node_, NULL, &b, AY_NORMAL, 0, 0, NULL), AY_ERR_NULL, "source is NULL");
@@ -151,6 +158,7 @@ static void periods_and_rates(void) {
     FAILS(ay_class_every_hz(c, "P", 0.0, meddle, NULL), AY_ERR_RATE, "rate");
     FAILS(ay_class_every_hz(c, "P", -2.0, meddle, NULL), AY_ERR_RATE, "rate");
     FAILS(ay_class_every_hz(c, "P", NAN, meddle, NULL), AY_ERR_RATE, "rate");
+    FAILS(ay_class_every_hz(c, "P", 1e-300, meddle, NULL), AY_ERR_RATE, "rate of 1e-300 Hz is invalid");
     OK(ay_class_free(c));
     FAILS(ay_node_ble_join(node_, "B", "Peers", "Out", 0.0, 0), AY_ERR_RATE, "rate");
     FAILS(ay_node_ble_join(node_, "B", "Peers", "Out", 1.0, -1.0), AY_ERR_PERIOD, "negative");
