@@ -360,10 +360,10 @@ pub fn define(py: Python<'_>, core: &mut NodeCore, procs: &Arc<Processes>, cls: 
         let pname = decl.name.get().cloned().ok_or_else(|| errors::InvalidError::new_err("a port without a name"))?;
         let mut spec = PortSpec::new(&pname, to_value(decl.default.bind(py))?).kind(decl.kind);
         if let Some(l) = decl.lifespan {
-            spec = spec.lifespan(duration(l)?);
+            spec = spec.lifespan(duration("lifespan", l)?);
         }
         if let Some(w) = decl.window {
-            spec = spec.window(duration(w)?);
+            spec = spec.window(duration("window", w)?);
         }
         let h = class.port(spec).map_err(errors::core)?;
         claim(&decl.index, h.0, name, &pname)?;
@@ -392,7 +392,7 @@ pub fn define(py: Python<'_>, core: &mut NodeCore, procs: &Arc<Processes>, cls: 
         let arg = t.get_item(2)?;
         let func: Py<PyAny> = t.get_item(3)?.unbind();
         let trig = match trigger.as_str() {
-            "every" => Trigger::Periodic(duration(arg.extract()?)?),
+            "every" => Trigger::Periodic(duration("period", arg.extract()?)?),
             "on_write" => {
                 let decl = arg.cast::<PortDecl>()?;
                 if !port_decls.iter().any(|p| p.is(decl)) {
@@ -570,7 +570,7 @@ impl Context {
     /// Make the monostable true until at least now + `seconds` (rule S2).
     fn trigger(&self, mono: &Bound<'_, PyAny>, seconds: f64) -> PyResult<()> {
         let m = mono_of(mono)?;
-        let d = duration(seconds)?;
+        let d = duration("seconds", seconds)?;
         self.with(|c| c.trigger(m, d))
     }
     /// Whether the monostable is true now.

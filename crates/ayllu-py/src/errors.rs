@@ -7,44 +7,83 @@
 
 use ayllu_core::Error as CoreError;
 use pyo3::create_exception;
-use pyo3::exceptions::{PyException, PyRuntimeError, PyTypeError, PyValueError};
+use pyo3::exceptions::{PyException, PyLookupError, PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
+use pyo3::sync::PyOnceLock;
+use pyo3::types::{PyDict, PyTuple, PyType};
 
-create_exception!(_native, AylluError, PyException, "Base of every error Ayllu raises.");
-create_exception!(
-    _native,
+create_exception!(ayllu._native, AylluError, PyException, "Base of every error Ayllu raises.");
+
+/// An exception class deriving from both [`AylluError`] and a Python built-in, so a caller may
+/// catch either (`except ayllu.InvalidError` or `except ValueError`). PyO3's
+/// `create_exception!` takes one base only, so the class is made as a Python `class` statement
+/// makes it: `type(name, (AylluError, builtin), namespace)`, once per interpreter.
+macro_rules! ayllu_exception {
+    ($name:ident, $builtin:ty, $doc:literal) => {
+        #[doc = $doc]
+        pub struct $name;
+
+        impl $name {
+            /// The class (made on first use).
+            pub fn type_object(py: Python<'_>) -> PyResult<&Bound<'_, PyType>> {
+                static TYPE: PyOnceLock<Py<PyType>> = PyOnceLock::new();
+                TYPE.get_or_try_init(py, || derived(py, stringify!($name), py.get_type::<$builtin>(), $doc))
+                    .map(|t| t.bind(py))
+            }
+
+            /// An exception of this class with message `msg`.
+            pub fn new_err(msg: impl Into<String>) -> PyErr {
+                let msg = msg.into();
+                Python::attach(|py| match Self::type_object(py) {
+                    Ok(t) => PyErr::from_type(t.clone(), msg),
+                    Err(e) => e,
+                })
+            }
+        }
+    };
+}
+
+/// `type(name, (AylluError, builtin), {...})`, in module `ayllu._native` (so it pickles).
+fn derived(py: Python<'_>, name: &str, builtin: Bound<'_, PyType>, doc: &str) -> PyResult<Py<PyType>> {
+    let bases = PyTuple::new(py, [py.get_type::<AylluError>(), builtin])?;
+    let namespace = PyDict::new(py);
+    namespace.set_item("__module__", "ayllu._native")?;
+    namespace.set_item("__doc__", doc)?;
+    let t = py.get_type::<PyType>().call1((name, bases, namespace))?;
+    Ok(t.cast_into::<PyType>()?.unbind())
+}
+
+ayllu_exception!(
     NotFoundError,
-    AylluError,
-    "A class, behavior, port, process or connection that does not exist."
+    PyLookupError,
+    "A class, behavior, port, process or connection that does not exist (also a `LookupError`)."
 );
-create_exception!(
-    _native,
+ayllu_exception!(
     ValueTypeError,
-    AylluError,
-    "A value of one type offered to a register of another (rule S1)."
+    PyTypeError,
+    "A value of one type offered to a register of another (rule S1) (also a `TypeError`)."
 );
-create_exception!(
-    _native,
+ayllu_exception!(
     InvalidError,
-    AylluError,
-    "An argument Ayllu refuses: a taken or reserved name, a zero period, a bad URL..."
+    PyValueError,
+    "An argument Ayllu refuses: a taken or reserved name, a zero period, a bad URL... (also a `ValueError`)."
 );
 create_exception!(
-    _native,
+    ayllu._native,
     NodeBusyError,
     AylluError,
     "The node was called from inside one of its own processes: use the process's ctx."
 );
-create_exception!(_native, NetworkError, AylluError, "The transport could not be opened or used.");
+create_exception!(ayllu._native, NetworkError, AylluError, "The transport could not be opened or used.");
 
-/// Register the exceptions on the module, and make each also a subclass of the matching
-/// built-in (done in Python, see `ayllu/__init__.py`).
+/// Register the exceptions on the module. `NotFoundError`, `ValueTypeError` and `InvalidError`
+/// are also subclasses of the matching built-in (`LookupError`, `TypeError`, `ValueError`).
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
     m.add("AylluError", py.get_type::<AylluError>())?;
-    m.add("NotFoundError", py.get_type::<NotFoundError>())?;
-    m.add("ValueTypeError", py.get_type::<ValueTypeError>())?;
-    m.add("InvalidError", py.get_type::<InvalidError>())?;
+    m.add("NotFoundError", NotFoundError::type_object(py)?)?;
+    m.add("ValueTypeError", ValueTypeError::type_object(py)?)?;
+    m.add("InvalidError", InvalidError::type_object(py)?)?;
     m.add("NodeBusyError", py.get_type::<NodeBusyError>())?;
     m.add("NetworkError", py.get_type::<NetworkError>())?;
     Ok(())

@@ -499,7 +499,7 @@ impl Node {
 
     /// Trigger monostable `mono` of `behavior` for `seconds` (rule S2).
     fn trigger(&self, py: Python<'_>, behavior: &str, mono: &str, seconds: f64) -> PyResult<()> {
-        let d = duration(seconds)?;
+        let d = duration("seconds", seconds)?;
         self.shared.with(py, |n| {
             let core = n.core_mut();
             let now = core.now(); // core_mut told it the present
@@ -633,7 +633,7 @@ impl Node {
         if seconds.is_nan() || seconds < 0.0 {
             return Err(errors::value_error(format!("run_for takes seconds of at least 0, not {seconds}")));
         }
-        let span = duration(seconds)?;
+        let span = duration("seconds", seconds)?;
         if self.clock.is_some() {
             return self.advance(py, seconds, None);
         }
@@ -732,7 +732,7 @@ fn advance(
     tick: Option<f64>,
     mut step: impl FnMut(Python<'_>) -> PyResult<()>,
 ) -> PyResult<()> {
-    let total = duration(seconds)?;
+    let total = duration("seconds", seconds)?;
     let Some(tick) = tick else {
         clock.advance(total);
         return step(py);
@@ -741,7 +741,7 @@ fn advance(
     if tick.is_nan() || tick < 0.5e-9 {
         return Err(errors::value_error(format!("tick must be at least 1 ns (1e-9 s), not {tick:e} s")));
     }
-    let tick = duration(tick)?;
+    let tick = duration("tick", tick)?;
     use ayllu::Clock;
     let end = clock.now() + total;
     while clock.now() < end {

@@ -5,7 +5,7 @@
 //! a Vector; anything else raises `TypeError`. Back to Python, a Vector is a list of floats.
 //! Seconds are Python floats; [`duration`] refuses negative, NaN and infinite ones.
 
-use ayllu_core::{Duration, Instant, Value};
+use ayllu_core::{Compact, Duration, Instant, Value};
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyBytes, PyFloat, PyInt, PyList, PyString, PyTuple};
 
@@ -66,16 +66,26 @@ pub fn to_py(py: Python<'_>, v: &Value) -> Py<PyAny> {
 
 /// The longest span Ayllu's clock holds (nanoseconds in a `u64`), in whole seconds, for
 /// messages: 18446744073 s, about 584 years.
-const LONGEST_SECS: u64 = u64::MAX / 1_000_000_000;
+const LONGEST_SECS: u64 = Duration::MAX_SECS;
 
-/// Seconds as a duration; refuses negative, NaN and infinite seconds, and more than the clock
-/// holds. The last says so with the limit: the core's message prints the seconds as they are,
-/// and `1e300` prints as 301 digits.
-pub fn duration(seconds: f64) -> PyResult<Duration> {
-    if seconds.is_finite() && seconds > LONGEST_SECS as f64 {
+/// `seconds`, given as the argument `what` (`seconds`, `tick`, `period`, `window`...), as a
+/// duration. NaN, infinite, negative seconds and more than the clock holds are refused with
+/// `InvalidError` (a `ValueError`) naming `what` and the range: the core's own messages speak
+/// of periods, which `advance(-1)` never mentioned. Zero passes (where zero is refused, as for
+/// a period, the caller's next check says so).
+pub fn duration(what: &str, seconds: f64) -> PyResult<Duration> {
+    let range = format!("from 0 to {LONGEST_SECS} s (about 584 years)");
+    let shown = Compact(seconds);
+    if seconds.is_nan() || seconds.is_infinite() {
         return Err(errors::InvalidError::new_err(format!(
-            "{seconds:e} s is too long: a duration is at most {LONGEST_SECS} s (about 584 years)"
+            "{what} = {shown} is not a number of seconds: {what} must be finite, {range}"
         )));
+    }
+    if seconds < 0.0 {
+        return Err(errors::InvalidError::new_err(format!("{what} = {shown} s is negative: {what} must be {range}")));
+    }
+    if seconds > LONGEST_SECS as f64 {
+        return Err(errors::InvalidError::new_err(format!("{what} = {shown} s is too long: {what} must be {range}")));
     }
     Duration::try_from_secs_f64(seconds).map_err(errors::core)
 }
@@ -85,11 +95,12 @@ pub fn duration(seconds: f64) -> PyResult<Duration> {
 pub fn instant(seconds: f64) -> PyResult<Instant> {
     if !(0.0..=LONGEST_SECS as f64).contains(&seconds) {
         return Err(errors::InvalidError::new_err(format!(
-            "time {seconds} s is not on the node's clock: times are seconds since the clock's start, from 0 to \
-             {LONGEST_SECS} s (about 584 years)"
+            "time {} s is not on the node's clock: times are seconds since the clock's start, from 0 to \
+             {LONGEST_SECS} s (about 584 years)",
+            Compact(seconds)
         )));
     }
-    Ok(Instant::ZERO + duration(seconds)?)
+    Ok(Instant::ZERO + duration("time", seconds)?)
 }
 
 /// A node-clock instant in seconds.

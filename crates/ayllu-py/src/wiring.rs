@@ -36,7 +36,7 @@ pub fn endpoint(e: &EndpointArg) -> PyResult<Endpoint> {
 pub fn kind(name: &str, period: Option<f64>) -> PyResult<ConnectionKind> {
     let d = match (name, period) {
         ("normal", _) => ayllu_core::Duration::ZERO,
-        (_, Some(p)) => duration(p)?,
+        (_, Some(p)) => duration("period", p)?,
         (_, None) => return Err(errors::value_error(format!("a {name} connection needs a period (seconds)"))),
     };
     ConnectionKind::from_name(name, d).ok_or_else(|| {
@@ -107,10 +107,10 @@ pub fn ble_join<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     let mut cfg = BleConfig::new(group, output, claim_hz).map_err(errors::core)?;
     if let Some(d) = network_delay {
-        cfg = cfg.network_delay(duration(d)?);
+        cfg = cfg.network_delay(duration("network_delay", d)?);
     }
     if let Some(p) = inhibit_period {
-        cfg = cfg.inhibit_period(duration(p)?);
+        cfg = cfg.inhibit_period(duration("inhibit_period", p)?);
     }
     let g = core.ble_join(behavior, &cfg).map_err(errors::core)?;
     let d = PyDict::new(py);
@@ -240,7 +240,10 @@ pub fn limits(
     Ok(Limits {
         remote_connections: remote_connections.unwrap_or(d.remote_connections),
         remote_connections_per_node: remote_connections_per_node.unwrap_or(d.remote_connections_per_node),
-        max_remote_period: max_remote_period.map(duration).transpose()?.unwrap_or(d.max_remote_period),
+        max_remote_period: max_remote_period
+            .map(|p| duration("max_remote_period", p))
+            .transpose()?
+            .unwrap_or(d.max_remote_period),
         requests_per_second: requests_per_second.unwrap_or(d.requests_per_second),
         requests_burst: requests_burst.unwrap_or(d.requests_burst),
     })

@@ -3,6 +3,8 @@ tests/misuse.rs)."""
 
 from __future__ import annotations
 
+import pickle
+
 import pytest
 
 import ayllu
@@ -77,7 +79,8 @@ def test_a_closed_node_cannot_start() -> None:
 
 def test_times_and_spans_out_of_range_are_refused_in_their_own_words() -> None:
     node = ayllu.Node(2, manual=True)
-    with pytest.raises(ayllu.InvalidError, match=r"^1e300 s is too long: a duration is at most 18446744073 s"):
+    too_long = r"^seconds = 1e300 s is too long: seconds must be from 0 to 18446744073 s"
+    with pytest.raises(ayllu.InvalidError, match=too_long):
         node.advance(1e300)
     with pytest.raises(ValueError, match=r"^tick must be at least 1 ns \(1e-9 s\), not 1e-12 s"):
         node.advance(1.0, tick=1e-12)
@@ -95,6 +98,46 @@ def test_times_and_spans_out_of_range_are_refused_in_their_own_words() -> None:
     assert node.now == pytest.approx(1e-6)
 
 
+def test_advance_refuses_bad_seconds_naming_its_argument_not_a_period() -> None:
+    # advance(-1) used to say "period of -1 s is negative; periods must be above zero".
+    range_ = r"seconds must be (finite, )?from 0 to 18446744073 s \(about 584 years\)"
+    for advance in (ayllu.Node(5, manual=True).advance, ayllu.Team().advance):
+        for bad, says in ((-1.0, "-1 s is negative"), (float("nan"), "NaN is not a number of seconds")):
+            with pytest.raises(ayllu.InvalidError, match=rf"^seconds = {says}: {range_}$") as e:
+                advance(bad)
+            assert "period" not in str(e.value)
+    # Other spans name theirs too, compactly.
+    node = ayllu.Node(6, manual=True)
+    with pytest.raises(ayllu.InvalidError, match=r"^period = 1e300 s is too long: period must be from 0"):
+        node.connect(ayllu.local("A", "x"), ayllu.local("B", "y"), ayllu.suppress(1e300))
+    with pytest.raises(ayllu.InvalidError, match=r"^tick = inf is not a number of seconds: tick must be finite"):
+        node.advance(1.0, tick=float("inf"))
+
+
+def test_invalid_not_found_and_value_type_errors_are_also_the_matching_builtins() -> None:
+    # errors.rs promised it; InvalidError used to derive from AylluError only.
+    for cls, builtin in (
+        (ayllu.InvalidError, ValueError),
+        (ayllu.NotFoundError, LookupError),
+        (ayllu.ValueTypeError, TypeError),
+    ):
+        assert issubclass(cls, ayllu.AylluError)
+        assert issubclass(cls, builtin)
+        assert cls.__module__ == "ayllu._native"
+    node = ayllu.Node(7, manual=True)
+    with pytest.raises(ValueError, match="seconds = -1 s is negative"):
+        node.advance(-1.0)
+    with pytest.raises(LookupError):
+        node.read("NoSuchBehavior", "P")
+    # Raised from Rust, the class is the one the module exports, and it pickles.
+    try:
+        node.advance(-1.0)
+    except ValueError as e:
+        assert type(e) is ayllu.InvalidError
+        again = pickle.loads(pickle.dumps(e))
+        assert type(again) is ayllu.InvalidError and str(again) == str(e)
+
+
 def test_run_for_refuses_negative_and_nan_seconds() -> None:
     # They used to run nothing, in silence.
     node = ayllu.Node(3)
@@ -102,7 +145,7 @@ def test_run_for_refuses_negative_and_nan_seconds() -> None:
         for bad in (float("nan"), -1.0, float("-inf")):
             with pytest.raises(ValueError, match="run_for takes seconds of at least 0"):
                 node.run_for(bad)
-        with pytest.raises(ayllu.InvalidError, match="inf s is not a usable duration"):
+        with pytest.raises(ayllu.InvalidError, match="seconds = inf is not a number of seconds"):
             node.run_for(float("inf"))
         node.run_for(0.0)
     finally:
