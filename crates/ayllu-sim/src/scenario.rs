@@ -25,7 +25,7 @@ use std::sync::atomic::{AtomicUsize, Ordering::Relaxed};
 use std::sync::Mutex;
 
 use crate::body::Body;
-use crate::bounds::InvalidScenario;
+use crate::bounds::{InvalidScenario, MAX_ROBOTS, MAX_TARGETS};
 use crate::classes::SharedClasses;
 use crate::controller::{build_planner, build_shared, chain_quiet, Brain, Controller, ControllerConfig, PLANNER_NODE};
 use crate::metrics::{Meter, Metrics};
@@ -95,9 +95,18 @@ impl Scenario {
 
     /// `robots` robots and `targets` targets in a room that grows with the larger of the two
     /// so that density stays that of the paper's setting (8 m x 8 m for 4).
+    ///
+    /// Nothing is checked here (that is [`Scenario::validate`]'s job, which every run does), but
+    /// nothing beyond the bounds is allocated either: `targets` above
+    /// [`MAX_TARGETS`](crate::bounds::MAX_TARGETS) makes `MAX_TARGETS + 1` targets, and the room
+    /// is sized from counts capped likewise, so `sized(.., usize::MAX, ..)` costs nothing and
+    /// the scenario is refused by `validate` (naming `robots` or `world.targets`), never
+    /// shrunk into a valid one. For counts a user typed, [`Scenario::try_sized`] refuses them
+    /// with the count as given.
     pub fn sized(controller: Controller, robots: usize, targets: usize, seed: u64) -> Scenario {
-        let mut world = WorldConfig::lab(&priorities(targets));
-        let side = 8.0 * (robots.max(targets) as f64 / 4.0).sqrt().max(1.0);
+        let mut world = WorldConfig::lab(&priorities(targets.min(MAX_TARGETS + 1)));
+        let room_for = robots.min(MAX_ROBOTS + 1).max(targets.min(MAX_TARGETS + 1));
+        let side = 8.0 * (room_for as f64 / 4.0).sqrt().max(1.0);
         world.arena = [side, side];
         Scenario {
             world,
@@ -113,6 +122,21 @@ impl Scenario {
             dt: 0.05,
             sense_every: 2,
         }
+    }
+
+    /// [`Scenario::sized`], refusing first a team of other than 1 to
+    /// [`MAX_ROBOTS`](crate::bounds::MAX_ROBOTS) robots or other than 1 to
+    /// [`MAX_TARGETS`](crate::bounds::MAX_TARGETS) targets, naming the count as given (`robots`,
+    /// `targets`). The rest is checked by [`Scenario::validate`], as for any scenario.
+    pub fn try_sized(
+        controller: Controller,
+        robots: usize,
+        targets: usize,
+        seed: u64,
+    ) -> Result<Scenario, InvalidScenario> {
+        crate::bounds::robots(u64::try_from(robots).ok(), robots)?;
+        crate::bounds::targets("targets", u64::try_from(targets).ok(), targets)?;
+        Ok(Scenario::sized(controller, robots, targets, seed))
     }
 
     /// The same scenario with radio loss probability `loss`.

@@ -386,3 +386,25 @@ proptest! {
         }
     }
 }
+
+#[test]
+fn sized_allocates_nothing_beyond_the_bounds_and_validate_refuses_absurd_counts() {
+    // `sized(.., usize::MAX)` used to collect usize::MAX target priorities before any check.
+    let s = Scenario::sized(Controller::Ble, 3, usize::MAX, 1);
+    assert_eq!(s.world.targets.len(), ayllu_sim::bounds::MAX_TARGETS + 1);
+    let e = s.validate().unwrap_err().to_string();
+    assert!(e.starts_with("world.targets: 1001 targets ") && e.contains("from 1 to 1000 targets"), "{e}");
+    let e = Scenario::sized(Controller::Ble, usize::MAX, usize::MAX, 1).validate().unwrap_err().to_string();
+    assert!(e.starts_with("robots: ") && e.contains("from 1 to 10000"), "{e}");
+    // The room is sized from the capped counts: the arena is not what is refused.
+    let e = Scenario::sized(Controller::Ble, 3, 1 << 40, 1).validate().unwrap_err().to_string();
+    assert!(e.starts_with("world.targets"), "{e}");
+    // try_sized refuses the counts as given, before anything is made.
+    let e = Scenario::try_sized(Controller::Ble, 3, usize::MAX, 1).unwrap_err().to_string();
+    assert!(e.starts_with(&format!("targets: {} ", usize::MAX)) && e.contains("from 1 to 1000 targets"), "{e}");
+    let e = Scenario::try_sized(Controller::Ble, 0, 4, 1).unwrap_err().to_string();
+    assert!(e.starts_with("robots: 0 "), "{e}");
+    let ok = Scenario::try_sized(Controller::Ble, 10_000, 1000, 1).expect("the largest team");
+    assert_eq!(ok, Scenario::sized(Controller::Ble, 10_000, 1000, 1));
+    ok.validate().expect("valid");
+}
