@@ -11,8 +11,10 @@
 //! recording is a file from outside (a killed robot's, a copied one), so here every length is
 //! checked against the bytes that are there before anything is sliced or reserved, and only
 //! the records the two readers use are decoded: channels, messages, metadata, the data end
-//! and the footer. Everything else (schemas, indexes, attachments, statistics) is framed and
-//! skipped unread. The `mcap` crate still writes the files.
+//! and the footer; a chunk's CRC, when the writer computed one, is checked before its records
+//! are read (a damaged chunk is a [`Malformed`], not different values). Everything else
+//! (schemas, indexes, attachments, statistics) is framed and skipped unread. The `mcap` crate
+//! still writes the files.
 //!
 //! Promise: for any bytes, [`Records`] yields records or one [`Malformed`] and then stops;
 //! it never panics, and allocates in proportion to the bytes there, never to what a length
@@ -221,7 +223,7 @@ fn chunk_records<'a>(body: &mut Cursor<'a>) -> Result<Cursor<'a>, Malformed> {
     let _start_time = body.u64("a chunk's start time")?;
     let _end_time = body.u64("a chunk's end time")?;
     let _uncompressed_size = body.u64("a chunk's uncompressed size")?;
-    let _crc = body.u32("a chunk's CRC")?;
+    let crc = body.u32("a chunk's CRC")?;
     let compression = body.str("a chunk's compression")?;
     if !compression.is_empty() {
         return Err(body.malformed(format!(
@@ -233,6 +235,20 @@ fn chunk_records<'a>(body: &mut Cursor<'a>) -> Result<Cursor<'a>, Malformed> {
     // A chunk a killed writer left open has `!0` here, as in its record's length: checked
     // against the bytes that are there, it ends what can be read instead of reading past.
     let records = body.len(size, "a chunk's records")?;
+    // The CRC-32 of the uncompressed records, 0 when the writer did not compute one (MCAP
+    // spec, "Chunk"). Checked before any record of the chunk is read: a flipped byte in a
+    // value would otherwise be read as a different value, not as damage.
+    if crc != 0 {
+        let computed = crc32fast::hash(records);
+        if computed != crc {
+            return Err(Malformed {
+                at,
+                what: format!(
+                    "a chunk's records do not match its CRC (stored {crc:#010x}, computed {computed:#010x}): the file is damaged"
+                ),
+            });
+        }
+    }
     Ok(Cursor { bytes: records, at })
 }
 
@@ -307,6 +323,50 @@ mod tests {
         f.extend(&body);
         let e = all(&f).remove(0).unwrap_err();
         assert!(e.what.contains("topic of 4294967295 bytes, but 3 are left"), "{e}");
+    }
+
+    /// A file of one uncompressed chunk holding `records`, with `crc` in its header.
+    fn one_chunk(records: &[u8], crc: u32) -> Vec<u8> {
+        let body = [
+            &0u64.to_le_bytes()[..],
+            &0u64.to_le_bytes(),
+            &(records.len() as u64).to_le_bytes(),
+            &crc.to_le_bytes(),
+            &0u32.to_le_bytes(),
+            &(records.len() as u64).to_le_bytes(),
+            records,
+        ]
+        .concat();
+        let mut f = mcap::MAGIC.to_vec();
+        f.push(op::CHUNK);
+        f.extend((body.len() as u64).to_le_bytes());
+        f.extend(&body);
+        f
+    }
+
+    #[test]
+    fn a_chunk_whose_crc_does_not_match_its_records_is_refused() {
+        // A channel record (id 1, topic "abc"), then the file ends (no footer).
+        let channel = [&1u16.to_le_bytes()[..], &0u16.to_le_bytes(), &3u32.to_le_bytes(), b"abc"].concat();
+        let records = [&[op::CHANNEL][..], &(channel.len() as u64).to_le_bytes(), &channel].concat();
+        let crc = crc32fast::hash(&records);
+        fn read(f: &[u8]) -> Result<McapRecord<'_>, String> {
+            all(f).remove(0).map_err(|e| e.to_string())
+        }
+        // The right CRC, and 0 ("not computed", MCAP spec), read.
+        assert_eq!(read(&one_chunk(&records, crc)), Ok(McapRecord::Channel { id: 1, topic: "abc" }));
+        assert_eq!(read(&one_chunk(&records, 0)), Ok(McapRecord::Channel { id: 1, topic: "abc" }));
+        // One flipped byte of the records (the topic's `b` to `c`), or a wrong CRC: refused
+        // before any of its records is read, naming both CRCs.
+        let mut flipped = one_chunk(&records, crc);
+        let last = flipped.len() - 2;
+        flipped[last] ^= 0x01;
+        let e = read(&flipped).unwrap_err();
+        assert_eq!(all(&flipped).len(), 1);
+        assert!(e.starts_with("at byte 57: a chunk's records do not match its CRC (stored 0x"), "{e}");
+        assert!(e.ends_with("): the file is damaged"), "{e}");
+        let e = read(&one_chunk(&records, crc ^ 1)).unwrap_err();
+        assert!(e.contains(&format!("stored {:#010x}, computed {crc:#010x}", crc ^ 1)), "{e}");
     }
 
     #[test]

@@ -140,9 +140,88 @@ fn every_truncation_of_a_small_recording_is_a_shorter_recording_or_an_error() {
     assert!(recordings > good.len() / 2, "{recordings} of {} cuts read as recordings", good.len());
 }
 
+/// Where `file`'s chunks keep their CRC (the offset of the `u32`), and the byte range of each
+/// one's records. Walks the records of a well-formed file (MCAP spec: opcode, `u64` length,
+/// body; a chunk's body: start and end times, uncompressed size, CRC, compression, records
+/// size, records).
+fn chunks(file: &[u8]) -> Vec<(usize, std::ops::Range<usize>)> {
+    let u32_at = |at: usize| u32::from_le_bytes(file[at..at + 4].try_into().unwrap()) as usize;
+    let u64_at = |at: usize| usize::try_from(u64::from_le_bytes(file[at..at + 8].try_into().unwrap())).unwrap();
+    let mut out = Vec::new();
+    let mut at = 8;
+    while at + 9 <= file.len() {
+        let body = at + 9;
+        if file[at] == 0x06 {
+            let crc = body + 24;
+            let size = crc + 8 + u32_at(crc + 4);
+            out.push((crc, size + 8..size + 8 + u64_at(size)));
+        }
+        at = body + u64_at(at + 1);
+    }
+    out
+}
+
+#[test]
+fn a_flipped_byte_in_a_chunk_is_refused_by_the_chunks_crc() {
+    // The chunk CRC was not checked: a flipped byte in a recorded value read as another value.
+    let good = small_recording();
+    let found = chunks(&good);
+    assert!(found.len() >= 2, "{found:?}");
+    let mut flips = 0;
+    for (crc, records) in &found {
+        assert_ne!(good[*crc..crc + 4], [0u8; 4], "Ayllu's writer computes chunk CRCs");
+        for at in records.clone() {
+            let mut bad = good.clone();
+            bad[at] ^= 0x04;
+            flips += 1;
+            match Recording::from_bytes(&bad) {
+                // Damage before the recording's own metadata: not a recording at all.
+                Err(e) => assert!(e.to_string().contains("do not match its CRC"), "byte {at}: {e}"),
+                // After it: the recording ends where the damage starts.
+                Ok(rec) => assert!(
+                    matches!(&rec.ending, Ending::Cut { reason } if reason.contains("a chunk's records do not match its CRC")),
+                    "byte {at}: {:?}",
+                    rec.ending
+                ),
+            }
+        }
+    }
+    assert!(flips > 1000, "{flips}");
+
+    // A team recording too.
+    use ayllu::team_channels::PortChannel;
+    use ayllu::team_recording::TeamWriter;
+    use ayllu::{Value, ValueType};
+    let mut buf = std::io::Cursor::new(Vec::new());
+    {
+        let mut w = TeamWriter::new(&mut buf).unwrap();
+        let ch = PortChannel { node: NodeId(1), behavior: "R".into(), port: "Out".into(), ty: ValueType::Float };
+        for i in 0..5 {
+            w.write(&ch, &Value::Float(f64::from(i)), None, 1_000 + u64::try_from(i).unwrap()).unwrap();
+        }
+        w.finish().unwrap();
+    }
+    let good = buf.into_inner();
+    assert_eq!(read_recording(&good).unwrap().len(), 5);
+    let (_, records) = chunks(&good).remove(0);
+    let mut bad = good.clone();
+    bad[records.end - 3] ^= 0x01; // inside the last value's JSON
+    let e = read_recording(&bad).unwrap_err().to_string();
+    assert!(
+        e.contains("a chunk's records do not match its CRC (stored 0x") && e.contains("the file is damaged"),
+        "{e}"
+    );
+}
+
 #[test]
 fn every_byte_of_a_small_recording_mutated_reads_or_is_refused() {
-    let good = small_recording();
+    // Chunk CRCs zeroed ("not computed"), so that mutations inside chunks reach the records'
+    // framing and decoding rather than stopping at the CRC (tested above).
+    let mut good = small_recording();
+    for (crc, _) in chunks(&good) {
+        good[crc..crc + 4].fill(0);
+    }
+    assert!(Recording::from_bytes(&good).is_ok());
     // Every byte set to 0xff (a length it is part of becomes huge); every fifth also set to
     // 0x00 (short) and flipped (in the JSON, mostly): no panic. (All three on every byte take
     // 20 s unoptimized, for little more.)
