@@ -15,6 +15,7 @@ use std::sync::Arc;
 
 use ayllu::stdlib;
 use ayllu_core::{Error as CoreError, NodeCore};
+use ayllu_sim::bounds::show;
 use ayllu_sim::controller::{Brain, Controller, ControllerConfig};
 use ayllu_sim::scenario::{node_id, Scenario, Sim, SimError};
 use pyo3::exceptions::PyRuntimeError;
@@ -30,6 +31,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(scenario_json, m)?)?;
     m.add_function(wrap_pyfunction!(controller_names, m)?)?;
     m.add_function(wrap_pyfunction!(run_scenario, m)?)?;
+    m.add("MAX_TRACE_VALUES", MAX_TRACE_VALUES)?;
     m.add_class::<RobotBuilder>()?;
     Ok(())
 }
@@ -198,6 +200,33 @@ fn brain(core: &NodeCore, spec: &Bound<'_, PyAny>) -> PyResult<Brain> {
     }
 }
 
+/// The most values a trace (`run(..., trace=True)`) keeps: ticks x (1 + 5 x robots + 2 x
+/// targets). The trace is held whole, twice for a moment (Rust vectors, then Python lists of
+/// about 32 bytes a value), so 2e7 values is about 800 MB at its peak, less than the largest
+/// recording ([`ayllu_sim::bounds::MAX_RECORDED`] poses, 2 GB). A run whose trace would hold
+/// more is refused before it starts (not cut short, nor thinned, in silence): a recording
+/// keeps every frame within its own bound, and the `ayllu` tool streams a per-tick trace to a
+/// file. docs/python.md says why.
+pub const MAX_TRACE_VALUES: f64 = 2e7;
+
+/// Refuse `trace=True` on a scenario whose trace would hold more than [`MAX_TRACE_VALUES`].
+fn check_trace(s: &Scenario) -> PyResult<()> {
+    let ticks = (s.duration / s.dt).ceil() + 1.0; // the state before the first step, then one a step
+    let per_tick = 1 + 5 * s.robots + 2 * s.world.targets.len();
+    let values = ticks * per_tick as f64;
+    if values > MAX_TRACE_VALUES {
+        let shown = if values < 1e6 { format!("{values:.0}") } else { format!("{values:.1e}") };
+        return Err(errors::value_error(format!(
+            "trace=True would keep {shown} values ({ticks:.0} ticks x {per_tick} values: the time, 5 per robot, 2 per target), \
+             more than {} (sim.MAX_TRACE_VALUES, about 800 MB): shorten the run, record it instead (the scenario's \
+             record=True keeps every frame_dt's poses), or stream the trace to a file with `ayllu sim run FILE \
+             --trace T.csv`",
+            show(MAX_TRACE_VALUES)
+        )));
+    }
+    Ok(())
+}
+
 /// Per-tick state: time, and per robot and tick x, y, theta, alive, drive; per target x, y.
 #[derive(Default)]
 struct Trace {
@@ -281,6 +310,11 @@ fn run_scenario<'py>(
         return Err(errors::value_error(
             "threads > 1 needs a built-in controller: a Python controller's processes run one at a time (the GIL)",
         ));
+    }
+    if trace {
+        // The scenario's own bounds first: they name its fields.
+        scenario.validate().map_err(sim_error)?;
+        check_trace(&scenario)?;
     }
     let (robots, targets) = (scenario.robots, scenario.world.targets.len());
     let mut tr = trace.then(Trace::default);

@@ -3,6 +3,8 @@ the baselines, and a Python controller beside the Rust ones."""
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -84,6 +86,34 @@ def test_per_tick_traces_as_numpy_arrays_and_a_dataframe() -> None:
     cov = out.coverage_frame()
     assert list(cov.columns) == ["t", "observed", "weighted"]
     assert sim.run(short(duration=1.0)).trace_hash == out.trace_hash, "tracing changes nothing"
+
+
+def test_a_trace_is_bounded_and_a_run_that_would_exceed_it_is_refused_before_it_starts() -> None:
+    # The trace used to grow with the run, without limit.
+    assert sim.MAX_TRACE_VALUES == 2e7
+    # The paper's setting keeps 1 + 5 x 3 + 2 x 4 = 24 values a tick: 1e6 s is 2e7 + 1 ticks.
+    called = []
+
+    def never(robot: sim.RobotBuilder) -> sim.BrainSpec:
+        called.append(robot.id)
+        return None
+
+    for controller in (None, never):
+        start = time.monotonic()
+        with pytest.raises(ValueError) as e:
+            sim.run(short(duration=1e6), controller, trace=True)
+        assert time.monotonic() - start < 5.0, "refused before running"
+        msg = str(e.value)
+        assert msg.startswith("trace=True would keep 4.8e8 values (20000001 ticks x 24 values"), msg
+        assert "more than 2e7 (sim.MAX_TRACE_VALUES" in msg
+        assert "record=True" in msg and "ayllu sim run FILE --trace T.csv" in msg
+    assert called == []
+    # A large team reaches the bound sooner: 1000 robots, 4 targets (5009 values a tick).
+    with pytest.raises(ValueError, match=r"^trace=True would keep 2\.0\d*e7 values \(4001 ticks x 5009 values"):
+        sim.run(sim.Scenario.sized("BLE", 1000, 4, 1).with_(duration=200.0), trace=True)
+    # A scenario out of its own bounds is refused by its field first, trace or not.
+    with pytest.raises(ValueError, match=r"^duration: "):
+        sim.run(short(duration=float("nan")), trace=True)
 
 
 class Spinner(ayllu.Behavior):

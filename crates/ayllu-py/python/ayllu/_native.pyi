@@ -6,6 +6,7 @@ from typing import Any, Literal, Optional, Union
 from ayllu.report import ProcessError, Report, RequestStatus
 
 DROP_CAUSES: list[str]
+MAX_TRACE_VALUES: float
 
 class AylluError(Exception): ...
 class NotFoundError(AylluError, LookupError): ...

@@ -28,6 +28,7 @@ from ayllu import _native
 
 __all__ = [
     "CONTROLLERS",
+    "MAX_TRACE_VALUES",
     "Outcome",
     "RobotBuilder",
     "Scenario",
@@ -41,6 +42,12 @@ __all__ = [
 RobotBuilder = _native.RobotBuilder
 CONTROLLERS: list[str] = list(_native.controller_names())
 """The built-in controllers: BLE (the paper's Fig. 2), Random, Local, ForceField, Centralized, Planner."""
+
+MAX_TRACE_VALUES: float = _native.MAX_TRACE_VALUES
+"""The most values ``run(..., trace=True)`` keeps: ticks x (1 + 5 x robots + 2 x targets), 2e7
+(about 800 MB at its peak). A run whose trace would hold more is refused with a
+``ValueError`` before it starts: record it (the scenario's ``record``) or stream its trace to a
+file with ``ayllu sim run FILE --trace T.csv`` (docs/python.md)."""
 
 BrainSpec = Optional[tuple[str, Any]]
 Controller = Callable[[Any], BrainSpec]
@@ -265,7 +272,8 @@ def run(
     threads: int = 1,
 ) -> Outcome:
     """Run ``scenario`` to its end: with its built-in controller, or with ``controller`` (a
-    Python controller) on every robot. ``trace=True`` also keeps the per-tick state.
+    Python controller) on every robot. ``trace=True`` also keeps the per-tick state, up to
+    :data:`MAX_TRACE_VALUES` values (a longer or larger run is refused before it starts).
 
     ``threads``: up to this many threads share each tick's robots (built-in controllers
     only; a thread takes at least 50 robots). The outcome is the same bit for bit whatever
