@@ -97,12 +97,11 @@ impl Scenario {
     /// so that density stays that of the paper's setting (8 m x 8 m for 4).
     ///
     /// Nothing is checked here (that is [`Scenario::validate`]'s job, which every run does), but
-    /// nothing beyond the bounds is allocated either: `targets` above
-    /// [`MAX_TARGETS`](crate::bounds::MAX_TARGETS) makes `MAX_TARGETS + 1` targets, and the room
-    /// is sized from counts capped likewise, so `sized(.., usize::MAX, ..)` costs nothing and
-    /// the scenario is refused by `validate` (naming `robots` or `world.targets`), never
-    /// shrunk into a valid one. For counts a user typed, [`Scenario::try_sized`] refuses them
-    /// with the count as given.
+    /// nothing beyond the bounds is allocated either: `targets` above [`MAX_TARGETS`] makes
+    /// `MAX_TARGETS + 1` targets, and the room is sized from counts capped likewise, so
+    /// `sized(.., usize::MAX, ..)` costs nothing and the scenario is refused by `validate`
+    /// (naming `robots` or `world.targets`), never shrunk into a valid one. For counts a user
+    /// typed, [`Scenario::try_sized`] refuses them with the count as given.
     pub fn sized(controller: Controller, robots: usize, targets: usize, seed: u64) -> Scenario {
         let mut world = WorldConfig::lab(&priorities(targets.min(MAX_TARGETS + 1)));
         let room_for = robots.min(MAX_ROBOTS + 1).max(targets.min(MAX_TARGETS + 1));
@@ -124,9 +123,8 @@ impl Scenario {
         }
     }
 
-    /// [`Scenario::sized`], refusing first a team of other than 1 to
-    /// [`MAX_ROBOTS`](crate::bounds::MAX_ROBOTS) robots or other than 1 to
-    /// [`MAX_TARGETS`](crate::bounds::MAX_TARGETS) targets, naming the count as given (`robots`,
+    /// [`Scenario::sized`], refusing first a team of other than 1 to [`MAX_ROBOTS`] robots or
+    /// other than 1 to [`MAX_TARGETS`] targets, naming the count as given (`robots`,
     /// `targets`). The rest is checked by [`Scenario::validate`], as for any scenario.
     pub fn try_sized(
         controller: Controller,
