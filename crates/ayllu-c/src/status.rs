@@ -80,6 +80,7 @@ pub(crate) fn core_status(e: &ayllu_core::Error) -> ay_status {
         E::ZeroPeriod { .. }
         | E::NegativePeriod { .. }
         | E::InvalidDuration { .. }
+        | E::BelowResolution { .. }
         | E::ZeroProcessPeriod { .. }
         | E::ZeroWindow { .. } => ay_status::AY_ERR_PERIOD,
         E::InvalidRate { .. } => ay_status::AY_ERR_RATE,

@@ -96,6 +96,12 @@ pub enum Error {
         /// The seconds given.
         seconds: f64,
     },
+    /// A duration given in seconds was above zero but under half a nanosecond, the clock's
+    /// resolution: it would round to zero (and then read as "no period").
+    BelowResolution {
+        /// The seconds given.
+        seconds: f64,
+    },
     /// Rates must be finite and above zero, with a period of at least 1 ns and under 584
     /// years.
     InvalidRate {
@@ -218,6 +224,11 @@ impl fmt::Display for Error {
                 "{} s is not a usable duration; durations are finite, from 0 to {} s (about 584 years)",
                 Compact(*seconds),
                 Duration::MAX_SECS
+            ),
+            Error::BelowResolution { seconds } => write!(
+                f,
+                "{} s is above zero but under 1 ns, the clock's resolution, so it would round to 0 s: give at least 1 ns (1e-9 s), or 0 where none is meant",
+                Compact(*seconds)
             ),
             Error::InvalidRate { hz } => write!(
                 f,

@@ -114,8 +114,10 @@ impl Duration {
     pub const fn from_secs(s: u64) -> Self {
         Duration { nanos: s.saturating_mul(1_000_000_000) }
     }
-    /// Seconds as a float, as users write them (`0.2`). Negative, NaN or infinite input is an
-    /// error, never a panic: a period typed wrong must be reported, not wrapped.
+    /// Seconds as a float, as users write them (`0.2`), to the nearest nanosecond. Negative,
+    /// NaN or infinite input is an error, never a panic: a period typed wrong must be reported,
+    /// not wrapped. So is a positive value that rounds to zero (under half a nanosecond,
+    /// [`Error::BelowResolution`]): it was meant to be something, and zero means none.
     pub fn try_from_secs_f64(secs: f64) -> Result<Self, Error> {
         if secs.is_nan() || secs.is_infinite() {
             return Err(Error::InvalidDuration { seconds: secs });
@@ -127,7 +129,13 @@ impl Duration {
         if nanos >= u64::MAX as f64 {
             return Err(Error::InvalidDuration { seconds: secs });
         }
-        Ok(Duration { nanos: nanos.round() as u64 })
+        let nanos = nanos.round() as u64;
+        // A positive span the clock cannot hold is refused rather than read as none: a
+        // "period above zero" of 1e-12 s would otherwise be refused for being zero.
+        if nanos == 0 && secs > 0.0 {
+            return Err(Error::BelowResolution { seconds: secs });
+        }
+        Ok(Duration { nanos })
     }
     /// The period of a rate in hertz. Zero, negative, NaN or infinite rates are errors.
     pub fn try_from_hz(hz: f64) -> Result<Self, Error> {

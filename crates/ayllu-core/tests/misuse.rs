@@ -187,6 +187,23 @@ fn negative_or_unusable_periods_are_errors() {
 }
 
 #[test]
+fn a_positive_span_under_the_clocks_resolution_is_refused_not_read_as_zero() {
+    // D6.8: suppress(1e-12) used to be refused with "needs a period above zero", though the
+    // period given was above zero: it had been rounded to 0 ns on the way.
+    let e = Duration::try_from_secs_f64(1e-12).unwrap_err();
+    assert_eq!(e, Error::BelowResolution { seconds: 1e-12 });
+    says(&e, &["1e-12 s", "under 1 ns", "at least 1 ns"]);
+    assert!(matches!(Duration::try_from_secs_f64(4.9e-10), Err(Error::BelowResolution { .. })));
+    // Half a nanosecond and more round to the nearest nanosecond, and zero is zero.
+    assert_eq!(Duration::try_from_secs_f64(5e-10).unwrap(), Duration::from_nanos(1));
+    assert_eq!(Duration::try_from_secs_f64(1.4e-9).unwrap(), Duration::from_nanos(1));
+    assert_eq!(Duration::try_from_secs_f64(0.0).unwrap(), Duration::ZERO);
+    assert_eq!(Duration::try_from_secs_f64(-0.0).unwrap(), Duration::ZERO);
+    // A rate too high for a 1 ns period is still a bad rate, said as such.
+    assert!(matches!(Duration::try_from_hz(1e10), Err(Error::InvalidRate { .. })));
+}
+
+#[test]
 fn wild_seconds_and_rates_print_compactly_with_the_accepted_range() {
     // A period of 1e300 s used to print as a 301-digit number of seconds, and a rate of
     // 1e-300 Hz as 300 zeros.

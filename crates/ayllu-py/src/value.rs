@@ -87,7 +87,8 @@ pub fn duration(what: &str, seconds: f64) -> PyResult<Duration> {
     if seconds > LONGEST_SECS as f64 {
         return Err(errors::InvalidError::new_err(format!("{what} = {shown} s is too long: {what} must be {range}")));
     }
-    Duration::try_from_secs_f64(seconds).map_err(errors::core)
+    // What is left to refuse is a span under the clock's 1 ns (D6.8), named by its argument.
+    Duration::try_from_secs_f64(seconds).map_err(|e| errors::InvalidError::new_err(format!("{what} = {e}")))
 }
 
 /// A node-clock instant given in seconds since the clock's origin (`set_time`): a time, so

@@ -114,6 +114,14 @@ def test_advance_refuses_bad_seconds_naming_its_argument_not_a_period() -> None:
         node.advance(1.0, tick=float("inf"))
 
 
+def test_a_period_under_one_nanosecond_is_refused_as_such() -> None:
+    # suppress(1e-12) used to say "a suppress connection needs a period above zero" (D6.8).
+    node = ayllu.Node(7, manual=True)
+    with pytest.raises(ayllu.InvalidError, match=r"^period = 1e-12 s is above zero but under 1 ns") as e:
+        node.connect(ayllu.local("A", "x"), ayllu.local("B", "y"), ayllu.suppress(1e-12))
+    assert "at least 1 ns" in str(e.value)
+
+
 def test_invalid_not_found_and_value_type_errors_are_also_the_matching_builtins() -> None:
     # errors.rs promised it; InvalidError used to derive from AylluError only.
     for cls, builtin in (
