@@ -408,8 +408,21 @@ pub fn compact(x: f64) -> String {
     }
 }
 
-/// Seconds: finite, above zero, at most [`MAX_SECS`].
+/// Seconds: finite, at least 1 ns (the clock's resolution), at most [`MAX_SECS`].
 pub fn positive_secs(s: &str) -> Result<f64, String> {
+    let x = positive_number(s)?;
+    // Under half a nanosecond a span rounds to none on the node's clock (D6.8).
+    if x < 0.5e-9 {
+        return Err(format!(
+            "must be at least 1e-9 (1 ns, the clock's resolution) and at most {MAX_SECS:e} (got {})",
+            compact(x)
+        ));
+    }
+    Ok(x)
+}
+
+/// A finite number above zero and at most [`MAX_SECS`]: what seconds and rates share.
+fn positive_number(s: &str) -> Result<f64, String> {
     let x: f64 = s.parse().map_err(|_| format!("`{s}` is not a number"))?;
     if !x.is_finite() || x <= 0.0 {
         return Err(format!("must be greater than 0 (got {})", compact(x)));
@@ -420,11 +433,11 @@ pub fn positive_secs(s: &str) -> Result<f64, String> {
     Ok(x)
 }
 
-/// A rate in hertz: as [`positive_secs`], and at least `1 / MAX_SECS`, so that the period
+/// A rate in hertz: finite, above zero, at most [`MAX_SECS`], and at least `1 / MAX_SECS`, so that the period
 /// between two events (`1 / hz` seconds) is a duration too (`--repeat-hz 1e-300` used to
 /// panic when `write` turned it into its interval).
 pub fn positive_hz(s: &str) -> Result<f64, String> {
-    let hz = positive_secs(s)?;
+    let hz = positive_number(s)?;
     if hz < 1.0 / MAX_SECS {
         return Err(format!("must be at least {:e} and at most {MAX_SECS:e} (got {})", 1.0 / MAX_SECS, compact(hz)));
     }
@@ -554,6 +567,12 @@ mod tests {
         assert_eq!(positive_secs("-1e300"), Err("must be greater than 0 (got -1e300)".to_owned()));
         assert_eq!(positive_secs("0"), Err("must be greater than 0 (got 0)".to_owned()));
         assert_eq!(positive_hz("1e-300"), Err("must be at least 1e-9 and at most 1e9 (got 1e-300)".to_owned()));
+        // Seconds under the clock's 1 ns would round to none.
+        assert_eq!(
+            positive_secs("1e-300"),
+            Err("must be at least 1e-9 (1 ns, the clock's resolution) and at most 1e9 (got 1e-300)".to_owned())
+        );
+        assert_eq!(positive_secs("1e-9"), Ok(1e-9));
         assert_eq!(compact(12.5), "12.5");
         assert_eq!(compact(1e297), "1e297");
         assert_eq!(compact(f64::NAN), "NaN");
