@@ -569,6 +569,8 @@ mod tests {
             empty: false,
             last_accepted: None,
             supplier,
+            supplier_priority: None,
+            released_in: None,
             accepted: 0,
             windows,
             input_blocked,

@@ -93,6 +93,16 @@ pub struct PortReport {
     pub last_accepted: Option<Instant>,
     /// Who supplied the value it holds (D3.4); `None` while empty or never written.
     pub supplier: Option<Source>,
+    /// A Priority port holding a value: the priority its supplier holds it at (D3.3): only a
+    /// higher one replaces it. `None` otherwise.
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub supplier_priority: Option<i32>,
+    /// An aggregating port holding a value: how much longer it holds it unless it is renewed,
+    /// i.e. until the end of its window (Max, Min, Sum: D3.2), its holder's lease (Priority:
+    /// renewed by each accepted write, D3.7) or its lifespan, whichever comes first; then the
+    /// port empties and the next value opens it. `None`: nothing ends it by time.
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub released_in: Option<Duration>,
     /// Values the port has accepted since its behavior was created.
     pub accepted: u64,
     /// Every open window, soonest-ending first.
@@ -231,6 +241,8 @@ impl NodeCore {
             .filter_map(|c| all.iter().find(|i| i.id.0 == c.id).cloned())
             .collect();
         let empty = ps.cell.is_empty(now);
+        let holds = spec.kind.is_aggregating() && !empty;
+        let release = ps.cell.release_at();
         let triggers = ps
             .triggers
             .iter()
@@ -248,6 +260,8 @@ impl NodeCore {
             empty,
             last_accepted: ps.cell.last_accepted(),
             supplier: if empty { None } else { ps.cell.supplier() },
+            supplier_priority: (holds && spec.kind == PortKind::Priority).then_some(ps.cell.supplier_priority),
+            released_in: (holds && release != Instant::MAX).then(|| release - now),
             accepted: ps.accepted,
             windows,
             input_blocked: ps.windows.admit_write(now, nobody).err(),
@@ -365,16 +379,40 @@ impl fmt::Display for PortReport {
         }
         writeln!(f, ")")?;
         match self.supplier {
-            Some(s) => writeln!(f, "  supplier  {s}")?,
-            None => writeln!(f, "  supplier  none")?,
+            Some(s) => write!(f, "  supplier  {s}")?,
+            None => write!(f, "  supplier  none")?,
         }
+        if let Some(p) = self.supplier_priority {
+            write!(f, " at priority {p} (only a higher one replaces it)")?;
+        }
+        if let Some(d) = self.released_in {
+            let by = if self.kind == PortKind::Priority { "its lease ends" } else { "its window or lifespan ends" };
+            write!(f, "; released in {d} unless renewed ({by})")?;
+        }
+        writeln!(f)?;
         let blocked = |d: Option<DropCause>| d.map_or("open".to_owned(), |d| format!("BLOCKED ({d})"));
-        writeln!(f, "  input     {}", blocked(self.input_blocked))?;
+        // An override's holder has a pass (S6): its values still get through the window it
+        // opened, unless something without passes blocks them too (then that is the cause).
+        let passes = |cause: Option<DropCause>, overriding: DropCause, kind: WindowKind| {
+            let holders: Vec<String> =
+                self.windows.iter().filter(|w| w.kind == kind).map(|w| w.holder.to_string()).collect();
+            if cause != Some(overriding) || holders.is_empty() {
+                return String::new();
+            }
+            format!(" except along {} (the override's pass)", holders.join(", "))
+        };
         writeln!(
             f,
-            "  output    own writes {}, connection writes {}",
+            "  input     {}{}",
+            blocked(self.input_blocked),
+            passes(self.input_blocked, DropCause::OverriddenIn, WindowKind::OverrideIn)
+        )?;
+        writeln!(
+            f,
+            "  output    own writes {}, connection writes {}{}",
             blocked(self.internal_output_blocked),
-            blocked(self.connection_output_blocked)
+            blocked(self.connection_output_blocked),
+            passes(self.connection_output_blocked, DropCause::OverriddenOut, WindowKind::OverrideOut)
         )?;
         for w in &self.windows {
             writeln!(f, "  window    {} held by {} for {} more", w.kind.name(), w.holder, w.remaining)?;

@@ -177,3 +177,80 @@ fn why_of_an_unknown_port_is_an_error() {
     assert!(matches!(node.why("D", "Nope"), Err(Error::UnknownPort { .. })));
     assert!(matches!(node.why("Nobody", V), Err(Error::UnknownBehavior { .. })));
 }
+
+#[test]
+fn why_display_names_the_overrides_pass_holder() {
+    // S6: the holder of an override has a pass. `why` used to say "connection writes BLOCKED
+    // (overridden_out)" while the holder's own value was going out along the port's outgoing
+    // connection.
+    let (mut node, ids) = arbitrated();
+    put(&mut node, at(0), "OO", 7);
+    let text = node.why("D", V).unwrap().to_string();
+    let oo = held_by(ids[3]).to_string();
+    assert!(
+        text.contains(&format!("connection writes BLOCKED (overridden_out) except along {oo} (the override's pass)")),
+        "{text}"
+    );
+    assert_eq!(value(&node, "E"), 7, "the holder's value did go out");
+    put(&mut node, at(1), "OI", 8);
+    let text = node.why("D", V).unwrap().to_string();
+    let oi = held_by(ids[2]).to_string();
+    assert!(
+        text.contains(&format!("input     BLOCKED (overridden_in) except along {oi} (the override's pass)")),
+        "{text}"
+    );
+    // A suppression has no passes: then it is the cause, and nobody is excepted.
+    put(&mut node, at(2), "S", 1);
+    let text = node.why("D", V).unwrap().to_string();
+    assert!(text.contains("input     BLOCKED (suppressed)\n"), "{text}");
+}
+
+#[test]
+fn why_shows_a_priority_holders_priority_and_when_its_hold_ends() {
+    // D3.3, D3.7: a lower-priority write was refused with nothing in `why` to say why, or
+    // until when.
+    let mut node = NodeCore::new(NODE);
+    let mut class = BehaviorClass::new("Arb");
+    class.port(PortSpec::new("P", 0i64).priority().window(ms(500))).unwrap();
+    class.port(PortSpec::new("M", 0i64).max().window(ms(800))).unwrap();
+    node.define(class).unwrap();
+    let mut relay = BehaviorClass::new("Relay");
+    relay.port(PortSpec::new(V, 0i64)).unwrap();
+    node.define(relay).unwrap();
+    for name in ["AGG", "HI", "LO"] {
+        node.create(if name == "AGG" { "Arb" } else { "Relay" }, name).unwrap();
+    }
+    for (from, priority) in [("HI", 9), ("LO", 3)] {
+        node.connect(
+            &Endpoint::local(from, V),
+            &Endpoint::local("AGG", "P"),
+            ConnectionKind::Normal,
+            ConnectOptions { priority },
+        )
+        .unwrap();
+    }
+    node.connect(
+        &Endpoint::local("LO", V),
+        &Endpoint::local("AGG", "M"),
+        ConnectionKind::Normal,
+        ConnectOptions::default(),
+    )
+    .unwrap();
+    let idle = node.why("AGG", "P").unwrap();
+    assert_eq!((idle.supplier_priority, idle.released_in), (None, None), "empty: nothing held");
+    put(&mut node, at(100), "HI", 1);
+    put(&mut node, at(300), "LO", 2);
+    node.poll(at(300));
+    let why = node.why("AGG", "P").unwrap();
+    assert_eq!(why.value, Value::Int(1), "the lower priority was absorbed");
+    assert_eq!((why.supplier_priority, why.released_in), (Some(9), Some(ms(300))));
+    let text = why.to_string();
+    assert!(text.contains("at priority 9 (only a higher one replaces it)"), "{text}");
+    assert!(text.contains("released in 300ms unless renewed (its lease ends)"), "{text}");
+    // The Max port's window opened with LO's first value at 300 ms.
+    let max = node.why("AGG", "M").unwrap();
+    assert_eq!((max.supplier_priority, max.released_in), (None, Some(ms(800))));
+    assert!(max.to_string().contains("released in 800ms unless renewed (its window or lifespan ends)"), "{max}");
+    // A Normal port holds until replaced: nothing to show.
+    assert_eq!(node.why("HI", V).unwrap().released_in, None);
+}
