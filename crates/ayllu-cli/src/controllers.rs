@@ -7,12 +7,16 @@
 //!   ([`ayllu::stdlib::cross_subsumption`], BLE group `Peers`). Its VISION ports are fed at
 //!   10 Hz from `--sight` (target n at bearing 0.1·n rad, as in the in-process tests), so a
 //!   node "sees" what the table says. Status:
-//!   `{"t","node","drive","rotate","claims","peers","counters"}` where `drive` is the layer
+//!   `{"t","node","drive","rotate","claims","peers","tools","counters"}` where `drive` is the layer
 //!   whose observer turns BASE (0 = WANDER; null when BASE.Rotate is a value no layer writes,
 //!   e.g. an override by hand) and `claims` the layers this node currently claims (BLE).
 //! * `relay`: behaviors `RELAY` (int) and `FRELAY` (float), each `In -> (process) -> Out ->
 //!   (connection) -> Aux`, for trying every connection kind by hand. Status:
-//!   `{"t","node","relay":{..},"frelay":{..},"peers","counters"}`.
+//!   `{"t","node","relay":{..},"frelay":{..},"peers","tools","counters"}`.
+//!
+//! `peers` are the team members heard recently (node ids); the `ayllu` tool invocations heard
+//! (`why`, `list`, `write`, ...) are left out of it, as `list` and `graph` leave them out, and
+//! only counted in `tools`.
 //!
 //! Times are the node's own clock (seconds since it started).
 
@@ -87,8 +91,20 @@ fn relay_json(node: &Node, behavior: &str) -> Json {
     Json::Object(m)
 }
 
+/// The name every `ayllu` tool invocation announces (`Client::open` in client.rs), which is
+/// how `graph` leaves the tools out of the team too.
+const TOOL_NAME: &str = "ayllu-cli";
+
+/// The status line's `peers`: the team members heard recently, without the `ayllu` tool
+/// invocations that asked this node something (each a peer of its own, ids from 0x7fff0000,
+/// which would drown the robots after a few queries); those are only counted (`tools`).
+fn peers_and_tools(node: &Node) -> (Vec<u32>, usize) {
+    let (tools, peers): (Vec<_>, Vec<_>) = node.peers().into_iter().partition(|p| p.name == TOOL_NAME);
+    (peers.iter().map(|p| p.node.0).collect(), tools.len())
+}
+
 fn status(node: &Node, args: &NodeArgs) -> Json {
-    let peers: Vec<u32> = node.peers().iter().map(|p| p.node.0).collect();
+    let (peers, tools) = peers_and_tools(node);
     let t = round3(node.now().as_secs_f64());
     match args.controller {
         Controller::CrossSubsumption => {
@@ -103,6 +119,7 @@ fn status(node: &Node, args: &NodeArgs) -> Json {
                 "rotate": rotate,
                 "claims": claims,
                 "peers": peers,
+                "tools": tools,
                 "counters": counters_json(node),
             })
         }
@@ -112,6 +129,7 @@ fn status(node: &Node, args: &NodeArgs) -> Json {
             "relay": relay_json(node, "RELAY"),
             "frelay": relay_json(node, "FRELAY"),
             "peers": peers,
+            "tools": tools,
             "counters": counters_json(node),
         }),
     }

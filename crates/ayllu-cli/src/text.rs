@@ -198,7 +198,13 @@ pub fn node_report_text(r: &NodeReport, peer: Option<&PeerInfo>) -> String {
         // Every behavior has the BLE ports; show them only where BLE runs (`--json` has all).
         let ble = b.processes.iter().any(|p| p.name == BLE_SELECT);
         for p in b.ports.iter().filter(|p| ble || ![LOCAL, INHIBIT, BEST].contains(&p.name.as_str())) {
-            let state = if p.fresh { "fresh" } else { "stale" };
+            // An aggregating port that is not fresh holds nothing (never written, or its
+            // window, lease or lifespan ended and released it): `why` says "empty", so does this.
+            let state = match (p.fresh, p.kind.is_aggregating()) {
+                (true, _) => "fresh",
+                (false, true) => "empty",
+                (false, false) => "stale",
+            };
             let _ = writeln!(
                 out,
                 "    {:<14} {:<8} {:<6} {:<12} {state}",
