@@ -35,6 +35,24 @@ pub struct Client {
     /// The tool's URL and team, for messages.
     url: String,
     team: u32,
+    /// Whether the URL has a key= (for messages: never the key itself).
+    keyed: bool,
+    /// Whether the tool sends to nodes by address (`peer=`, `broadcast=`): a node that drops
+    /// what it gets (another team or key) never learns the tool's address, so nothing comes
+    /// back for the tool to count, and the hint has to name team/key itself.
+    by_address: bool,
+    /// Whether the URL asks for `discovery=` on a loopback bind (`udp://127.0.0.1:...`), where
+    /// multicast HELLOs are not delivered.
+    loopback_discovery: bool,
+}
+
+/// Whether `url` (`udp://HOST:PORT?...`) binds a loopback address (`127.x.x.x`, `::1`,
+/// `localhost`).
+fn binds_loopback(url: &str) -> bool {
+    let Some(rest) = url.strip_prefix("udp://") else { return false };
+    let addr = rest.split(['?', '/']).next().unwrap_or("");
+    let host = addr.rsplit_once(':').map_or(addr, |(h, _)| h).trim_start_matches('[').trim_end_matches(']');
+    host.eq_ignore_ascii_case("localhost") || host.parse::<std::net::IpAddr>().is_ok_and(|ip| ip.is_loopback())
 }
 
 /// `url` with the value of `key=` hidden, for messages (a key must not end up in logs).
@@ -126,6 +144,9 @@ impl Client {
             honour_stop: true,
             url: redact_key(&net.udp),
             team,
+            keyed: transport::url_setting(&net.udp, "key").is_some_and(|k| !k.is_empty()),
+            by_address: ["peer", "broadcast"].iter().any(|o| transport::url_setting(&net.udp, o).is_some()),
+            loopback_discovery: transport::url_setting(&net.udp, "discovery").is_some() && binds_loopback(&net.udp),
         })
     }
 
@@ -241,11 +262,30 @@ impl Client {
         if !found.is_empty() {
             return found.join("; ");
         }
-        format!(
+        let mut hint = format!(
             "check the node id and the URL (--udp or AYLLU_URL, now `{}`): discovery= only finds nodes that use \
              the same discovery address (and ttl=1 across machines), else give peer=ADDR:PORT or broadcast=ADDR:PORT",
             self.url
-        )
+        );
+        if self.loopback_discovery {
+            // A socket bound to a loopback address gets no multicast: the nodes' HELLOs never
+            // arrive (only nodes that heard the tool's own HELLO answer it).
+            hint.push_str(
+                "; this tool binds a loopback address, where discovery HELLOs (multicast) do not arrive: bind \
+                 0.0.0.0 (udp://0.0.0.0:0?discovery=...) or give peer=ADDR:PORT",
+            );
+        }
+        if self.by_address {
+            // What the counters above show when the nodes' HELLOs reach the tool cannot show
+            // here: a node of another team or key drops the tool's datagrams and never answers.
+            hint.push_str(&format!(
+                "; and team/key: a node whose team= or key= differs from this tool's (team {}, {}) drops its \
+                 datagrams without answering",
+                self.team,
+                if self.keyed { "a key" } else { "no key" }
+            ));
+        }
+        hint
     }
 
     /// Send a control request to `node` and wait for its answer. `what` names the request in

@@ -115,32 +115,37 @@ fn with_suggestion(client: &mut Client, node: NodeId, path: &PortPath, fail: Fai
     let Ok(ReplyBody::Node(report)) = client.ask(node, ControlBody::List, &format!("LIST {node}")) else {
         return fail;
     };
-    let suggestion = if unknown_behavior {
-        let names: Vec<&str> = report.behaviors.iter().map(|b| b.name.as_str()).collect();
-        nearest(&path.behavior, &names).map(|b| format!("{b}.{}", path.port))
-    } else {
-        report.behaviors.iter().find(|b| b.name == path.behavior).and_then(|b| {
-            let names: Vec<&str> = b.ports.iter().map(|p| p.name.as_str()).collect();
-            nearest(&path.port, &names).map(|p| format!("{}.{p}", path.behavior))
-        })
-    };
+    let suggestion = nearest_port(&path.behavior, &path.port, &report);
     match suggestion {
         Some(s) => Fail { message: format!("{}; did you mean `{s}`?", fail.message), code: fail.code },
         None => fail,
     }
 }
 
-/// The candidate closest to `name` (case-insensitive edit distance), if close enough to be
-/// a likely typo: at most a third of the name's length, and at least 1 allowed.
-fn nearest<'a>(name: &str, candidates: &[&'a str]) -> Option<&'a str> {
-    let wanted = name.to_lowercase();
-    let allowed = (wanted.chars().count() / 3).max(1);
-    candidates
+/// The port of `report` nearest to `behavior.port`, as its real `BEHAVIOR.Port`: behavior and
+/// port are matched together (each case-insensitively and close enough by [`distance_if_close`]),
+/// so a suggestion always names a port that exists (`relay.in` gives `RELAY.In`, never the
+/// nonexistent `RELAY.in`). The nearest pair wins, by the sum of both distances.
+fn nearest_port(behavior: &str, port: &str, report: &ayllu::NodeReport) -> Option<String> {
+    report
+        .behaviors
         .iter()
-        .map(|c| (edit_distance(&wanted, &c.to_lowercase()), *c))
-        .filter(|(d, _)| *d <= allowed)
-        .min_by_key(|(d, c)| (*d, *c))
-        .map(|(_, c)| c)
+        .filter_map(|b| distance_if_close(behavior, &b.name).map(|d| (d, b)))
+        .flat_map(|(db, b)| {
+            b.ports.iter().filter_map(move |p| {
+                distance_if_close(port, &p.name).map(|dp| (db + dp, b.name.as_str(), p.name.as_str()))
+            })
+        })
+        .min()
+        .map(|(_, b, p)| format!("{b}.{p}"))
+}
+
+/// The case-insensitive edit distance from `name` to `candidate` if close enough to be a
+/// likely typo: at most a third of the name's length, and at least 1 allowed.
+fn distance_if_close(name: &str, candidate: &str) -> Option<usize> {
+    let wanted = name.to_lowercase();
+    let d = edit_distance(&wanted, &candidate.to_lowercase());
+    (d <= (wanted.chars().count() / 3).max(1)).then_some(d)
 }
 
 /// Levenshtein distance between two short names.

@@ -187,6 +187,8 @@ pub fn record(args: &RecordArgs) -> Result<(), Fail> {
     let mut patterns = CopyWatch::new(&args.copy);
     let mut next_survey = StdInstant::now();
     let mut failure: Option<Fail> = None;
+    // Whether any node was heard at all (a node heard and gone again counts).
+    let mut heard_a_node = false;
     while !signals::stopped() && end.is_none_or(|e| StdInstant::now() < e) {
         client.pump(SLICE);
         if let Err(e) = recorder.heard(log.take()) {
@@ -196,6 +198,7 @@ pub fn record(args: &RecordArgs) -> Result<(), Fail> {
         if StdInstant::now() >= next_survey {
             next_survey = StdInstant::now() + SURVEY;
             let peers = client.peers();
+            heard_a_node |= !peers.is_empty();
             // A node that went silent is surveyed again when it comes back (a restarted node
             // has new connections, and lost the copies it was asked for).
             known.retain(|n| peers.iter().any(|p| p.node == *n));
@@ -235,6 +238,19 @@ pub fn record(args: &RecordArgs) -> Result<(), Fail> {
     }
     if let Some(f) = failure {
         return Err(f);
+    }
+    heard_a_node |= !client.peers().is_empty() || recorder.messages() > 0;
+    if !heard_a_node {
+        // As `list` and every other command: hearing nobody is a failure a script must see
+        // (exit 1), with the causes to check. The file holds nothing, and left there it would
+        // only block the next attempt with the same name.
+        let _ = std::fs::remove_file(&args.output);
+        return Err(Fail::error(format!(
+            "no node heard while recording ({:.1}s): removed the empty {}; {}",
+            started.elapsed().as_secs_f64(),
+            args.output.display(),
+            client.hint()
+        )));
     }
     let channels = recorder.per_channel();
     let summary = format!(

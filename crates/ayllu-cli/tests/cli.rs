@@ -432,6 +432,47 @@ fn typos_in_names_get_a_suggestion() {
     assert!(!run.stderr.contains("did you mean"), "{run:?}");
 }
 
+/// A suggestion names a port that exists: behavior and port are matched together, each
+/// case-insensitively, and the real names are given (`relay.in` is `RELAY.In`, not the
+/// nonexistent `RELAY.in`).
+#[test]
+fn a_suggestion_names_a_real_port_whatever_the_case_of_both_names() {
+    let relay = Relay::start();
+    for (typed, real) in
+        [("relay.in", "RELAY.In"), ("relay.aux", "RELAY.Aux"), ("Relay.OUT", "RELAY.Out"), ("frelay.In", "FRELAY.In")]
+    {
+        let run = relay.cli(&["why", "1", typed]).fails(1, &format!("did you mean `{real}`?"));
+        assert_eq!(run.stderr.matches("did you mean").count(), 1, "{run:?}");
+    }
+    // The port itself is mistyped too: still a real one.
+    relay.cli(&["why", "1", "relay.inn"]).fails(1, "did you mean `RELAY.In`?");
+    // A behavior that is close but has no port close to the one typed: no suggestion.
+    let run = relay.cli(&["why", "1", "relay.Completely"]).fails(1, "no behavior named `relay`");
+    assert!(!run.stderr.contains("did you mean"), "{run:?}");
+}
+
+/// A keyed node of team 3 reached by `peer=`: a tool with another key, no key or another team
+/// hears nothing back (the node drops its datagrams without a word, so there is nothing for
+/// the tool to count), and its hint names team/key as the thing to check.
+#[test]
+fn a_node_reached_by_peer_with_another_team_or_key_gets_the_team_key_hint() {
+    let (k1, k2) = ("a".repeat(64), "b".repeat(64));
+    let url = format!("udp://127.0.0.1:0?key={k1}&team=3");
+    let mut cmd = Command::new(BIN);
+    cmd.args(["node", "--id", "1", "--controller", "relay", "--status-ms", "100", "--for", "60", "--udp", &url]);
+    let mut proc = Proc::spawn("keyed relay", cmd);
+    let addr = proc.wait_ready();
+    for tool in [format!("key={k2}&team=3"), "team=3".to_owned(), format!("key={k1}&team=4")] {
+        let url = format!("udp://127.0.0.1:0?peer={addr}&{tool}");
+        let run = ayllu(&["why", "1", "RELAY.In", "--timeout", "1", "--udp", &url], LIMIT).fails(1, "unknown node n1");
+        assert!(run.stderr.contains("and team/key: a node whose team= or key= differs"), "{run:?}");
+        assert!(!run.stderr.contains(&k1) && !run.stderr.contains(&k2), "the key stays hidden: {run:?}");
+    }
+    // The right team and key: answered.
+    let url = format!("udp://127.0.0.1:0?peer={addr}&key={k1}&team=3");
+    ayllu(&["why", "1", "RELAY.In", "--udp", &url], LIMIT).ok();
+}
+
 #[test]
 fn output_for_people_rounds_floats_and_json_times_are_seconds() {
     let relay = Relay::start();
@@ -556,4 +597,29 @@ fn a_node_given_an_operator_key_is_rewired_only_by_the_operators_tools() {
     let report = ayllu(&["list", "1", "--json", "--udp", &plain], LIMIT).ok().json();
     assert!(report["transport_counted"]["unsigned"].as_u64().unwrap_or(0) >= 1, "{report}");
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The error examples of docs/cli.md and docs/troubleshooting.md are the real messages: the
+/// unknown-node hint (with the example's address), a node's refusal of an unknown behavior,
+/// and `graph -o` (there is no `--out`) with a file it cannot write.
+#[test]
+fn the_documented_error_examples_are_the_real_messages() {
+    let docs =
+        |page: &str| std::fs::read_to_string(format!("{}/../../docs/{page}", env!("CARGO_MANIFEST_DIR"))).unwrap();
+    let (cli, troubleshooting) = (docs("cli.md"), docs("troubleshooting.md"));
+    let relay = Relay::start();
+    let addr = relay.url.split("peer=").nth(1).unwrap().to_owned();
+    let run = relay.cli(&["why", "9", "RELAY.In", "--timeout", "1"]).fails(1, "unknown node n9");
+    let shown = run.stderr.trim().replace(&addr, "127.0.0.1:7400");
+    assert!(cli.contains(&format!("{shown}\n")), "docs/cli.md \"Errors\" should show:\n{shown}");
+    let run = relay.cli(&["why", "1", "MOTR.Turn"]).fails(1, "no behavior named `MOTR`");
+    let shown = run.stderr.trim().trim_start_matches("ayllu: ");
+    assert!(troubleshooting.contains(shown), "troubleshooting.md should quote: {shown}");
+    relay.cli(&["graph", "-o", "/nonexistent-dir/x.dot"]).fails(1, "cannot write /nonexistent-dir/x.dot");
+    ayllu(&["graph", "--out", "x.dot"], LIMIT).fails(2, "unexpected argument '--out'");
+    assert!(!troubleshooting.contains("graph --out") && troubleshooting.contains("ayllu graph -o FILE"));
+    // "unknown node" is also what a tool that heard nobody says: the page explains both.
+    ayllu(&["why", "9", "RELAY.In", "--timeout", "0.3"], LIMIT).fails(1, "(heard no node at all)");
+    let row = troubleshooting.lines().find(|l| l.starts_with("| `unknown node N:")).unwrap();
+    assert!(row.contains("heard no node at all") && row.contains("heard n1 at ADDR"), "{row}");
 }

@@ -94,3 +94,23 @@ fn a_node_of_another_team_is_named_as_such() {
     let same = "udp://0.0.0.0:0?discovery=239.255.65.89:7400&ttl=0&team=5";
     common::run(command(&net, 0, Some(same), &["why", "3", "RELAY.In"]), LIMIT).ok();
 }
+
+/// A socket bound to a loopback address gets no multicast: a tool on `udp://127.0.0.1:0` with
+/// `discovery=` never hears the HELLOs of a node that is on loopback too. Hearing nothing, it
+/// says so (bind 0.0.0.0 or use peer=); bound to 0.0.0.0 the same tool finds the node.
+#[test]
+fn discovery_on_a_loopback_bind_is_named_when_nothing_is_heard() {
+    let Some(net) = namespaces("lb", 82, 1) else { return };
+    let on_loopback = "udp://127.0.0.1:0?discovery=239.255.65.89:7400&ttl=0";
+    let _n4 = relay(&net, 0, 4, Some(on_loopback));
+    let run =
+        common::run(command(&net, 0, Some(on_loopback), &["list", "--timeout", "1"]), LIMIT).fails(1, "no node heard");
+    assert!(run.stderr.contains("binds a loopback address") && run.stderr.contains("bind 0.0.0.0"), "{run:?}");
+    let run = common::run(command(&net, 0, Some(on_loopback), &["why", "4", "RELAY.In", "--timeout", "1"]), LIMIT)
+        .fails(1, "unknown node n4");
+    assert!(run.stderr.contains("binds a loopback address"), "{run:?}");
+    // The advice works: bound to any address, the tool hears the node's HELLOs.
+    let any = "udp://0.0.0.0:0?discovery=239.255.65.89:7400&ttl=0";
+    let run = common::run(command(&net, 0, Some(any), &["list", "--json"]), LIMIT).ok();
+    assert_eq!(heard(&run), [4], "{run:?}");
+}

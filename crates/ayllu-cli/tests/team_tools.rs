@@ -57,6 +57,29 @@ fn paper_team() -> (Vec<Proc>, Vec<String>) {
     )
 }
 
+/// The lines docs/cli.md shows under `ayllu graph --format mermaid | grep ...`, sorted, with
+/// the windows' times left aside.
+fn mermaid_example() -> Vec<String> {
+    let doc = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("../../docs/cli.md")).unwrap();
+    let start = doc.find("$ ayllu graph --format mermaid | grep").expect("the example is in docs/cli.md");
+    let mut lines: Vec<String> =
+        doc[start..].lines().skip(1).take_while(|l| !l.starts_with("```")).map(without_times).collect();
+    lines.sort();
+    lines
+}
+
+/// `ACTIVE 1.6s` as `ACTIVE`: how long a window has left differs from run to run.
+fn without_times(line: &str) -> String {
+    match line.find("ACTIVE ") {
+        Some(at) => {
+            let rest = &line[at + "ACTIVE ".len()..];
+            let end = rest.find(|c: char| !(c.is_ascii_digit() || c == '.' || c == 's')).unwrap_or(rest.len());
+            format!("{}ACTIVE{}", &line[..at], &rest[end..])
+        }
+        None => line.to_owned(),
+    }
+}
+
 fn python() -> String {
     std::env::var("PYTHON").unwrap_or_else(|_| "python3".to_owned())
 }
@@ -150,6 +173,20 @@ fn the_papers_team_is_graphed_and_recorded() {
     assert!(mermaid.starts_with("flowchart LR\n"));
     let arrows = mermaid.lines().filter(|l| l.contains(" --> ") || l.contains(" ==> ") || l.contains(" .-> ")).count();
     assert_eq!(arrows, edges);
+    // docs/cli.md's `graph --format mermaid | grep ...` example shows what that grep prints:
+    // the two ports' own lines and their edges (the windows' times left aside).
+    let documented = mermaid_example();
+    let shown = wait_for(LIMIT, Duration::from_millis(200), || {
+        let mermaid = ayllu(&["graph", "--format", "mermaid", "--udp", &url], LIMIT).ok().stdout;
+        let mut got: Vec<String> = mermaid
+            .lines()
+            .filter(|l| l.contains("n1__OBS1__Inhibit") || l.contains("n2__OBS1__Local"))
+            .map(without_times)
+            .collect();
+        got.sort();
+        (got == documented).then_some(())
+    });
+    assert!(shown.is_some(), "docs/cli.md's mermaid example is not what the grep prints: {documented:#?}");
 
     // HTML and SVG in a browser.
     let page = dir.join("team.html");
@@ -412,5 +449,22 @@ fn record_warns_about_copy_patterns_that_match_no_port() {
     assert!(!run.stderr.contains("RELAY.Out copied nothing"), "{run:?}");
     assert!(run.stderr.contains("copying n1:RELAY.Out"), "{run:?}");
     assert_eq!(run.json()["unmatched"], serde_json::json!(["n1:RELAY.Nope", "*.Zzz", "n7:A.B"]), "{run:?}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `record` that hears no node at all (a URL that reaches nobody) fails like every other
+/// command (exit 1) with the same hint on what to check, and leaves no empty file behind.
+#[test]
+fn record_that_hears_no_node_fails_with_the_hint_and_leaves_no_file() {
+    // A loopback port nobody listens on (bound, then let go).
+    let nobody = std::net::UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap();
+    let url = format!("udp://127.0.0.1:0?peer={nobody}");
+    let dir = scratch("nobody");
+    let out = dir.join("team.mcap");
+    let run = ayllu(&["record", "-o", out.to_str().unwrap(), "--for", "1", "--udp", &url], LIMIT)
+        .fails(1, "no node heard while recording");
+    assert!(run.stderr.contains("check the node id and the URL") && run.stderr.contains("team/key"), "{run:?}");
+    assert!(!run.stdout.contains("recorded 0 messages"), "{run:?}");
+    assert!(!out.exists(), "the empty recording was left behind: {run:?}");
     let _ = std::fs::remove_dir_all(&dir);
 }
