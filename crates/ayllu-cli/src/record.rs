@@ -383,6 +383,15 @@ fn survey(
 pub fn play(args: &PlayArgs) -> Result<(), Fail> {
     signals::install();
     let bytes = std::fs::read(&args.file).map_err(|e| io_fail("cannot read", &args.file, e))?;
+    // Both kinds of recording are `.mcap` files: a flight recording holds one node's inputs,
+    // not team channel messages, and is read by `replay`; say so rather than "nothing to play".
+    if ayllu::replay::is_flight_recording(&bytes) {
+        return Err(Fail::error(format!(
+            "{}: a flight recording of one node (made by `ayllu node --record`), not a team recording: ask it with \
+             `ayllu replay` (why, list, echo or check); `ayllu play` plays the team recordings of `ayllu record`",
+            args.file.display()
+        )));
+    }
     let mut recorded = team_recording::read_recording(&bytes).map_err(|e| io_fail("cannot read", &args.file, e))?;
     let known_topics: BTreeSet<String> = recorded.iter().map(|r| r.channel.topic()).collect();
     for t in args.topic.iter().chain(args.to.iter().map(|(t, _, _)| t)) {

@@ -113,24 +113,56 @@ fn check_range(args: &ReplayArgs) -> Result<(), Fail> {
     Ok(())
 }
 
+/// The refusal of `--at` after the last instant a recording with a hole, a capped one or a
+/// cut one tells about (spec/flight-recorder.md, "Replay": a replay never goes past it). The
+/// node's life after it was not recorded (or the node died there): answering "at T" would
+/// show windows lapsed and values aging as if it had lived on with no input, which is not
+/// what happened, so there is no answer, only the instants there are answers for.
+fn past_the_last_known(rec: &Recording, at: Instant, last: Instant) -> Fail {
+    let why = match (&rec.gap, &rec.ending) {
+        (Some((seq, _)), _) => format!("it has a hole at entry {seq}"),
+        (None, Ending::Capped { .. }) => "it reached its size cap".to_owned(),
+        _ => "it was cut short: the node was killed, or the file cut".to_owned(),
+    };
+    // Milliseconds, as everywhere in `replay`, unless they would print the two the same.
+    let digits = if secs(at) == secs(last) { 9 } else { 3 };
+    Fail::error(format!(
+        "--at {:.digits$}s is after {:.digits$}s, the last instant this recording tells about ({why}): a replay never \
+         answers past it; ask at or before that instant (without --at, replay answers at it)",
+        at.as_secs_f64(),
+        last.as_secs_f64()
+    ))
+}
+
 /// `ayllu replay`.
 pub fn run(args: &ReplayArgs) -> Result<(), Fail> {
     check_range(args)?;
     let rec = Recording::open(&args.file)?;
     let end = rec.end();
-    let at = args.at.unwrap_or(end);
+    // A recording with a hole, or capped or cut, tells nothing after its last known instant:
+    // the default instant is that one, and a later --at is refused (see `past_the_last_known`).
+    let last_known = rec.last_known();
+    let at = args.at.unwrap_or(last_known.unwrap_or(end));
     let ending = match &rec.gap {
         Some((seq, t)) => format!("{}, with a hole at entry {seq} (t={:.3}s): replayed up to it", rec.ending, secs(*t)),
         None => rec.ending.to_string(),
     };
+    let known = last_known.map_or(String::new(), |last| {
+        format!("; it tells about the node up to t={:.3}s, and a replay answers no later", secs(last))
+    });
     eprintln!(
-        "replay: {} — node {}, {} entries in {} segment(s), {:.3}s of node time, {ending}",
+        "replay: {} — node {}, {} entries in {} segment(s), {:.3}s of node time, {ending}{known}",
         args.file.display(),
         rec.node,
         rec.entries.len(),
         rec.segments.len(),
         secs(end)
     );
+    if !matches!(args.what, ReplayCommand::Check) {
+        if let Some(last) = last_known.filter(|&last| at > last) {
+            return Err(past_the_last_known(&rec, at, last));
+        }
+    }
     if at > end && !matches!(args.what, ReplayCommand::Check) {
         eprintln!("replay: warning: --at {:.3}s is after the recording's end ({:.3}s)", secs(at), secs(end));
     }

@@ -124,7 +124,9 @@ fn files_that_made_the_mcap_reader_panic_are_refused_with_a_reason() {
         let file = inputs.join(name).display().to_string();
         let run = ayllu(&["replay", &file, "check"], LIMIT);
         assert!(!run.stderr.contains("panicked") && !run.stderr.contains("internal error"), "{name}: {run:?}");
-        ayllu(&["play", &file, "--udp", "udp://127.0.0.1:0"], LIMIT).fails(1, "cannot read");
+        // Their headers say they are flight recordings: `play` sends them to `replay`, which
+        // is the reader that says what is wrong with them (above).
+        ayllu(&["play", &file, "--udp", "udp://127.0.0.1:0"], LIMIT).fails(1, "a flight recording of one node");
     }
 }
 
@@ -194,4 +196,75 @@ fn echo_refuses_a_from_after_its_to() {
     ayllu(&["replay", &path, "echo", "RELAY.In", "--from", "1", "--to", "1"], LIMIT).ok();
     let late = ayllu(&["replay", &path, "echo", "RELAY.In", "--from", "100"], LIMIT).ok();
     assert!(late.stderr.contains("--from 100.000s is after the recording's end"), "{late:?}");
+}
+
+/// A recording cut short (a robot killed, a file cut) tells nothing after its last entry the
+/// replay applies (spec/flight-recorder.md, "Replay": a replay never goes past it). `--at`
+/// after that instant is refused (exit 1) naming the instant, instead of an answer "at T" that
+/// shows the node living on with no input (windows lapsed, values aging); without `--at` the
+/// replay answers at that instant, and says up to when the recording tells. A closed
+/// recording keeps answering after its end with a warning (probe 4, bugs/07).
+#[test]
+fn replay_never_answers_past_the_end_of_a_cut_recording() {
+    let dir = scratch("cut");
+    let closed = dir.join("closed.mcap");
+    let path = closed.display().to_string();
+    let node = ["node", "--id", "5", "--controller", "relay", "--udp", "udp://127.0.0.1:0", "--for", "1"];
+    ayllu(&[&node[..], &["--record", &path]].concat(), LIMIT).ok();
+    let late = ayllu(&["replay", &path, "--at", "100", "why", "RELAY.In"], LIMIT).ok();
+    assert!(late.stderr.contains("is after the recording's end"), "{late:?}");
+
+    // The same recording without its last third: what a killed node leaves.
+    let bytes = std::fs::read(&closed).unwrap();
+    let cut = dir.join("cut.mcap");
+    std::fs::write(&cut, &bytes[..bytes.len() * 2 / 3]).unwrap();
+    let cut = cut.display().to_string();
+    let check = ayllu(&["replay", &cut, "--json", "check"], LIMIT).ok();
+    assert!(check.stderr.contains("cut short"), "{check:?}");
+    let known = check.stderr.split("tells about the node up to t=").nth(1).expect("the header says up to when");
+    let last: f64 = known.split('s').next().unwrap().parse().unwrap();
+    assert!(last > 0.0 && last < 1.0, "{check:?}");
+
+    for what in [&["why", "RELAY.In"][..], &["list"], &["echo", "RELAY.In"]] {
+        let args = [&["replay", &cut, "--at", "100"][..], what].concat();
+        let run = ayllu(&args, LIMIT).fails(1, &format!("--at 100.000s is after {last:.3}s, the last instant"));
+        assert!(run.stderr.contains("it was cut short"), "{run:?}");
+        assert!(run.stdout.is_empty(), "no answer past the cut: {run:?}");
+    }
+    // Without --at: the answer is at the last instant the recording tells about.
+    let why = ayllu(&["replay", &cut, "why", "RELAY.In"], LIMIT).ok();
+    assert!(why.stdout.contains(&format!("n5:RELAY.In (normal int) at {last:.3}s")), "{why:?}");
+    // (`last` is rounded to the millisecond: a millisecond earlier is surely inside.)
+    let at = format!("{:.3}", last - 0.001);
+    ayllu(&["replay", &cut, "--at", &at, "why", "RELAY.In"], LIMIT).ok();
+}
+
+/// The two kinds of recording are both `.mcap` files: handed the other kind, `play` and
+/// `replay` say what the file is and which tool reads it (probe 4, bugs/09).
+#[test]
+fn play_and_replay_name_the_tool_for_the_other_kind_of_recording() {
+    let dir = scratch("kinds");
+    let flight = dir.join("flight.mcap").display().to_string();
+    let team = dir.join("team.mcap").display().to_string();
+    let node = ["node", "--id", "5", "--controller", "relay", "--udp", "udp://127.0.0.1:0", "--for", "0.3"];
+    ayllu(&[&node[..], &["--record", &flight]].concat(), LIMIT).ok();
+    let (_node, addrs) = common::start_on_loopback(
+        1,
+        |_| "n1".to_owned(),
+        |_, url| {
+            ["node", "--id", "1", "--controller", "relay", "--udp", url, "--for", "60"]
+                .iter()
+                .map(|s| s.to_string())
+                .collect()
+        },
+    );
+    let url = format!("udp://127.0.0.1:0?peer={}", addrs[0]);
+    ayllu(&["record", "-o", &team, "--for", "1", "--udp", &url], LIMIT).ok();
+
+    let run = ayllu(&["play", &flight, "--udp", "udp://127.0.0.1:0"], LIMIT)
+        .fails(1, "a flight recording of one node (made by `ayllu node --record`), not a team recording");
+    assert!(run.stderr.contains("ask it with `ayllu replay` (why, list, echo or check)"), "{run:?}");
+    let run = ayllu(&["replay", &team, "check"], LIMIT)
+        .fails(1, "a team recording (made by `ayllu record`), not a flight recording: play it with `ayllu play`");
+    assert!(!run.stderr.contains("not an Ayllu flight recording"), "{run:?}");
 }

@@ -142,6 +142,72 @@ impl Recording {
     pub fn end(&self) -> Instant {
         self.entries.last().map_or(Instant::ZERO, |e| e.at)
     }
+
+    /// The journal position a replay stops at: the whole journal of a closed recording
+    /// without a hole; else the last input before the hole or the end, whose consequences may
+    /// be missing (the replay ends before that input).
+    fn stop(&self) -> usize {
+        let stop = self.gap.map_or(self.entries.len(), |(seq, _)| seq as usize);
+        if stop < self.entries.len() || self.ending != Ending::Closed {
+            self.entries[..stop].iter().rposition(|e| is_input(&e.event)).unwrap_or(0)
+        } else {
+            stop
+        }
+    }
+
+    /// The last instant the recording tells about, when it does not run to the node's own end:
+    /// the node time of the last entry a replay applies, for a recording with a hole or one
+    /// that was capped or cut (spec/flight-recorder.md, "Replay"). After it the node lived on
+    /// (or died) unrecorded, so an answer about a later instant would be made up: a replay
+    /// does not give one. `None` for a closed recording without a hole (it ends where the node
+    /// stopped recording; [`Recording::end`]).
+    pub fn last_known(&self) -> Option<Instant> {
+        if self.gap.is_none() && self.ending == Ending::Closed {
+            return None;
+        }
+        Some(self.entries[..self.stop()].last().map_or(Instant::ZERO, |e| e.at))
+    }
+}
+
+/// The profile an MCAP file's header names (`ayllu-flight` for a flight recording, `ayllu`
+/// for a team recording), read from the first bytes without trusting any length beyond them.
+pub(crate) fn mcap_profile(bytes: &[u8]) -> Option<&str> {
+    // Magic (8 bytes), then the header record: opcode 0x01, its length (u64), its profile (a
+    // string: u32 length, then the bytes).
+    let rest = bytes.strip_prefix(b"\x89MCAP0\r\n")?;
+    let (&op, rest) = rest.split_first()?;
+    if op != 0x01 {
+        return None;
+    }
+    let (record_len, rest) = rest.split_at_checked(8)?;
+    let record_len = u64::from_le_bytes(record_len.try_into().ok()?);
+    let (len, rest) = rest.split_at_checked(4)?;
+    let len = u32::from_le_bytes(len.try_into().ok()?) as usize;
+    if len as u64 + 4 > record_len {
+        return None;
+    }
+    std::str::from_utf8(rest.get(..len)?).ok()
+}
+
+/// Whether `bytes` start as a flight recording (`ayllu node --record`, [`crate::Node::record`])
+/// does: an MCAP header with the flight recorder's profile. For the reader of the other kind,
+/// the team recordings of `ayllu record`, to say which tool reads the file instead.
+pub fn is_flight_recording(bytes: &[u8]) -> bool {
+    mcap_profile(bytes) == Some(crate::recording_format::PROFILE)
+}
+
+/// The refusal of a file that is not a flight recording, `why` it is not. A team recording
+/// (`ayllu record`, profile `ayllu`) is named as such, with the tools that read it: the two
+/// kinds are both `.mcap` files, and replaying the wrong one is an easy mistake.
+fn not_flight(path: &Path, bytes: &[u8], why: String) -> Error {
+    if crate::team_recording::is_team_recording(bytes) {
+        return bad(
+            path,
+            "a team recording (made by `ayllu record`), not a flight recording: play it with `ayllu play`, or open it \
+             in Foxglove; `ayllu replay` reads the flight recording of one node (`ayllu node --record`)",
+        );
+    }
+    bad(path, format!("not an Ayllu flight recording ({why})"))
 }
 
 /// Read one segment's messages into `out`; its node and how it ends.
@@ -158,7 +224,7 @@ fn read_segment(path: &Path, bytes: &[u8], out: &mut Vec<(u64, Entry)>) -> Resul
                 // Before its metadata, a file that cannot be read is not a recording at all:
                 // the reason it cannot be read is the useful part of the error.
                 if node.is_none() {
-                    return Err(bad(path, format!("not an Ayllu flight recording (unreadable {e})")));
+                    return Err(not_flight(path, bytes, format!("unreadable {e}")));
                 }
                 break;
             }
@@ -194,7 +260,7 @@ fn read_segment(path: &Path, bytes: &[u8], out: &mut Vec<(u64, Entry)>) -> Resul
             McapRecord::Metadata { .. } | McapRecord::DataEnd | McapRecord::Footer => {}
         }
     }
-    let node = node.ok_or_else(|| bad(path, "not an Ayllu flight recording (no ayllu.flight_recording metadata)"))?;
+    let node = node.ok_or_else(|| not_flight(path, bytes, "no ayllu.flight_recording metadata".into()))?;
     Ok((node, ending))
 }
 
@@ -371,12 +437,9 @@ impl Replay {
     /// A replay of `recording`, at its beginning.
     pub fn new(recording: &Recording) -> Replay {
         let entries: Arc<[Entry]> = recording.entries.clone().into();
-        let mut stop = recording.gap.map_or(entries.len(), |(seq, _)| seq as usize);
-        if stop < entries.len() || recording.ending != Ending::Closed {
-            // The consequences of the last input before a hole or the end of a recording that
-            // was not closed may be missing: the replay ends before that input.
-            stop = entries[..stop].iter().rposition(|e| is_input(&e.event)).unwrap_or(0);
-        }
+        // The consequences of the last input before a hole or the end of a recording that was
+        // not closed may be missing: the replay ends before that input.
+        let stop = recording.stop();
         let recorded_accepted = entries
             .iter()
             .enumerate()

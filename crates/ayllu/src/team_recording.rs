@@ -432,6 +432,13 @@ pub fn read_recording(bytes: &[u8]) -> std::io::Result<Vec<Recorded>> {
     Ok(out)
 }
 
+/// Whether `bytes` start as a team recording (`ayllu record`, [`TeamWriter`]) does: an MCAP
+/// header with the team channel layout's profile. For the reader of the other kind, the flight
+/// recordings of `ayllu replay`, to say which tool reads the file instead.
+pub fn is_team_recording(bytes: &[u8]) -> bool {
+    crate::replay::mcap_profile(bytes) == Some(team_channels::PROFILE)
+}
+
 /// When each message of a playback is due, from the start of the playback: the recording's
 /// own gaps divided by `speed` (2.0 = twice as fast).
 pub fn playback_offsets(recorded: &[Recorded], speed: f64) -> Vec<StdDuration> {

@@ -337,3 +337,53 @@ fn every_kind_of_input_and_effect_replays() {
         }
     }
 }
+
+/// A closed recording runs to the node's end: it sets no last known instant. The same file cut
+/// short tells about the node only up to the last entry its replay applies
+/// (`Recording::last_known`, spec/flight-recorder.md "Replay"), which is before the cut and
+/// no later than what is left of the file. Each reader of one kind of recording knows the
+/// other kind by its header: `replay` refuses a team recording naming it as such.
+#[test]
+fn a_cut_recording_knows_the_last_instant_it_tells_about() {
+    let d = dir("cut-known");
+    let path = d.join("whole.mcap");
+    run_suppression(&path);
+    let whole = Recording::open(&path).unwrap();
+    assert_eq!(whole.ending, Ending::Closed);
+    assert_eq!(whole.last_known(), None);
+    let bytes = std::fs::read(&path).unwrap();
+    assert!(ayllu::replay::is_flight_recording(&bytes));
+    assert!(!ayllu::team_recording::is_team_recording(&bytes));
+
+    // Cut inside its only chunk: nothing is left, and nothing after the start is known.
+    let cut_path = d.join("cut.mcap");
+    std::fs::write(&cut_path, &bytes[..bytes.len() * 2 / 3]).unwrap();
+    let cut = Recording::open(&cut_path).unwrap();
+    assert!(matches!(cut.ending, Ending::Cut { .. }), "{:?}", cut.ending);
+    assert_eq!(cut.last_known(), Some(Instant::ZERO), "{}", cut.entries.len());
+
+    // A killed node's recording (tests/recording_malformed.rs).
+    let cut_path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/malformed_recordings/killed.mcap");
+    let cut = Recording::open(&cut_path).unwrap();
+    assert!(matches!(cut.ending, Ending::Cut { .. }), "{:?}", cut.ending);
+    assert!(!cut.entries.is_empty());
+    let last = cut.last_known().expect("a cut recording says up to when it tells");
+    assert!(last > Instant::ZERO && last <= cut.end(), "{last} {}", cut.end());
+    // Every entry a replay applies is at or before it: the replay of the cut file, run to its
+    // end, has not gone past it.
+    let mut replay = Replay::new(&cut);
+    replay.run_to_end().unwrap();
+    assert!(replay.accepted().iter().all(|a| a.at <= last));
+
+    // A team recording handed to the flight recording reader.
+    let team = d.join("team.mcap");
+    let mut file = std::fs::File::create(&team).unwrap();
+    ayllu::team_recording::TeamWriter::new(&mut file).unwrap().finish().unwrap();
+    drop(file);
+    let team_bytes = std::fs::read(&team).unwrap();
+    assert!(ayllu::team_recording::is_team_recording(&team_bytes));
+    assert!(!ayllu::replay::is_flight_recording(&team_bytes));
+    let err = Recording::open(&team).unwrap_err().to_string();
+    assert!(err.contains("a team recording (made by `ayllu record`), not a flight recording"), "{err}");
+    assert!(err.contains("`ayllu play`"), "{err}");
+}
