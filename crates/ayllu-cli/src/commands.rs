@@ -539,11 +539,18 @@ pub fn write(args: &WriteArgs) -> Result<(), Fail> {
             .to_string(),
         );
     }
-    let mut line = format!("wrote {} to {node}:{path} along {kind} as {me}: ", human(&value));
+    // A priority other than the default decides at a Priority port (D3.3): said, as the
+    // holder's is when the write did not take.
+    let at = if args.priority == 0 { String::new() } else { format!(" at priority {}", args.priority) };
+    let mut line = format!("wrote {} to {node}:{path} along {kind}{at} as {me}: ", human(&value));
     if confirmed {
         line.push_str("confirmed");
     } else {
         let holder = report.supplier.map_or("nobody".to_owned(), |s| s.to_string());
+        let holder = match report.supplier_priority {
+            Some(p) => format!("{holder} at priority {p}"),
+            None => holder,
+        };
         line.push_str(&format!(
             "sent {sent} times, not confirmed (the port holds {} from {holder}; \
              a busy port may have replaced it, an aggregating one may have kept its own)",

@@ -99,6 +99,10 @@ fn normal_writes_arrive_and_echo_prints_what_a_port_sends() {
     let relay = Relay::start();
     let ok = relay.write("RELAY.In", "5", &[]).ok();
     assert!(ok.stdout.ends_with(": confirmed\n"), "{ok:?}");
+    assert!(ok.stdout.contains(" along normal as "), "the default priority goes unsaid: {ok:?}");
+    // A priority decides at a Priority port (D3.3): the line says which one was sent.
+    let ok = relay.write("FRELAY.In", "0.5", &["--priority", "5"]).ok();
+    assert!(ok.stdout.contains(" along normal at priority 5 as "), "{ok:?}");
     assert_eq!(relay.why("RELAY.Aux")["value"], json!({"Int": 5}), "In -> Out -> Aux");
     relay.write("FRELAY.In", "-2.5", &[]).ok();
     assert_eq!(relay.why("FRELAY.Aux")["value"], json!({"Float": -2.5}));

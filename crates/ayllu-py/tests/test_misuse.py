@@ -43,6 +43,13 @@ def test_periods_and_rates_are_checked() -> None:
         ayllu.every(hz=0)
     with pytest.raises(ValueError):
         ayllu.every()
+    # A rate whose period no clock holds is a bad rate, not a period the caller never wrote.
+    for hz in (1e-300, 1e10, float("nan"), float("inf"), -1.0):
+        with pytest.raises(ayllu.InvalidError, match=r"^rate .* Hz is invalid; .*from 1 ns to 584 years$") as e:
+            ayllu.every(hz=hz)
+        assert "1e+300 s" not in str(e.value)
+    ayllu.every(hz=1e9)
+    ayllu.every(hz=1e-9)
 
 
 def test_a_source_must_be_local_and_types_must_match() -> None:

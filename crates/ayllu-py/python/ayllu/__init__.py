@@ -149,6 +149,9 @@ def write_inhibit(period: float) -> Kind:
 
 F = TypeVar("F", bound=Callable[..., Any])
 
+# The longest span a node's clock holds: 2**64 - 1 nanoseconds, about 584 years.
+_MAX_SECONDS = 18446744073.709553
+
 
 def every(*, hz: Optional[float] = None, period: Optional[float] = None) -> Callable[[F], F]:
     """A periodic process: ``hz`` activations a second, or one every ``period`` seconds,
@@ -156,8 +159,12 @@ def every(*, hz: Optional[float] = None, period: Optional[float] = None) -> Call
     if (hz is None) == (period is None):
         raise ValueError("give exactly one of hz= or period=")
     if hz is not None:
-        if not (hz > 0 and hz != float("inf")):
-            raise InvalidError(f"rate {hz} Hz is not finite and above zero")
+        # The rate's period must be a duration too (1 ns to 584 years), said as a bad rate:
+        # hz=1e-300 used to be refused as a period of 1e300 s the caller never wrote.
+        if not (1.0 / _MAX_SECONDS <= hz <= 1e9):
+            raise InvalidError(
+                f"rate {hz:g} Hz is invalid; rates must be finite and above zero, with a period from 1 ns to 584 years"
+            )
         period = 1.0 / hz
 
     def mark(fn: F) -> F:
