@@ -189,19 +189,7 @@ fn a_flipped_byte_in_a_chunk_is_refused_by_the_chunks_crc() {
     assert!(flips > 1000, "{flips}");
 
     // A team recording too.
-    use ayllu::team_channels::PortChannel;
-    use ayllu::team_recording::TeamWriter;
-    use ayllu::{Value, ValueType};
-    let mut buf = std::io::Cursor::new(Vec::new());
-    {
-        let mut w = TeamWriter::new(&mut buf).unwrap();
-        let ch = PortChannel { node: NodeId(1), behavior: "R".into(), port: "Out".into(), ty: ValueType::Float };
-        for i in 0..5 {
-            w.write(&ch, &Value::Float(f64::from(i)), None, 1_000 + u64::try_from(i).unwrap()).unwrap();
-        }
-        w.finish().unwrap();
-    }
-    let good = buf.into_inner();
+    let good = small_team_recording();
     assert_eq!(read_recording(&good).unwrap().len(), 5);
     let (_, records) = chunks(&good).remove(0);
     let mut bad = good.clone();
@@ -240,6 +228,15 @@ fn every_byte_of_a_small_recording_mutated_reads_or_is_refused() {
 
 #[test]
 fn every_truncation_of_a_small_team_recording_is_an_error() {
+    let good = small_team_recording();
+    assert_eq!(read_recording(&good).unwrap().len(), 5);
+    for cut in 0..good.len() - 8 {
+        assert!(read_recording(&good[..cut]).is_err(), "cut at {cut}");
+    }
+}
+
+/// A team recording of five float values on one channel, the bytes `ayllu record` writes.
+fn small_team_recording() -> Vec<u8> {
     use ayllu::team_channels::PortChannel;
     use ayllu::team_recording::TeamWriter;
     use ayllu::{Value, ValueType};
@@ -252,9 +249,5 @@ fn every_truncation_of_a_small_team_recording_is_an_error() {
         }
         w.finish().unwrap();
     }
-    let good = buf.into_inner();
-    assert_eq!(read_recording(&good).unwrap().len(), 5);
-    for cut in 0..good.len() - 8 {
-        assert!(read_recording(&good[..cut]).is_err(), "cut at {cut}");
-    }
+    buf.into_inner()
 }
