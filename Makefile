@@ -2,7 +2,7 @@
 # CI (.ci/run) runs `make lint` and `make test`.
 CARGO ?= cargo
 
-.PHONY: test-asan demo test lint test-python lint-python bench-python bench bench-c bench-net bench-peers bench-sim zenoh test-zenoh bench-zenoh fuzz fuzz-long soak fmt docs
+.PHONY: test-asan demo test lint test-python lint-python bench-python bench bench-c bench-net bench-peers bench-sim zenoh test-zenoh bench-zenoh ros2 test-ros2 bench-ros2 ros2-c ros2-python fuzz fuzz-long soak fmt docs
 
 ## Run the main demo: W-CMOMMT in the simulator (the paper's setting, a sweep, a robot killed
 ## halfway) for BLE and every baseline; prints a short summary (BLE against each baseline, whether
@@ -25,7 +25,7 @@ TARGET_DIR ?= $(or $(CARGO_TARGET_DIR),target)
 ## Installs Debian's chromium, pytest and ruff first if missing.
 test:
 	PYTHON=$(PYTHON) scripts/install-test-tools
-	$(CARGO) test --workspace
+	$(CARGO) test --workspace --exclude ayllu-ros2
 	$(MAKE) -C lite/c test
 	$(MAKE) -C crates/ayllu-c test
 	AYLLU_BIN=$(TARGET_DIR)/debug/ayllu $(PYTHON) -m pytest lite/python/tests -q
@@ -54,8 +54,8 @@ docs:
 ## Formatting, lints and API docs, warnings as errors.
 lint:
 	$(CARGO) fmt --all -- --check
-	$(CARGO) clippy --workspace --all-targets -- -D warnings
-	RUSTDOCFLAGS=-Dwarnings $(CARGO) doc --workspace --no-deps --quiet
+	$(CARGO) clippy --workspace --exclude ayllu-ros2 --all-targets -- -D warnings
+	RUSTDOCFLAGS=-Dwarnings $(CARGO) doc --workspace --exclude ayllu-ros2 --no-deps --quiet
 	$(MAKE) -C crates/ayllu-c lint
 	PYTHON=$(PYTHON) scripts/install-test-tools
 	cd lite/python && $(PYTHON) -m ruff check . && $(PYTHON) -m ruff format --check .
@@ -100,6 +100,62 @@ test-zenoh:
 ## round trip and one-way rate, with ratios (about 30 s once built; docs/zenoh.md, "Measured").
 bench-zenoh:
 	$(ZENOH_CARGO) test --release --test zenoh_bench -- --ignored --nocapture
+
+## ROS 2 body (crates/ayllu-ros2, docs/ros2.md)
+## A workspace member the default commands leave out (its DDS stack is ~110 more crates), built
+## with the cargo feature `ros2` of the C and Python bindings into its own target directory
+## (target/ros2), so neither build overwrites the other's artifacts.
+
+ROS2_CARGO = CARGO_TARGET_DIR=$(abspath $(TARGET_DIR))/ros2 $(CARGO)
+
+## The `ayllu` tool with the ROS 2 body (target/ros2/release/ayllu: `node --ros2`, `sim robot
+## --ros2`, `sim serve --ros2`) and libayllu with it (ros2-c below). About 3 min the first time.
+ros2:
+	$(ROS2_CARGO) build --release -p ayllu-cli --features ros2
+	$(MAKE) ros2-c
+
+## The ROS 2 body's lints and tests: the crate's own (message types and golden CDR bytes, the
+## mapping file, two bodies over RustDDS), the tool's against an independent ROS 2 stack
+## (Cyclone DDS from Python: a robot driven for a minute, bad input, CMOMMT over ROS 2 in
+## network namespaces with 10 % loss), the Python peer's own tests, and the C library's.
+## Needs root (every test makes its own network namespace); installs cyclonedds from PyPI and
+## nftables. About 8 min once built.
+test-ros2:
+	PYTHON=$(PYTHON) scripts/install-ros2-test-tools
+	$(ROS2_CARGO) fmt --all -- --check
+	$(ROS2_CARGO) clippy -p ayllu-ros2 -p ayllu-cli -p ayllu-c --features ayllu-cli/ros2,ayllu-c/ros2 --all-targets -- -D warnings
+	RUSTDOCFLAGS=-Dwarnings $(ROS2_CARGO) doc -p ayllu-ros2 --no-deps --quiet
+	$(ROS2_CARGO) test -p ayllu-ros2
+	$(ROS2_CARGO) test -p ayllu-cli --features ros2 --test ros2_robot --test ros2_bad_input --test ros2_cmommt
+	cd crates/ayllu-ros2/tests/ros2_peer && $(PYTHON) -m ruff check . && $(PYTHON) -m ruff format --check . \
+		&& $(PYTHON) -m pytest -q
+	$(MAKE) ros2-c
+
+## A port -> topic -> port round trip through two ROS 2 bodies beside the same through RustDDS
+## alone (waiting on readiness, and polled at the body's period), same run; about 30 s once
+## built; needs root (its own network namespace). Figures in docs/performance.md.
+bench-ros2:
+	$(ROS2_CARGO) bench -p ayllu-ros2 --bench round_trip
+
+## libayllu with the ROS 2 body (`ay_ros2_body`, `ayInitRos2Body`), Fig. 2 on a ROS 2 robot
+## (examples/cmommt/c/cmommt.c with -DAYLLU_ROS2_BODY) compiled against it with -Wall -Werror, and the C test of a wrong
+## mapping file's message run against it (crates/ayllu-c's `make ros2`; no DDS is started).
+ros2-c:
+	$(MAKE) -C crates/ayllu-c ros2 TARGET_DIR=$(abspath $(TARGET_DIR))
+
+## The Python module with the ROS 2 body (`Node.install_ros2_body`), installed by `maturin
+## develop` (release, cargo's output in target/ros2) into the project's venv (scripts/python-venv),
+## then tests/test_ros2.py run against it. Under the venv's lock, the install stamp is removed
+## first, so the next `make test-python` or `make lint-python` puts the default wheel back (what
+## they test) even if this install fails halfway.
+ros2-python:
+	@PY=$$(PYTHON=$(PYTHON) scripts/python-venv) && VENV=$$(dirname "$$(dirname "$$PY")") \
+		&& flock -w 1200 "$${TMPDIR:-/tmp}/ayllu-python-venv.lock" sh -c ' \
+			rm -f "$$1/.ayllu-installed" \
+			&& VIRTUAL_ENV="$$1" PATH="$$1/bin:$$PATH" CARGO_TARGET_DIR="$$2" "$$1/bin/python" -m maturin develop \
+				--release --features ros2 --manifest-path crates/ayllu-py/Cargo.toml' \
+			sh "$$VENV" $(abspath $(TARGET_DIR))/ros2 \
+		&& cd crates/ayllu-py && AYLLU_TEST_ROS2=1 $$PY -m pytest -q tests/test_ros2.py
 
 ## Simulation speed against real time (10, 100, 1000 robots, BLE and Random; the 1000-robot team
 ## also on every CPU), with a verdict per goal that this host's noise cannot fake (about 2 min).

@@ -18,7 +18,7 @@ static const char *const CAUSE_NAMES[AYL_CAUSE_COUNT] = {
     "ok",        "oversized",     "truncated",   "bad_magic",        "bad_version",  "bad_flags",
     "wrong_team", "unauthenticated", "unexpected_auth", "bad_mac",   "replayed",     "malformed",
     "unknown_kind", "stale",      "type_mismatch", "unknown_behavior", "unknown_port", "suppressed",
-    "overridden_in", "too_large", "not_member",
+    "overridden_in", "too_large", "not_member", "amplification_limited",
 };
 
 const char *ayl_cause_name(ayl_cause cause) {
@@ -929,10 +929,10 @@ static void advance(ayl_node *n, uint64_t now) {
     }
 }
 
-/* Encode `m` as the only message of a new datagram and send it. */
-static int send_msgs(ayl_node *n, const ayl_addr *to, const ayl_msg *m, const uint8_t *raw, size_t raw_len) {
+/* Encode `m` (or the encoded message `raw`) as the only message of a new datagram in cfg.tx,
+ * numbered n->seq + 1. Returns its length or a negative ayl_error. */
+static int encode_datagram(ayl_node *n, const ayl_msg *m, const uint8_t *raw, size_t raw_len) {
     ayl_writer w;
-    int len;
     int rc = ayl_writer_begin(&w, n->cfg.tx, n->cfg.tx_cap, n->cfg.team, n->cfg.node_id, n->seq + 1, n->keyed);
     if (rc < 0) {
         return rc;
@@ -941,17 +941,24 @@ static int send_msgs(ayl_node *n, const ayl_addr *to, const ayl_msg *m, const ui
     if (rc < 0) {
         return rc;
     }
-    len = ayl_writer_finish(&w, n->keyed ? n->key : NULL);
-    if (len < 0) {
-        return len;
-    }
+    return ayl_writer_finish(&w, n->keyed ? n->key : NULL);
+}
+
+/* Send the datagram encode_datagram left in cfg.tx (`len` bytes), using up its number. */
+static int transmit(ayl_node *n, const ayl_addr *to, size_t len) {
     n->seq++; /* only numbers actually used: strictly increasing either way */
-    if (n->cfg.send(n->cfg.io_user, to, n->cfg.tx, (size_t)len) < 0) {
+    if (n->cfg.send(n->cfg.io_user, to, n->cfg.tx, len) < 0) {
         n->send_failures++;
         return AYL_E_SEND;
     }
     n->sent++;
     return 0;
+}
+
+/* Encode `m` as the only message of a new datagram and send it. */
+static int send_msgs(ayl_node *n, const ayl_addr *to, const ayl_msg *m, const uint8_t *raw, size_t raw_len) {
+    int len = encode_datagram(n, m, raw, raw_len);
+    return len < 0 ? len : transmit(n, to, (size_t)len);
 }
 
 static ayl_port *find_port(const ayl_node *n, const char *behavior, size_t blen, const char *port, size_t plen) {
@@ -1512,6 +1519,62 @@ static void answer_challenge(ayl_node *n, const ayl_cookie_msg *c, const ayl_add
     }
 }
 
+/* ----- the node: return routability (the 3x rule) ------------------------------------------- */
+
+/* The budget entry of `addr`, or NULL. */
+static ayl_budget *find_budget(ayl_node *n, const ayl_addr *addr) {
+    size_t i;
+    for (i = 0; i < AYL_BUDGETS; i++) {
+        if (n->budgets[i].used && addr_eq(&n->budgets[i].addr, addr)) {
+            return &n->budgets[i];
+        }
+    }
+    return NULL;
+}
+
+/* A datagram of `len` bytes from `from` was accepted: it may be answered with 3x that. A new
+ * address takes a free entry, else the least recently heard one's (which then starts over from
+ * nothing, so what is sent to any address stays within 3x of what came from it). */
+static void budget_heard(ayl_node *n, const ayl_addr *from, size_t len) {
+    ayl_budget *b = find_budget(n, from);
+    size_t i;
+    n->heard++;
+    if (b == NULL) {
+        for (i = 0; i < AYL_BUDGETS; i++) {
+            ayl_budget *c = &n->budgets[i];
+            if (!c->used) {
+                b = c;
+                break;
+            }
+            if (b == NULL || c->heard < b->heard) {
+                b = c;
+            }
+        }
+        memset(b, 0, sizeof *b);
+        b->used = 1;
+        b->addr = *from;
+    }
+    b->heard = n->heard;
+    /* Saturates far above anything real, so that 3x it cannot overflow. */
+    b->received = b->received + len > UINT64_MAX / 4 ? UINT64_MAX / 4 : b->received + len;
+}
+
+/* Send the answer encode_datagram left in cfg.tx (`len` bytes, or a negative ayl_error) to
+ * `to` if it fits in `to`'s budget, charging it; else count it and send nothing. */
+static int send_answer(ayl_node *n, const ayl_addr *to, int len) {
+    ayl_budget *b;
+    if (len < 0) {
+        return len;
+    }
+    b = find_budget(n, to);
+    if (b == NULL || b->answered + (uint64_t)len > b->received * AYL_AMPLIFICATION_FACTOR) {
+        n->counters[AYL_AMPLIFICATION_LIMITED]++;
+        return 0;
+    }
+    b->answered += (uint64_t)len;
+    return transmit(n, to, (size_t)len);
+}
+
 /* ----- the node: serving requests ------------------------------------------------------------ */
 
 /* JSON text of a name, escaped, into the writer. */
@@ -1621,9 +1684,11 @@ static int list_reply(ayl_node *n, ayl_writer *wr, uint64_t id) {
 
 /* A lite node owns no connections and no behaviors beyond its exposed registers, so it
  * answers READ and LIST and refuses the rest. Reads are idempotent, so there is nothing to
- * remember between repeats of a request. */
+ * remember between repeats of a request. Every answer, errors included, goes through
+ * send_answer: within 3x of what `from` sent (spec, "CHALLENGE and ECHO"). */
 static void serve(ayl_node *n, const ayl_request_msg *q, const ayl_addr *from) {
     ayl_msg m;
+    int len;
     memset(&m, 0, sizeof m);
     m.kind = AYL_KIND_REPLY;
     m.u.reply.id = q->id;
@@ -1639,15 +1704,9 @@ static void serve(ayl_node *n, const ayl_request_msg *q, const ayl_addr *from) {
         }
     } else if (q->op == AYL_OP_LIST) {
         ayl_writer w;
-        int len;
         if (ayl_writer_begin(&w, n->cfg.tx, n->cfg.tx_cap, n->cfg.team, n->cfg.node_id, n->seq + 1, n->keyed) == 0 &&
             list_reply(n, &w, q->id) == 0 && (len = ayl_writer_finish(&w, n->keyed ? n->key : NULL)) > 0) {
-            n->seq++;
-            if (n->cfg.send(n->cfg.io_user, from, n->cfg.tx, (size_t)len) < 0) {
-                n->send_failures++;
-            } else {
-                n->sent++;
-            }
+            (void)send_answer(n, from, len); /* a failed send is counted; the requester retries */
             return;
         }
         m.u.reply.text = ayl_s("report too large for an AylluLite node");
@@ -1656,13 +1715,15 @@ static void serve(ayl_node *n, const ayl_request_msg *q, const ayl_addr *from) {
     } else {
         m.u.reply.text = ayl_s("unknown operation");
     }
-    if (send_msgs(n, from, &m, NULL, 0) == AYL_E_NOSPACE) {
+    len = encode_datagram(n, &m, NULL, 0);
+    if (len == AYL_E_NOSPACE) {
         /* A value too large for one datagram: say so rather than stay silent and make the
          * requester retry 25 times. */
         m.u.reply.result = AYL_RESULT_ERROR;
         m.u.reply.text = ayl_s("answer too large for one datagram");
-        (void)send_msgs(n, from, &m, NULL, 0);
+        len = encode_datagram(n, &m, NULL, 0);
     }
+    (void)send_answer(n, from, len);
 }
 
 /* ----- the node: receiving ------------------------------------------------------------------- */
@@ -1833,6 +1894,7 @@ ayl_cause ayl_node_receive(ayl_node *node, const uint8_t *data, size_t len, cons
         return AYL_REPLAYED;
     }
     node->counters[AYL_OK]++;
+    budget_heard(node, from, len); /* before its requests are answered: they may use it */
     if (peer != NULL) {
         if (!peer->is_static) {
             peer->addr = *from; /* a configured address stays what it was configured to be */
@@ -1852,7 +1914,8 @@ ayl_cause ayl_node_receive(ayl_node *node, const uint8_t *data, size_t len, cons
             break;
         case AYL_KIND_HELLO:
             if (peer != NULL) {
-                peer->interval_ms = m.u.hello.interval_ms;
+                peer->interval_ms = m.u.hello.interval_ms < AYL_MAX_PEER_INTERVAL_MS ? m.u.hello.interval_ms
+                                                                                     : AYL_MAX_PEER_INTERVAL_MS;
             }
             break;
         case AYL_KIND_REQUEST:
@@ -1865,7 +1928,7 @@ ayl_cause ayl_node_receive(ayl_node *node, const uint8_t *data, size_t len, cons
             answer_challenge(node, &m.u.cookie, from);
             break;
         case AYL_KIND_ECHO:
-            break; /* a lite node sends no CHALLENGE (its answers are one datagram): no cookie to check */
+            break; /* a lite node sends no CHALLENGE (its answers keep to the 3x budget): no cookie to check */
         default:
             node->counters[AYL_UNKNOWN_KIND]++;
         }

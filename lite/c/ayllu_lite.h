@@ -26,7 +26,11 @@
  *    once, through the caller's send function, with an ECHO of its cookie to the address it
  *    came from; the requests waiting on that address are then sent again (once each), so a
  *    node that limits what it sends to unproven addresses answers them in full. Retries go on
- *    as before. The lite node's own answers are single datagrams; it sends no CHALLENGE.
+ *    as before. The lite node's own answers (READ, LIST, error replies) are single datagrams,
+ *    held to the spec's 3x rule: the bytes answered to an address are at most 3 times the bytes
+ *    received from it (ayl_budget; AYL_BUDGETS addresses remembered). It sends no CHALLENGE, so
+ *    an answer over the budget is not sent (counted AYL_AMPLIFICATION_LIMITED) and goes out at
+ *    a later retry of the request instead, once the retries have brought the budget up to it.
  *  - Operator signatures are carried (decoded, encoded) but not made here: there is no Ed25519
  *    in this library. Give the node a signer (ayl_node_config.sign, e.g. Monocypher's) and it
  *    signs every CONNECT and DISCONNECT it sends; without one they go unsigned, and a node that
@@ -61,6 +65,9 @@ extern "C" {
 #define AYL_MAX_PARTS 64
 #define AYL_RETRY_INTERVAL_NS 200000000ull /* requests are sent again every 200 ms ... */
 #define AYL_RETRY_LIMIT 25                 /* ... up to 25 sends (N2) */
+/* The longest HELLO period a peer is believed (ms), as the Rust node's: a forged HELLO
+ * announcing 0xFFFFFFFF ms would otherwise keep its address greeted for months. */
+#define AYL_MAX_PEER_INTERVAL_MS 60000u
 
 /* Message kinds. */
 #define AYL_KIND_PORT 0x01
@@ -92,6 +99,20 @@ extern "C" {
 #ifndef AYL_REQUEST_MAX
 #define AYL_REQUEST_MAX 600 /* largest encoded REQUEST message kept for retries */
 #endif
+#ifndef AYL_BUDGETS
+/* Addresses whose answer budget (return routability, ayl_budget) the node remembers: the
+ * addresses that ask it things at about the same time. Each entry is 56 bytes with the default
+ * AYL_ADDR_SIZE, held in ayl_node (8 of them: 448 of its 968 bytes on x86-64). When all are in
+ * use the least recently heard address is replaced; that never lets more than 3x out (the
+ * replaced address starts again from nothing), but a flood from more addresses than this can
+ * cost a real requester its saved budget, so its larger answers then need more retries. At
+ * least 1. */
+#define AYL_BUDGETS 8
+#endif
+#if AYL_BUDGETS < 1
+#error "AYL_BUDGETS must be at least 1"
+#endif
+#define AYL_AMPLIFICATION_FACTOR 3 /* answers to an address: at most 3x the bytes heard from it */
 
 /* ----- results ------------------------------------------------------------------------------ */
 
@@ -119,6 +140,10 @@ typedef enum {
     AYL_OVERRIDDEN_IN,
     AYL_TOO_LARGE, /* lite only: a value longer than the port's caller-supplied storage */
     AYL_NOT_MEMBER, /* a PORT sent to a group not in cfg.groups (appended: values above stay) */
+    /* an answer (REPLY) not sent: it would have taken the bytes sent to the requester's address
+     * above 3x the bytes received from it (return routability; the Rust node's counter of the
+     * same name). Counts answers, not datagrams received. */
+    AYL_AMPLIFICATION_LIMITED,
     AYL_CAUSE_COUNT
 } ayl_cause;
 
@@ -415,6 +440,20 @@ typedef struct {
     ayl_replay_window replay;
 } ayl_peer;
 
+/* What the node may still answer one address (spec, "CHALLENGE and ECHO": the 3x rule). A lite
+ * node sends no CHALLENGE and checks no ECHO, so no address is ever proven to it: every REPLY it
+ * sends is charged here, and one that would take `answered` above AYL_AMPLIFICATION_FACTOR x
+ * `received` is not sent (counted AYL_AMPLIFICATION_LIMITED). A requester's retries add to
+ * `received`, so an answer larger than 3x one request goes out at a later retry. Held in
+ * ayl_node (AYL_BUDGETS entries); nothing for the caller to provide. */
+typedef struct {
+    uint8_t used;
+    ayl_addr addr;
+    uint64_t received; /* bytes of datagrams accepted from addr since this entry was made */
+    uint64_t answered; /* bytes of REPLY datagrams sent to addr since */
+    uint64_t heard;    /* when last heard, in datagrams accepted by the node (for replacement) */
+} ayl_budget;
+
 /* Newest sequence number applied per (sender, connection), for stale drops (N1). */
 typedef struct {
     uint8_t used;
@@ -500,6 +539,8 @@ typedef struct {
     uint64_t sent;
     uint64_t send_failures;
     uint64_t challenged; /* CHALLENGEs received (each answered with an ECHO) */
+    ayl_budget budgets[AYL_BUDGETS]; /* answer budgets by address (see ayl_budget) */
+    uint64_t heard;      /* datagrams accepted: the clock of budgets[].heard */
 } ayl_node;
 
 /* A connection from this node to a port on another node, with its own id and sequence
@@ -576,8 +617,10 @@ void ayl_node_request_cancel(ayl_node *node, uint64_t id);
  * applied; messages inside may still have been dropped and counted). A CHALLENGE inside is
  * answered at once through cfg.send: an ECHO of its cookie to `from`, then the pending
  * requests addressed to `from` (addresses compared byte for byte) are sent again once, so a
- * node limiting amplification answers them in full without waiting for the next retry.
- * Not thread-safe. */
+ * node limiting amplification answers them in full without waiting for the next retry. A
+ * REQUEST inside is answered to `from` if the answer fits in what `from` may still be sent
+ * (ayl_budget: 3x the bytes received from it, this datagram included, less those answered);
+ * if not, it is counted AYL_AMPLIFICATION_LIMITED and not answered. Not thread-safe. */
 ayl_cause ayl_node_receive(ayl_node *node, const uint8_t *data, size_t len, const ayl_addr *from, uint64_t now_ns);
 
 /* Receive and apply every waiting datagram (through cfg.recv), then send HELLO if due and

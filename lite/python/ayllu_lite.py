@@ -22,8 +22,12 @@ What it promises:
 * Return routability (spec, "CHALLENGE and ECHO"): every CHALLENGE received is answered at once
   with an ECHO of its cookie, to the address it came from, and the requests waiting on that
   address are sent again then (once each), so a node that limits what it sends to unproven
-  addresses answers them in full; retries go on as before. The lite node's own answers are
-  single datagrams, and it sends no CHALLENGE (see lite/README.md).
+  addresses answers them in full; retries go on as before. The lite node's own answers (READ,
+  LIST, error replies) are single datagrams held to the spec's 3x rule: the bytes answered to
+  an address are at most 3 times the bytes received from it (a table of
+  :data:`BUDGET_TABLE_MAX` addresses). It sends no CHALLENGE, so an answer over the budget is
+  not sent (``counters["amplification_limited"]``) and goes out at a later retry of the request,
+  once the retries have brought the budget up to it (see lite/README.md).
 * Operator signatures: with ``operator_secret`` (or ``operator_secret=FILE`` in the URL) every
   CONNECT and DISCONNECT is signed (Ed25519, RFC 8032, computed here with the standard library)
   for its receiving node, as nodes started with ``operator=`` require.
@@ -44,12 +48,15 @@ import socket
 import struct
 import threading
 import time
+from collections import OrderedDict
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 __all__ = [
+    "AMPLIFICATION_FACTOR",
     "AUTH",
+    "BUDGET_TABLE_MAX",
     "CONN_KINDS",
     "COOKIE_LEN",
     "DEFAULT_URL",
@@ -137,6 +144,19 @@ RETRY_LIMIT = 25
 _ANSWERED_MAX = 1024
 #: Bounded memory for the per-(sender, connection) newest sequence numbers (N1).
 _SEQ_TABLE_MAX = 16384
+#: Return routability (spec, "CHALLENGE and ECHO"): the bytes a node answers an address with are
+#: at most this many times the bytes it received from it.
+AMPLIFICATION_FACTOR = 3
+#: Addresses whose answer budget a :class:`LiteNode` remembers; beyond it the least recently
+#: heard is replaced (and starts over from nothing if it comes back, so nothing exceeds 3x).
+BUDGET_TABLE_MAX = 256
+
+#: The longest HELLO period a peer is believed (ms), as the Rust node's (60 s).
+MAX_PEER_INTERVAL_MS = 60_000
+
+#: The most nodes remembered as heard; past it the one heard longest ago is forgotten
+#: (counted ``peer_evicted``), as the Rust node's peer table is bounded (1,024).
+MAX_HEARD = 1024
 
 _I64_MIN, _I64_MAX = -(1 << 63), (1 << 63) - 1
 _I32_MIN, _I32_MAX = -(1 << 31), (1 << 31) - 1
@@ -1280,10 +1300,14 @@ class LiteNode:
         self._newest_seq: dict[tuple[int, int], int] = {}
         self._pending: dict[int, _Pending] = {}
         self._writers: dict[tuple[Any, ...], Connection] = {}
+        # Return routability: address -> [bytes received from it, bytes answered to it], least
+        # recently heard first (at most BUDGET_TABLE_MAX addresses).
+        self._budgets: OrderedDict[Address, list[int]] = OrderedDict()
         self._next_hello = 0.0
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
-        #: Drop counters by cause name (N4), plus ``received``, ``sent`` and ``send_failed``.
+        #: Drop counters by cause name (N4), plus ``received``, ``sent``, ``send_failed``,
+        #: ``challenged`` and ``amplification_limited`` (answers not sent: over the 3x rule).
         self.counters: dict[str, int] = {}
 
     @classmethod
@@ -1415,10 +1439,16 @@ class LiteNode:
     def _count(self, what: str) -> None:
         self.counters[what] = self.counters.get(what, 0) + 1
 
-    def _send(self, messages: Sequence[Message], to: Address) -> None:
+    def _send(self, messages: Sequence[Message], to: Address, *, answer: bool = False) -> None:
+        """Send ``messages`` in one datagram to ``to``. An ``answer`` goes only if it fits in
+        what ``to`` may still be sent (:meth:`_may_answer`); if not it is counted
+        ``amplification_limited`` and dropped."""
         with self._lock:
+            data = encode(self.team, self.node_id, self._seq + 1, messages, key=self.key, limit=self.mtu)
+            if answer and not self._may_answer(to, len(data)):
+                self._count("amplification_limited")
+                return
             self._seq += 1
-            data = encode(self.team, self.node_id, self._seq, messages, key=self.key, limit=self.mtu)
             try:
                 self.sock.sendto(data, to)
             except OSError:
@@ -1426,6 +1456,28 @@ class LiteNode:
                 self._count("send_failed")
                 return
             self._count("sent")
+
+    def _heard_from(self, addr: Address, size: int) -> None:
+        """A datagram of ``size`` bytes from ``addr`` was accepted: it may be answered with 3x
+        that. A new address beyond the table's size replaces the least recently heard one."""
+        b = self._budgets.get(addr)
+        if b is None:
+            if len(self._budgets) >= BUDGET_TABLE_MAX:
+                self._budgets.popitem(last=False)
+            b = self._budgets[addr] = [0, 0]
+        else:
+            self._budgets.move_to_end(addr)
+        b[0] += size
+
+    def _may_answer(self, to: Address, size: int) -> bool:
+        """Whether an answer of ``size`` bytes fits in ``to``'s budget (spec, "CHALLENGE and
+        ECHO": at most 3x the bytes received from it, less those answered); if so it is
+        charged. A lite node sends no CHALLENGE, so no address is ever proven to it."""
+        b = self._budgets.get(to)
+        if b is None or b[1] + size > AMPLIFICATION_FACTOR * b[0]:
+            return False
+        b[1] += size
+        return True
 
     def send_hello(self) -> None:
         """Announce this node now to every configured and known peer and the broadcast address."""
@@ -1650,13 +1702,21 @@ class LiteNode:
             if d.sender == self.node_id:
                 return None  # our own broadcast coming back: a group excludes its sender
             self._count("received")
+            self._heard_from(addr, len(data))  # before its requests are answered: they may use it
             now = self._clock()
             self._expire_peers(now)
             new_peer = d.sender not in self._heard and d.sender not in self._static_peers
             _, _, interval = self._heard.get(d.sender, (addr, now, 1.0))
             for m in d.messages:
                 if isinstance(m, Hello):
-                    interval = m.interval_ms / 1000
+                    # Believed up to the Rust node's bound: a forged HELLO announcing
+                    # 0xFFFFFFFF ms would keep its address greeted for months.
+                    interval = min(m.interval_ms, MAX_PEER_INTERVAL_MS) / 1000
+            if new_peer and len(self._heard) >= MAX_HEARD:
+                # A flood of invented ids must not grow memory: the one heard longest ago goes.
+                oldest = min(self._heard, key=lambda n: self._heard[n][1])
+                del self._heard[oldest]
+                self._count("peer_evicted")
             self._heard[d.sender] = (addr, now, interval)
             replies: list[Reply] = []
             for m in d.messages:
@@ -1675,15 +1735,17 @@ class LiteNode:
                     self._echo(m, addr)
                 elif isinstance(m, Unknown):
                     self._count("unknown_kind")
-                # An ECHO needs nothing: a lite node sends no CHALLENGE (its answers are single
-                # datagrams), so it has no cookie to check.
+                # An ECHO needs nothing: a lite node sends no CHALLENGE (its answers keep to the
+                # 3x budget instead), so it has no cookie to check.
             for r in replies:
+                # Each within the 3x budget of the address (spec, "CHALLENGE and ECHO"); one
+                # over it is counted and not sent, and a retry of the request may carry it.
                 try:
-                    self._send([r], addr)
+                    self._send([r], addr, answer=True)
                 except EncodeError:
                     # A value too large for one datagram: say so rather than stay silent and
                     # make the requester retry 25 times.
-                    self._send([Reply(r.id, error="answer too large for one datagram")], addr)
+                    self._send([Reply(r.id, error="answer too large for one datagram")], addr, answer=True)
             if new_peer:
                 # Greet a node heard for the first time at once (as Ayllu nodes do, N6), so a
                 # node that found us by discovery can address us without waiting a period.

@@ -1414,6 +1414,28 @@ ay_status ay_node_why_json(ay_node *node, const char *behavior, const char *port
 // `node` is NULL or a pointer from this library; `out` is NULL or valid for a write.
 ay_status ay_node_report_json(ay_node *node, char **out);
 
+// Install the ROS 2 body the mapping file `mapping_file` describes on `node` (a path, relative
+// to the working directory; `{id}` in the file stands for the node's id, so one file serves a
+// fleet): the behaviors it names that the node lacks are created (VISION, SONAR, BASE for
+// Fig. 2), and from the node's next step on, samples of its "in" topics write their ports and
+// its "out" topics publish their ports' values. Call after the node is open
+// (`ayInitIPComms`) and before building the controller on the body's behaviors, as with
+// `ay_sim_body`.
+//
+// Needs libayllu built with the ROS 2 body (cargo feature `ros2`: `make ros2`); without it,
+// the call fails with `AY_ERR_INVALID` and says so.
+//
+// Ownership: borrows `mapping_file` for the call (nothing of it is kept).
+// Thread-safety: the node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`,
+// `AY_ERR_INVALID` (path not UTF-8; a mapping file that is wrong: the message names the file,
+// the field and the fix; a mapped port the node has with another type; a library built
+// without the ROS 2 body), `AY_ERR_TRANSPORT` (the file cannot be read; the DDS stack
+// refused a participant, topic, reader or writer).
+//
+// # Safety
+// `node` is NULL or a pointer from this library; `mapping_file` is NULL or NUL-terminated.
+ay_status ay_ros2_body(ay_node *node, const char *mapping_file);
+
 // The message of the last failed call on this thread ("" if none failed yet): which function,
 // and what to fix.
 //

@@ -1,7 +1,7 @@
 /* ayllustd.h — the standard behaviors of the paper's Fig. 2 (`MakeSafeVelBeh`,
- * `MakeWanderBeh`, the observer) and the simulator's robot body in place of
- * `ayInitPioControl`, from the runtime's standard library (ayllu::stdlib). They work on the
- * default node (ayInitIPComms). docs/c-api.md describes each. */
+ * `MakeWanderBeh`, the observer) and the robot's body in place of `ayInitPioControl` (the
+ * simulator's, or a ROS 2 robot's), from the runtime's standard library (ayllu::stdlib). They
+ * work on the default node (ayInitIPComms). docs/c-api.md describes each. */
 #ifndef AYLLUSTD_H
 #define AYLLUSTD_H
 
@@ -12,6 +12,15 @@
  * closer), SONAR (Ranges) and BASE (Rotate: rad/s, left-positive; Translate: m/s) on this
  * node, whose id must be the robot's number (1 to 999). Call after ayInitIPComms. */
 #define ayInitSimBody(Targets) ((void)ay_check_(ay_sim_body(ayNODE, (Targets)), "ayInitSimBody"))
+
+/* The ROS 2 body (docs/ros2.md): the behaviors the mapping file `File` names (VISION, SONAR,
+ * BASE for Fig. 2) on this node, their ports ROS 2 topics (a LaserScan on /robot2/scan into
+ * SONAR.Ranges, BASE.Rotate and BASE.Translate out as a Twist on /robot2/cmd_vel, ...); `{id}`
+ * in the file stands for the node's id. In place of ayInitSimBody, so Fig. 2 moves from the
+ * simulator to a robot by changing that one line. Call after ayInitIPComms. Needs libayllu
+ * built with the ROS 2 body (`make ros2`); otherwise, and for a wrong mapping file, it fails
+ * with the reason (the file, the field and the fix) in ay_last_error(). */
+#define ayInitRos2Body(File) ((void)ay_check_(ay_ros2_body(ayNODE, (File)), "ayInitRos2Body"))
 
 /* Safe velocity from sonar (`SafeVelocity`, 10 Hz), wired SONAR.Ranges -> Name.Ranges and
  * Name.Translate -> BASE.Translate when the body exists. */

@@ -4,7 +4,8 @@
 //! paper does: nodes on `udp://` and `mem://` with the real clock or a manual one, behavior
 //! classes with ports of every kind and type, slots, monostables and processes whose bodies
 //! are C functions, connections of every kind (local, remote, group), BLE in one call,
-//! `why`/`list` reports as JSON, the standard behaviors and the simulator's robot body.
+//! `why`/`list` reports as JSON, the standard behaviors, the simulator's robot body and the
+//! ROS 2 body (its code only with the cargo feature `ros2`; the function is always there).
 //! `include/ayllu_sys.h` is generated from this crate by cbindgen (a test fails when it
 //! drifts); `include/ayllu.h` is the paper's macro layer over it (docs/c-api.md).
 //!
@@ -29,6 +30,7 @@ pub mod reconfiguration;
 pub mod recording;
 mod registry;
 pub mod report;
+pub mod ros2;
 pub mod status;
 pub mod stdlib;
 

@@ -23,7 +23,7 @@
 use std::io::Write as _;
 use std::time::{Duration as StdDuration, Instant as StdInstant};
 
-use ayllu::stdlib::{cross_subsumption, BASE, VISION, WANDER_TURN};
+use ayllu::stdlib::{base_class, cross_subsumption, sonar_class, wander_avoid, BASE, SONAR, VISION, WANDER_TURN};
 use ayllu::{
     Access, Allow, BehaviorClass, ConnectionKind, Endpoint, Limits, MonotonicClock, Node, PortSpec, RecordOptions,
     Value,
@@ -80,7 +80,8 @@ fn setup_relay(node: &mut Node) -> Result<(), Fail> {
 
 fn counters_json(node: &Node) -> Json {
     let transport: Map<String, Json> = node.transport_counters().into_iter().map(|(k, v)| (k, json!(v))).collect();
-    json!({"core": counted(&node.core().counters()), "transport": transport})
+    let body: Map<String, Json> = node.core().body_counters().iter().map(|(k, v)| (k.clone(), json!(v))).collect();
+    json!({"core": counted(&node.core().counters()), "transport": transport, "body": body})
 }
 
 fn relay_json(node: &Node, behavior: &str) -> Json {
@@ -132,6 +133,22 @@ fn status(node: &Node, args: &NodeArgs) -> Json {
             "tools": tools,
             "counters": counters_json(node),
         }),
+        Controller::Wander => {
+            let read = |b: &str, p: &str| {
+                node.read(b, p).ok().and_then(|v| v.as_float()).map_or(Json::Null, |x| json!(round3(x)))
+            };
+            json!({
+                "t": t,
+                "node": node.id().0,
+                "translate": read(BASE, "Translate"),
+                "rotate": read(BASE, "Rotate"),
+                "sonar_fresh": node.fresh(SONAR, "Ranges").unwrap_or(false),
+                "avoiding": node.why(BASE, "Rotate").ok().is_some_and(|r| !r.windows.is_empty()),
+                "peers": peers,
+                "tools": tools,
+                "counters": counters_json(node),
+            })
+        }
     }
 }
 
@@ -161,6 +178,46 @@ fn refuse_existing_recording(path: &std::path::Path) -> Result<(), Fail> {
     Ok(())
 }
 
+/// `--ros2 FILE`: the ROS 2 body the mapping file describes, attached to the node.
+#[cfg(feature = "ros2")]
+fn install_ros2(node: &mut Node, args: &NodeArgs) -> Result<(), Fail> {
+    match &args.ros2 {
+        Some(path) => ayllu_ros2::install_file(node, path).map_err(|e| Fail::error(e.to_string())),
+        None => Ok(()),
+    }
+}
+
+#[cfg(feature = "ros2")]
+fn check_ros2(args: &NodeArgs) -> Result<(), Fail> {
+    match &args.ros2 {
+        Some(path) => ayllu_ros2::read_mapping(path, Some(args.id)).map(|_| ()).map_err(|e| Fail::error(e.to_string())),
+        None => Ok(()),
+    }
+}
+
+#[cfg(not(feature = "ros2"))]
+fn check_ros2(args: &NodeArgs) -> Result<(), Fail> {
+    install_ros2_missing(args)
+}
+
+#[cfg(not(feature = "ros2"))]
+fn install_ros2(_node: &mut Node, args: &NodeArgs) -> Result<(), Fail> {
+    install_ros2_missing(args)
+}
+
+#[cfg(not(feature = "ros2"))]
+fn install_ros2_missing(args: &NodeArgs) -> Result<(), Fail> {
+    match &args.ros2 {
+        Some(_) => Err(Fail::error(ROS2_MISSING)),
+        None => Ok(()),
+    }
+}
+
+/// What a tool built without the ROS 2 body says when asked for one.
+#[cfg(not(feature = "ros2"))]
+pub const ROS2_MISSING: &str = "this ayllu was built without the ROS 2 body: build it with `make ros2` \
+     (target/ros2/release/ayllu; docs/ros2.md)";
+
 /// `ayllu node`.
 pub fn run(args: &NodeArgs) -> Result<(), Fail> {
     if let Some(&(t, _)) = args.sight.0.iter().find(|(t, _)| *t > args.layers) {
@@ -170,6 +227,8 @@ pub fn run(args: &NodeArgs) -> Result<(), Fail> {
     if let Some(path) = &args.record {
         refuse_existing_recording(path)?;
     }
+    // A mistake in the mapping file is reported before anything opens.
+    check_ros2(args)?;
     let open = ayllu::transport::url_setting(&args.udp, "key").is_none();
     let transport = ayllu::transport::open_named(&args.udp, args.id, &format!("node-{}", args.id.0))?;
     let mut node = Node::new(MonotonicClock::new(), transport);
@@ -195,8 +254,28 @@ pub fn run(args: &NodeArgs) -> Result<(), Fail> {
             for w in groups.iter().flat_map(|g| &g.warnings) {
                 eprintln!("ayllu: warning: {w}");
             }
+            // The body binds to the VISION and BASE the controller made.
+            install_ros2(&mut node, args)?;
         }
-        Controller::Relay => setup_relay(&mut node)?,
+        Controller::Relay => {
+            setup_relay(&mut node)?;
+            install_ros2(&mut node, args)?;
+        }
+        Controller::Wander => {
+            // The body first: it makes the SONAR and BASE its mapping names; a node without one
+            // gets the stdlib's (written by hand, `ayllu write`).
+            install_ros2(&mut node, args)?;
+            let core = node.core_mut();
+            if core.behavior_ref(SONAR).is_err() {
+                core.define(sonar_class(16, 5.0)?)?;
+                core.create("Sonar", SONAR)?;
+            }
+            if core.behavior_ref(BASE).is_err() {
+                core.define(base_class()?)?;
+                core.create("Base", BASE)?;
+            }
+            wander_avoid(core, args.seed)?;
+        }
     }
     signals::install();
     let ran = run_loop(&mut node, args);

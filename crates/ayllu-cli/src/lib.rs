@@ -343,6 +343,14 @@ pub struct NodeArgs {
     /// are at most 64 MiB (FILE, FILE.1.mcap, ...). Recording stops at the cap.
     #[arg(long, value_name = "N", requires = "record", value_parser = clap::value_parser!(u64).range(65_536..))]
     pub record_max_bytes: Option<u64>,
+    /// The robot's body is behind ROS 2 topics, as this mapping file says (docs/ros2.md):
+    /// sensors' topics write its ports, its motor ports are published. Needs the tool built
+    /// with ROS 2 (`make ros2`).
+    #[arg(long, value_name = "FILE")]
+    pub ros2: Option<std::path::PathBuf>,
+    /// wander: the seed of the random wander (with the node id).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
 }
 
 /// The controllers `ayllu node` can host.
@@ -352,6 +360,9 @@ pub enum Controller {
     CrossSubsumption,
     /// RELAY (int) and FRELAY (float): In -> (process) -> Out -> (connection) -> Aux.
     Relay,
+    /// Subsumption on a body's SONAR and BASE: safe velocity drives, a random wander turns,
+    /// AVOID overrides the turn near obstacles (`ayllu::stdlib::wander_avoid`).
+    Wander,
 }
 
 /// `--sight`: (target, apparent height) pairs.

@@ -75,6 +75,10 @@ const REPORT_PERIOD: StdDuration = StdDuration::from_millis(250);
 const TICK: StdDuration = StdDuration::from_millis(50);
 /// If the server falls this far behind the real clock, it stops trying to catch up.
 const MAX_LAG: StdDuration = StdDuration::from_millis(500);
+/// How long a ROS 2 body's sonar must stay stale before its robot takes the server for gone: a
+/// scan or two lost on a lossy network (best-effort, 10 Hz) must not stop the robot. (A UDP
+/// body's peer entry already outlives three silent HELLO periods.)
+const ROS2_SILENCE: StdDuration = StdDuration::from_secs(2);
 
 #[derive(Args, Debug)]
 pub struct ServeArgs {
@@ -92,15 +96,24 @@ pub struct ServeArgs {
     /// The world's seed (start poses, target motion, sensor noise), as in `sim cmommt`.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Seconds of world time to run (paced on the real clock).
-    #[arg(long, value_name = "SECS", default_value_t = 300.0, value_parser = positive_secs)]
-    pub duration: f64,
+    /// Seconds of world time to run (paced on the real clock) [default: 300; with --ros2,
+    /// until stopped].
+    #[arg(long, value_name = "SECS", value_parser = positive_secs)]
+    pub duration: Option<f64>,
     /// The bodies' udp:// URLs (or zenoh:// in ayllu-zenoh): one per robot in order, or a
     /// single one for all in which `{i}` stands for the robot's number (a single URL without
     /// `{i}` must bind, or listen on, port 0). Each body
     /// greets the addresses its URL names (peer=, broadcast=); its controller greets back.
-    #[arg(long, value_name = "URL", required = true)]
+    #[arg(long, value_name = "URL", required_unless_present = "ros2", conflicts_with = "ros2")]
     pub udp: Vec<String>,
+    /// Serve every robot's body as ROS 2 topics under /robotK/ (scan, odom, targetN, cmd_vel;
+    /// docs/ros2.md) instead of over Ayllu: controllers run with a ROS 2 body
+    /// (`sim robot --ros2 examples/ros2/sim-robot.toml`). Needs the tool built with ROS 2.
+    #[arg(long)]
+    pub ros2: bool,
+    /// --ros2: the ROS domain id [default: $ROS_DOMAIN_ID, else 0].
+    #[arg(long, value_name = "ID", requires = "ros2", value_parser = clap::value_parser!(u16).range(0..=232))]
+    pub domain: Option<u16>,
     /// Wait this long for every body to hear its controller before the world starts (it
     /// starts anyway after that, and late controllers join when they come).
     #[arg(long, value_name = "SECS", default_value_t = 10.0, value_parser = positive_secs)]
@@ -144,6 +157,10 @@ pub struct RobotArgs {
     /// Print a JSON status line this often.
     #[arg(long, value_name = "MS", default_value_t = 1000, value_parser = clap::value_parser!(u64).range(1..))]
     pub status_ms: u64,
+    /// The body is behind ROS 2 topics, as this mapping file says (`sim serve --ros2`'s
+    /// robots: examples/ros2/sim-robot.toml; docs/ros2.md). Needs the tool built with ROS 2.
+    #[arg(long, value_name = "FILE")]
+    pub ros2: Option<PathBuf>,
 }
 
 fn parse_distributed_controller(s: &str) -> Result<Controller, String> {
@@ -215,6 +232,47 @@ struct BodyNode {
     controller: NodeId,
     /// `LINK.Reach`, `Alive`, `Drive`, `Sent`, `Bytes` (ayllu_sim::served_robot).
     link: [PortRef; 5],
+    /// With --ros2: `ODOM.X`, `Y`, `Yaw`, `Translate`, `Rotate`, and the counter that says
+    /// whether the controller's `cmd_vel` samples arrive.
+    ros2: Option<([PortRef; 5], String)>,
+}
+
+/// World seconds served when neither --duration nor a scenario says (the UDP mode).
+const DEFAULT_DURATION: f64 = 300.0;
+/// "Until stopped": a world time no run reaches (about 31 years).
+const UNTIL_STOPPED: f64 = 1e9;
+
+/// The DDS participant every ROS 2 body of the fleet shares.
+#[cfg(feature = "ros2")]
+struct Fleet(ayllu_ros2::Context);
+
+#[cfg(feature = "ros2")]
+impl Fleet {
+    fn open(domain: Option<u16>) -> Result<Fleet, Fail> {
+        let domain = match domain {
+            Some(d) => d,
+            None => match std::env::var("ROS_DOMAIN_ID") {
+                Ok(s) if !s.trim().is_empty() => s
+                    .trim()
+                    .parse::<u16>()
+                    .ok()
+                    .filter(|d| *d <= 232)
+                    .ok_or_else(|| Fail::usage(format!("ROS_DOMAIN_ID=`{s}` is not a ROS domain id (0 to 232)")))?,
+                _ => 0,
+            },
+        };
+        Ok(Fleet(ayllu_ros2::participant(domain).map_err(|e| Fail::error(e.to_string()))?))
+    }
+}
+
+#[cfg(not(feature = "ros2"))]
+struct Fleet;
+
+#[cfg(not(feature = "ros2"))]
+impl Fleet {
+    fn open(_domain: Option<u16>) -> Result<Fleet, Fail> {
+        Err(Fail::error(crate::controllers::ROS2_MISSING))
+    }
 }
 
 impl BodyNode {
@@ -234,10 +292,20 @@ impl BodyNode {
                 ConnectionKind::Normal,
             )?;
         }
-        let rotate = node.core().port(BASE, "Rotate")?;
-        let translate = node.core().port(BASE, "Translate")?;
         ayllu_sim::served_robot::install_body_link(node.core_mut(), k)?;
+        BodyNode::assemble(node, body, controller, None)
+    }
+
+    /// The handles every served body keeps: BASE's motor ports and LINK's five.
+    fn assemble(
+        node: Node,
+        body: Body,
+        controller: NodeId,
+        ros2: Option<([PortRef; 5], String)>,
+    ) -> Result<BodyNode, Fail> {
         let core = node.core();
+        let rotate = core.port(BASE, "Rotate")?;
+        let translate = core.port(BASE, "Translate")?;
         let link = [
             core.port(LINK, "Reach")?,
             core.port(LINK, "Alive")?,
@@ -245,7 +313,50 @@ impl BodyNode {
             core.port(LINK, "Sent")?,
             core.port(LINK, "Bytes")?,
         ];
-        Ok(BodyNode { node, body, rotate, translate, controller, link })
+        Ok(BodyNode { node, body, rotate, translate, controller, link, ros2 })
+    }
+
+    /// Robot `k`'s body as ROS 2 topics (`ayllu_ros2::fleet`): a node of its own on an
+    /// in-process transport (it talks to nobody over Ayllu), its body behind a ROS 2 body.
+    #[cfg(feature = "ros2")]
+    fn open_ros2(k: u32, fleet: &Fleet, targets: usize, world: &WorldConfig) -> Result<BodyNode, Fail> {
+        let id = body_id(k);
+        let mut node = Node::open(id, &format!("mem://ayllu-sim-ros2-{}", std::process::id()))?;
+        let body = Body::install(node.core_mut(), targets, world)?;
+        let driver = ayllu_ros2::fleet::install_served(node.core_mut(), k, targets, world, &fleet.0)
+            .map_err(|e| Fail::error(e.to_string()))?;
+        node.attach(driver);
+        let core = node.core();
+        let odom = ayllu_ros2::fleet::ODOM;
+        let odom = [
+            core.port(odom, "X")?,
+            core.port(odom, "Y")?,
+            core.port(odom, "Yaw")?,
+            core.port(odom, "Translate")?,
+            core.port(odom, "Rotate")?,
+        ];
+        // Samples taken, not publishers matched: the controller's commands arrive. (Matches were
+        // once counted from the ROS 2 node's match events, which the fleet's bodies, sharing one
+        // participant, drain from one channel: a body could miss its controller's.)
+        let heard = format!("/robot{k}/cmd_vel taken");
+        BodyNode::assemble(node, body, NodeId(k), Some((odom, heard)))
+    }
+
+    #[cfg(not(feature = "ros2"))]
+    fn open_ros2(_k: u32, _fleet: &Fleet, _targets: usize, _world: &WorldConfig) -> Result<BodyNode, Fail> {
+        Err(Fail::error(crate::controllers::ROS2_MISSING))
+    }
+
+    /// With --ros2: the pose and the command now, for `/robotK/odom`.
+    fn odometry(&mut self, pose: &ayllu_sim::world::Pose, command: &Command) -> Result<(), Fail> {
+        let Some((odom, _)) = &self.ros2 else { return Ok(()) };
+        let odom = *odom;
+        let now = self.node.now();
+        let core = self.node.core_mut();
+        for (port, x) in odom.iter().zip([pose.x, pose.y, pose.theta, command.translate, command.rotate]) {
+            core.write(now, *port, x)?;
+        }
+        Ok(())
     }
 
     /// An int the robot reports on `LINK` (0 until it has).
@@ -262,9 +373,13 @@ impl BodyNode {
         Ok(())
     }
 
-    /// Whether the body has heard its controller (it can send it the sensors).
+    /// Whether the body has heard its controller (it can send it the sensors); with --ros2,
+    /// whether its controller's `cmd_vel` samples have arrived.
     fn linked(&self) -> bool {
-        self.node.peers().iter().any(|p| p.node == self.controller)
+        match &self.ros2 {
+            Some((_, heard)) => self.node.core().body_counters().iter().any(|(k, n)| k == heard && *n > 0),
+            None => self.node.peers().iter().any(|p| p.node == self.controller),
+        }
     }
 
     /// The motor command, or a stop if the controller has been silent for [`WATCHDOG`].
@@ -286,8 +401,9 @@ pub fn serve(args: &ServeArgs) -> Result<(), Fail> {
     // with the in-process tick and sensing rate, as `scenario::Sim` runs it.
     let scenario = match &args.scenario {
         Some(path) => read_scenario(path)?,
+        // With --ros2 and no duration the world runs until stopped, as a robot's driver does.
         None => Scenario::sized(Controller::Random, args.robots as usize, args.targets as usize, args.seed)
-            .duration(args.duration),
+            .duration(args.duration.unwrap_or(if args.ros2 { UNTIL_STOPPED } else { DEFAULT_DURATION })),
     };
     let robots = scenario.robots;
     let targets = scenario.world.targets.len();
@@ -298,8 +414,15 @@ pub fn serve(args: &ServeArgs) -> Result<(), Fail> {
     let config = scenario.world.by_priority();
     let prios: Vec<f64> = config.targets.iter().map(|t| t.priority).collect();
     let mut bodies = Vec::with_capacity(robots);
-    for k in 1..=robots {
-        bodies.push(BodyNode::open(k as u32, &body_url(&args.udp, robots, k)?, targets, &config)?);
+    if args.ros2 {
+        let fleet = Fleet::open(args.domain)?;
+        for k in 1..=robots {
+            bodies.push(BodyNode::open_ros2(k as u32, &fleet, targets, &config)?);
+        }
+    } else {
+        for k in 1..=robots {
+            bodies.push(BodyNode::open(k as u32, &body_url(&args.udp, robots, k)?, targets, &config)?);
+        }
     }
     let mut world = World::new(config.clone(), robots, scenario.seed);
     signals::install();
@@ -382,6 +505,7 @@ pub fn serve(args: &ServeArgs) -> Result<(), Fail> {
             .collect();
         for (i, b) in bodies.iter_mut().enumerate() {
             let alive = world.robots[i].alive;
+            b.odometry(&world.robots[i].pose, &commands[i])?;
             if sense {
                 // Who robot i hears now: alive, in range, on its side of every partition.
                 reach_row(&scenario.radio, t, &stations, i, &mut reach);
@@ -472,9 +596,16 @@ pub fn robot(args: &RobotArgs) -> Result<(), Fail> {
     let transport = open_transport(&args.udp, args.id, &format!("robot-{k}"))?;
     let (transport, link) = RadioLink::new(transport, &radio, seed);
     let mut node = Node::new(MonotonicClock::new(), transport);
-    // The body's ports, as local behaviors the server writes (sensors) and reads (motors), the
-    // motors sent to the body on the server (as the C library's ayInitSimBody does).
-    ayllu_sim::served_robot::install(node.core_mut(), targets)?;
+    match &args.ros2 {
+        // The same behaviors, written and read by a ROS 2 body instead of the server's node.
+        Some(path) => {
+            ayllu_sim::served_robot::install_unconnected(node.core_mut(), targets)?;
+            install_ros2_body(&mut node, path)?;
+        }
+        // The body's ports, as local behaviors the server writes (sensors) and reads (motors),
+        // the motors sent to the body on the server (as the C library's ayInitSimBody does).
+        None => ayllu_sim::served_robot::install(node.core_mut(), targets)?,
+    }
     let brain = build(node.core_mut(), controller, &prios, &cfg)?;
     let body = body_id(k);
     let vision: Vec<PortRef> =
@@ -490,18 +621,23 @@ pub fn robot(args: &RobotArgs) -> Result<(), Fail> {
     writeln!(out, "{}", listening_json(&node))?;
     out.flush()?;
     let mut was_linked = false;
+    let ros2 = args.ros2.is_some();
+    let mut heard_at = start;
     let mut last_drive = None;
     loop {
         let now = StdInstant::now();
         if signals::stopped() || end.is_some_and(|e| now >= e) {
             return Ok(());
         }
+        if ros2 && body_linked(&node, body, true) {
+            heard_at = now;
+        }
         // The server's word: whom this robot hears, and whether it is still alive.
         if let Ok(ayllu::Value::Vector(reach)) = node.read(LINK, "Reach") {
             link.set_reach(&reach);
         }
         if node.read(LINK, "Alive").ok().and_then(|v| v.as_int()) == Some(0) {
-            let mut status = robot_status(&node, &brain, &vision, body, &link);
+            let mut status = robot_status(&node, &brain, &vision, body_linked(&node, body, args.ros2.is_some()), &link);
             status["killed"] = json!(true);
             writeln!(out, "{status}")?;
             out.flush()?;
@@ -523,15 +659,20 @@ pub fn robot(args: &RobotArgs) -> Result<(), Fail> {
         }
         if now >= next_status {
             // A robot whose server went away stops too (its body is forgotten after three
-            // silent HELLO periods), instead of outliving it.
-            let linked = node.peers().iter().any(|p| p.node == body);
+            // silent HELLO periods; a ROS 2 body's sonar stays stale for ROS2_SILENCE), instead of
+            // outliving it.
+            let linked = body_linked(&node, body, ros2);
             if linked {
                 was_linked = true;
-            } else if was_linked {
+            } else if was_linked && (!ros2 || now.duration_since(heard_at) >= ROS2_SILENCE) {
                 eprintln!("ayllu: sim robot {k}: its body ({body}) has gone silent: the server stopped; stopping");
                 return Ok(());
             }
-            writeln!(out, "{}", robot_status(&node, &brain, &vision, body, &link))?;
+            writeln!(
+                out,
+                "{}",
+                robot_status(&node, &brain, &vision, body_linked(&node, body, args.ros2.is_some()), &link)
+            )?;
             out.flush()?;
             next_status = (next_status + period).max(now);
         }
@@ -544,7 +685,27 @@ pub fn robot(args: &RobotArgs) -> Result<(), Fail> {
     }
 }
 
-fn robot_status(node: &Node, brain: &Brain, vision: &[PortRef], body: NodeId, link: &LinkHandle) -> Json {
+/// Whether the robot's body is there: its server node is a peer, or (a ROS 2 body) its sonar
+/// is fresh.
+fn body_linked(node: &Node, body: NodeId, ros2: bool) -> bool {
+    if ros2 {
+        node.fresh(SONAR, "Ranges").unwrap_or(false)
+    } else {
+        node.peers().iter().any(|p| p.node == body)
+    }
+}
+
+#[cfg(feature = "ros2")]
+fn install_ros2_body(node: &mut Node, path: &std::path::Path) -> Result<(), Fail> {
+    ayllu_ros2::install_file(node, path).map_err(|e| Fail::error(e.to_string()))
+}
+
+#[cfg(not(feature = "ros2"))]
+fn install_ros2_body(_node: &mut Node, _path: &std::path::Path) -> Result<(), Fail> {
+    Err(Fail::error(crate::controllers::ROS2_MISSING))
+}
+
+fn robot_status(node: &Node, brain: &Brain, vision: &[PortRef], linked: bool, link: &LinkHandle) -> Json {
     let core = node.core();
     let claims: Vec<u32> = core
         .ble_statuses()
@@ -557,13 +718,16 @@ fn robot_status(node: &Node, brain: &Brain, vision: &[PortRef], body: NodeId, li
     let peers = node.peers();
     let stats = node.stats();
     let c = link.counts();
+    let body: serde_json::Map<String, Json> =
+        core.body_counters().iter().filter(|(_, n)| *n > 0).map(|(k, n)| (k.clone(), json!(n))).collect();
     json!({
         "t": round3(node.now().as_secs_f64()),
         "id": node.id().0,
         "drive": brain.drive(core),
+        "body_counters": body,
         "claims": claims,
         "sees": sees,
-        "body": peers.iter().any(|p| p.node == body),
+        "body": linked,
         "peers": peers.iter().map(|p| p.node.0).filter(|&n| n < BODY_BASE).collect::<Vec<_>>(),
         "sent": stats.sent,
         "received": stats.received,

@@ -96,7 +96,7 @@ pub fn port_report_json(r: &PortReport) -> Json {
     j
 }
 
-/// The serde form of a node report plus `counted` (core) and `transport_counted`, times in
+/// The serde form of a node report plus `counted` (core), `transport_counted` and `body_counted`, times in
 /// seconds.
 pub fn node_report_json(r: &NodeReport) -> Json {
     let mut j = serde_json::to_value(r).unwrap_or(Json::Null);
@@ -104,6 +104,8 @@ pub fn node_report_json(r: &NodeReport) -> Json {
         m.insert("counted".to_owned(), counted(&r.counters));
         let transport: Map<String, Json> = r.transport.iter().map(|(k, v)| (k.clone(), json!(v))).collect();
         m.insert("transport_counted".to_owned(), Json::Object(transport));
+        let body: Map<String, Json> = r.body.iter().map(|(k, v)| (k.clone(), json!(v))).collect();
+        m.insert("body_counted".to_owned(), Json::Object(body));
     }
     seconds(&mut j);
     j
@@ -264,6 +266,25 @@ pub fn node_report_text(r: &NodeReport, peer: Option<&PeerInfo>) -> String {
     let _ = writeln!(out, "  core       {}", if core.is_empty() { "none".to_owned() } else { core.join(", ") });
     let _ =
         writeln!(out, "  transport  {}", if transport.is_empty() { "none".to_owned() } else { transport.join(", ") });
+    // A body's driver (the ROS 2 body): a line a topic, with what it counted (the matched
+    // publishers or subscribers even at 0: "nobody publishes it" is the first thing to know).
+    let mut topics: Vec<(&str, Vec<String>)> = Vec::new();
+    for (key, n) in &r.body {
+        let (topic, cause) = key.rsplit_once(' ').unwrap_or((key.as_str(), ""));
+        let i = match topics.iter().position(|(t, _)| *t == topic) {
+            Some(i) => i,
+            None => {
+                topics.push((topic, Vec::new()));
+                topics.len() - 1
+            }
+        };
+        if *n > 0 || cause == "publishers" || cause == "subscribers" {
+            topics[i].1.push(format!("{cause} {n}"));
+        }
+    }
+    for (topic, counts) in topics {
+        let _ = writeln!(out, "  body       {topic}: {}", counts.join(", "));
+    }
     for w in &r.warnings {
         let _ = writeln!(out, "warning: {w}");
     }
@@ -289,6 +310,25 @@ pub fn round3(x: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_body_prints_a_line_a_topic_with_what_it_counted_and_its_matches() {
+        let mut r = ayllu::NodeCore::new(ayllu::NodeId(1)).report();
+        r.body = [
+            ("/robot1/scan taken", 599),
+            ("/robot1/scan truncated", 0),
+            ("/robot1/scan nan", 2),
+            ("/robot1/scan publishers", 1),
+            ("/robot1/cmd_vel published", 0),
+            ("/robot1/cmd_vel subscribers", 0),
+        ]
+        .into_iter()
+        .map(|(k, n)| (k.to_owned(), n))
+        .collect();
+        let text = node_report_text(&r, None);
+        assert!(text.contains("  body       /robot1/scan: taken 599, nan 2, publishers 1\n"), "{text}");
+        assert!(text.contains("  body       /robot1/cmd_vel: subscribers 0\n"), "{text}");
+    }
 
     #[test]
     fn values_parse_by_type() {

@@ -128,6 +128,14 @@ pub enum Error {
         /// The port's name.
         port: String,
     },
+    /// A connection to another node from a port whose vector is longer than a message carries
+    /// ([`crate::value::MAX_NETWORK_VECTOR`]): no value of it could ever arrive.
+    TooLongForNetwork {
+        /// The source port, as `behavior.port`.
+        port: String,
+        /// How many numbers it holds now.
+        len: usize,
+    },
     /// The name belongs to a register every behavior has (the BLE ports `Local`, `Inhibit`,
     /// `Best`).
     ReservedName {
@@ -246,6 +254,14 @@ impl fmt::Display for Error {
             Error::VectorShape { port } => write!(
                 f,
                 "port `{port}`: a vector Sum takes its shape from its default; declare it with a default of the right length (e.g. [0, 0, 0])"
+            ),
+            Error::TooLongForNetwork { port, len } => write!(
+                f,
+                "`{port}` holds {len} numbers, and a value sent to another node carries at most {} (the wire \
+                 counts them in one byte, spec/protocol.md): connect a smaller port across the network (a ROS 2 \
+                 body resamples a scan with `sonar = {{ beams = 16 }}`; a local behavior can reduce it), and keep \
+                 this one local",
+                crate::value::MAX_NETWORK_VECTOR
             ),
             Error::ReservedName { name, reason } => write!(f, "`{name}` is a reserved name: {reason}"),
             Error::GroupSource => f.write_str(

@@ -197,6 +197,10 @@ pub struct NodeReport {
     pub counters: Counters,
     /// The transport's counters by cause (datagrams sent/received, drops before the core).
     pub transport: Vec<(String, u64)>,
+    /// The body drivers' counters by cause (a ROS 2 body: samples taken and dropped, per
+    /// topic); empty on a node without one. Absent from older nodes' reports.
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub body: Vec<(String, u64)>,
     /// Warnings raised so far (see [`NodeCore::warnings`]).
     pub warnings: Vec<String>,
 }
@@ -330,6 +334,7 @@ impl NodeCore {
             connections: self.connection_infos(),
             counters: self.counters().clone(),
             transport: self.transport_counters.clone(),
+            body: self.body_counters.clone(),
             warnings: self.warnings().to_vec(),
         }
     }

@@ -80,4 +80,4 @@ pub use port::{PortCell, PortKind, PortSpec};
 pub use process::Ctx;
 pub use time::{Compact, Duration, Instant};
 pub use transaction::{TransactionState, TransactionStatus};
-pub use value::{Value, ValueType};
+pub use value::{Value, ValueType, MAX_NETWORK_VECTOR};

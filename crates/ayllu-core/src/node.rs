@@ -461,6 +461,8 @@ pub struct NodeCore {
     answers_waiting: usize,
     pub(crate) warnings: Vec<String>,
     pub(crate) transport_counters: Vec<(String, u64)>,
+    /// The body drivers' counters by cause (samples taken, dropped), for reports.
+    pub(crate) body_counters: Vec<(String, u64)>,
     /// Control-request token buckets by sender: tokens left and when last refilled.
     request_buckets: HashMap<NodeId, (f64, Instant)>,
 }
@@ -510,6 +512,7 @@ impl NodeCore {
             answers_waiting: 0,
             warnings: Vec::new(),
             transport_counters: Vec::new(),
+            body_counters: Vec::new(),
             access: Access::default(),
             limits: Limits::default(),
             request_buckets: HashMap::new(),
@@ -840,6 +843,18 @@ impl NodeCore {
             Endpoint::Group { .. } => return Err(Error::GroupSource),
         };
         let src_ty = self.behavior(sb).expect("resolved").ports[usize::from(sp)].cell.ty();
+        if !matches!(destination, Endpoint::Local { .. })
+            && !matches!(destination, Endpoint::Node { node, .. } if *node == self.id)
+        {
+            // A value that can never be encoded would be dropped at every send (D-S10.7).
+            let beh = self.behavior(sb).expect("resolved");
+            let cell = &beh.ports[usize::from(sp)].cell;
+            let len = current(cell, self.now).as_vector().map_or(0, <[f64]>::len);
+            if len > crate::value::MAX_NETWORK_VECTOR {
+                let name = beh.class.ports().get(usize::from(sp)).map_or("", |p| p.name.as_str());
+                return Err(Error::TooLongForNetwork { port: format!("{}.{name}", beh.name), len });
+            }
+        }
         let dst = match destination {
             Endpoint::Local { behavior, port } => self.local_target(behavior, port, kind, src_ty)?,
             Endpoint::Node { node, behavior, port } if *node == self.id => {
@@ -2226,6 +2241,18 @@ impl NodeCore {
     /// every loop turn (no allocation when only the numbers changed).
     pub fn transport_counters_mut(&mut self) -> &mut Vec<(String, u64)> {
         &mut self.transport_counters
+    }
+
+    /// The counters a body's driver keeps (`ayllu::Driver`: a ROS 2 body's samples taken and
+    /// dropped by cause), shown in reports (also remote ones: LIST) beside the transport's.
+    /// The driver updates them in place.
+    pub fn body_counters_mut(&mut self) -> &mut Vec<(String, u64)> {
+        &mut self.body_counters
+    }
+
+    /// The body drivers' counters (see [`NodeCore::body_counters_mut`]).
+    pub fn body_counters(&self) -> &[(String, u64)] {
+        &self.body_counters
     }
 
     /// Add a warning to the node's report (the runtime reports the network's here, e.g. a

@@ -9,6 +9,12 @@ use core::cmp::Ordering;
 use core::fmt;
 use std::sync::Arc;
 
+/// The longest vector a message to another node carries: the wire counts a vector's numbers
+/// in one byte (spec/protocol.md, "Value"). A connection to another node from a port that
+/// holds a longer one is refused ([`crate::Error::TooLongForNetwork`], docs/semantics.md
+/// D-S10.7); locally a vector has any length.
+pub const MAX_NETWORK_VECTOR: usize = 255;
+
 /// The type of a register, fixed when it is declared.
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]

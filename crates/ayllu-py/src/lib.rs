@@ -13,6 +13,7 @@ pub mod behavior;
 pub mod errors;
 pub mod node;
 pub mod recording;
+pub mod ros2;
 pub mod sim;
 pub mod value;
 pub mod wiring;

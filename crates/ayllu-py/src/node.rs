@@ -272,6 +272,22 @@ impl Node {
         self.shared.with(py, |n| ayllu_sim::served_robot::install(n.core_mut(), targets).map_err(errors::core))
     }
 
+    /// Make this node's body a ROS 2 robot's: the behaviors the mapping file at `path` names
+    /// (VISION, SONAR, BASE for Fig. 2) are created if the node lacks them, and from its next
+    /// step on, samples of the file's "in" topics write their ports and its "out" topics
+    /// publish their ports' values (docs/ros2.md; `{id}` in the file stands for this node's
+    /// id). In place of `install_served_body`: the controller built on the body is the same.
+    ///
+    /// Raises `ayllu.InvalidError` (a `ValueError`) for a wrong mapping file, with the file,
+    /// the field and the fix in the message, and for one that does not fit the node (a mapped
+    /// port it has with another type); `FileNotFoundError` (or another `OSError`) for a file
+    /// that cannot be read; `ayllu.NetworkError` when the DDS stack refuses; `ayllu.AylluError`
+    /// when the module was built without the ROS 2 body (the default wheel: build one with it
+    /// with `make ros2-python`).
+    fn install_ros2_body(&self, py: Python<'_>, path: std::path::PathBuf) -> PyResult<()> {
+        self.shared.with(py, |n| crate::ros2::install(n, &path))
+    }
+
     /// Whether a class of this name is defined here.
     fn has_class(&self, py: Python<'_>, name: &str) -> PyResult<bool> {
         self.shared.with(py, |n| Ok(n.core().has_class(name)))

@@ -61,6 +61,17 @@ pub fn install_body_link(core: &mut NodeCore, robot: u32) -> Result<(), Error> {
     Ok(())
 }
 
+/// On the controller node of a robot whose body is driven by something other than the
+/// server's Ayllu node (a ROS 2 body: `ayllu sim robot --ros2`): the body's behaviors for
+/// `targets` targets and [`LINK`], of the same classes as [`install`]'s, connected to nothing.
+pub fn install_unconnected(core: &mut NodeCore, targets: usize) -> Result<(), Error> {
+    let world = WorldConfig::lab(&priorities(targets));
+    Body::install(core, targets, &world)?;
+    core.define(link_class()?)?;
+    core.create("Link", LINK)?;
+    Ok(())
+}
+
 /// On the controller node of robot K (node id K, 1..[`BODY_BASE`]): define and create the
 /// body's behaviors for `targets` targets and send the motor ports to the served body (node
 /// `BODY_BASE + K`); create [`LINK`] and send its `Drive`, `Sent` and `Bytes` to the body. The

@@ -1212,3 +1212,14 @@ fn golden_vectors() {
     }
     assert!(encoded >= 30, "most valid vectors are re-encoded ({encoded})");
 }
+
+/// The core refuses a connection to another node from a port holding a vector longer than
+/// `MAX_NETWORK_VECTOR` (D-S10.7) because the wire cannot carry one: the two agree.
+#[test]
+fn the_core_s_longest_network_vector_is_the_longest_the_wire_encodes() {
+    let at = |n: usize| {
+        ayllu_wire::encoded_len(&port(1, 1, ConnectionKind::Normal, 0, "S", "Ranges", Value::vector(&vec![0.5; n])))
+    };
+    assert!(at(ayllu_core::MAX_NETWORK_VECTOR).is_ok());
+    assert!(matches!(at(ayllu_core::MAX_NETWORK_VECTOR + 1), Err(ayllu_wire::EncodeError::Invalid(_))));
+}

@@ -90,6 +90,8 @@ struct Run {
     url: String,
     next_value: i64,
     crafted_seq: u64,
+    /// Whether the crafting sender was made known fresh (keyed teams, D-N5.4).
+    crafter_fresh: bool,
     _node: Proc,
     _router: Proc,
 }
@@ -139,6 +141,7 @@ impl Run {
             url,
             next_value: 1000,
             crafted_seq: 1 << 40,
+            crafter_fresh: false,
             _node: node,
             _router: router,
         };
@@ -319,9 +322,46 @@ impl Run {
         vec![data]
     }
 
+    /// In a keyed team, make the crafting sender known fresh first, as spec/conformance does: a
+    /// node with no memory of a keyed sender applies its PORTs only after it answered a
+    /// CHALLENGE with an authenticated ECHO (spec/protocol.md, CHALLENGE and ECHO;
+    /// docs/semantics.md D-N5.4). The crafter listens on its own key for the CHALLENGE.
+    fn crafter_fresh(&mut self) {
+        let Some(key) = self.key else { return };
+        if self.crafter_fresh {
+            return;
+        }
+        self.crafter_fresh = true;
+        let from: SocketAddrV4 = format!("{}:7", std::net::Ipv4Addr::from(CRAFTER)).parse().unwrap();
+        let own = format!("ayllu/{TEAM}/n/{}/{}", u32::from(*from.ip()), from.port());
+        let inbox = self.crafter.declare_subscriber(own).wait().expect("the crafter's own key");
+        let seq = self.next_seq();
+        let hello = WireMessage::Hello { interval_ms: 1000, name: "raw".into(), groups: Vec::new() };
+        self.publish(&[encode_datagram(TEAM, NodeId(CRAFTER), seq, Some(key), &[hello]).unwrap()]);
+        let receiver = ayllu_wire::ReceiverConfig { team: TEAM, key: Some(key) };
+        let give_up = StdInstant::now() + PATIENCE;
+        while StdInstant::now() < give_up {
+            let Ok(Some(sample)) = inbox.recv_timeout(StdDuration::from_millis(200)) else { continue };
+            let bytes = sample.payload().to_bytes();
+            let Ok(d) = ayllu_wire::decode(&bytes, &receiver) else { continue };
+            let cookie = d.messages.iter().find_map(|m| match m {
+                WireMessage::Challenge { cookie } => Some(*cookie),
+                _ => None,
+            });
+            if let Some(cookie) = cookie {
+                let seq = self.next_seq();
+                let echo = WireMessage::Echo { cookie };
+                self.publish(&[encode_datagram(TEAM, NodeId(CRAFTER), seq, Some(key), &[echo]).unwrap()]);
+                return;
+            }
+        }
+        fail("crafter-fresh", "the node never challenged the crafting sender");
+    }
+
     /// Send one case: the node's drop counters move by exactly `{cause: 1}`.
     fn drop_delta(&mut self, case: &str, cause: &str, a: i64, b: f64) {
         let check = format!("drop-{case}");
+        self.crafter_fresh();
         let before = self.drop_counts(&check);
         let datagrams = self.craft(case, a, b);
         self.publish(&datagrams);

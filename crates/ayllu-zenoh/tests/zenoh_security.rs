@@ -68,6 +68,8 @@ fn run_until(nodes: &mut [Node], done: impl FnMut(&mut [Node]) -> bool) -> bool 
 struct RawClient {
     session: zenoh::Session,
     heard: Arc<AtomicU64>,
+    /// The last datagrams heard (at most 256), for CHALLENGEs to answer.
+    inbox: Arc<std::sync::Mutex<std::collections::VecDeque<Vec<u8>>>>,
     _sub: zenoh::pubsub::Subscriber<()>,
 }
 
@@ -77,22 +79,45 @@ impl RawClient {
         c.insert_json5("connect/endpoints", &format!("[\"{router}\"]")).unwrap();
         let session = zenoh::open(c).wait().expect("a TLS client session");
         let heard = Arc::new(AtomicU64::new(0));
-        let h = heard.clone();
+        let inbox: Arc<std::sync::Mutex<std::collections::VecDeque<Vec<u8>>>> = Arc::default();
+        let (h, i) = (heard.clone(), inbox.clone());
         let sub = session
             .declare_subscriber(format!("ayllu/{TEAM}/**"))
             // Only what came through the router (not this session's own puts).
             .allowed_origin(zenoh::sample::Locality::Remote)
-            .callback(move |_| {
+            .callback(move |sample| {
                 h.fetch_add(1, Ordering::Relaxed);
+                let mut inbox = i.lock().unwrap_or_else(|p| p.into_inner());
+                if inbox.len() >= 256 {
+                    inbox.pop_front();
+                }
+                inbox.push_back(sample.payload().to_bytes().into_owned());
             })
             .wait()
             .expect("subscribe");
-        RawClient { session, heard, _sub: sub }
+        RawClient { session, heard, inbox, _sub: sub }
     }
 
     /// Whether the session has a link to the router (TLS accepted it).
     fn linked(&self) -> bool {
         self.session.info().routers_zid().wait().next().is_some()
+    }
+
+    /// Answer, as node 9 at `from`, the CHALLENGEs heard (MACed with `key`): a keyed node
+    /// applies a sender it has no memory of only after its ECHO (docs/semantics.md D-N5.4).
+    fn answer_challenges(&self, key: [u8; 32], from: std::net::SocketAddrV4, seq: &mut u64) {
+        let heard: Vec<Vec<u8>> = self.inbox.lock().unwrap_or_else(|p| p.into_inner()).drain(..).collect();
+        let receiver = ayllu_wire::ReceiverConfig { team: TEAM, key: Some(key) };
+        for bytes in heard {
+            let Ok(d) = ayllu_wire::decode(&bytes, &receiver) else { continue };
+            for m in d.messages {
+                if let WireMessage::Challenge { cookie } = m {
+                    *seq += 1;
+                    let echo = encode_datagram(TEAM, NodeId(9), *seq, Some(key), &[WireMessage::Echo { cookie }]);
+                    self.publish(&echo.unwrap(), from);
+                }
+            }
+        }
     }
 
     /// Publish `datagram` on the team's broadcast key as node `from` would (attachment).
@@ -200,6 +225,7 @@ fn tls_router_with_access_control_and_the_team_key_end_to_end() {
     let applied = run_until(&mut nodes, |n| {
         if last.elapsed() >= StdDuration::from_millis(100) {
             last = StdInstant::now();
+            listed.answer_challenges(KEY, from, &mut seq);
             listed.publish(&datagram(KEY, seq, 67), from);
             seq += 1;
         }

@@ -8,8 +8,10 @@
 
 #![warn(missing_docs)]
 
+mod admission;
 pub mod clock;
 pub mod datagram;
+pub mod driver;
 pub mod error;
 pub mod faults;
 pub mod graph;
@@ -36,6 +38,7 @@ pub mod udp_config;
 
 pub use ayllu_core::*;
 pub use clock::{Clock, ManualClock, MonotonicClock};
+pub use driver::Driver;
 pub use error::Error as RuntimeError;
 pub use lockstep::Lockstep;
 pub use mem::{MemNetwork, MemTransport};

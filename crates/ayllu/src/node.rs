@@ -14,6 +14,7 @@ use ayllu_core::{
 };
 
 use crate::clock::{Clock, MonotonicClock};
+use crate::driver::Driver;
 use crate::error::Error;
 use crate::transport::{self, SendTally, Transport};
 
@@ -79,6 +80,8 @@ pub struct Node {
     failed_requests: Vec<(NodeId, u64, String)>,
     /// The flight recorder, drained every turn (see [`Node::record`]).
     recorder: Option<crate::recording::Recorder>,
+    /// The drivers of the node's bodies (see [`Node::attach`]), in the order attached.
+    drivers: Vec<Box<dyn Driver>>,
 }
 
 impl Node {
@@ -119,6 +122,7 @@ impl Node {
             new_warnings: Vec::new(),
             failed_requests: Vec::new(),
             recorder: None,
+            drivers: Vec::new(),
         }
     }
 
@@ -200,6 +204,13 @@ impl Node {
     /// What the recorder has written and dropped so far; `None` if the node is not recording.
     pub fn recording_stats(&self) -> Option<crate::RecordStats> {
         self.recorder.as_ref().map(|r| r.stats())
+    }
+
+    /// Let `driver` write and read this node's body every turn (see [`crate::driver`]): from
+    /// the next [`Node::step`] on, it takes in what arrived from outside before the core runs
+    /// and sends out what the ports hold after.
+    pub fn attach(&mut self, driver: impl Driver + 'static) {
+        self.drivers.push(Box::new(driver));
     }
 
     /// Define a behavior class on this node (rule S2).
@@ -310,7 +321,15 @@ impl Node {
         for w in self.new_warnings.drain(..) {
             self.core.warn(w);
         }
-        let next = self.core.poll(now);
+        for d in &mut self.drivers {
+            d.input(&mut self.core, now);
+        }
+        let mut next = self.core.poll(now);
+        for d in &mut self.drivers {
+            if let Some(due) = d.output(&mut self.core, now) {
+                next = Some(next.map_or(due, |n| n.min(due)));
+            }
+        }
         self.send_outgoing();
         if self.transport.counters_generation() != self.counters_generation {
             self.counters_generation = self.transport.counters_generation();

@@ -10,13 +10,27 @@
 //! of an id applied in the last [`RETRY_HORIZON`] is a retry (N2) and goes through, to be
 //! answered from memory by the core.
 //!
-//! Promises: memory is bounded (4096 requesters' windows, 1024 retries remembered); a
-//! request that was refused moves no window.
+//! A signature costs tens of microseconds to verify, and anyone can send a forged one: before a
+//! signature is verified, its requester must be within a rate (the core's default request rate,
+//! 50 a second, 100 at once) and all requesters together within 1,000 a second (bursts of
+//! 200); beyond them the request is dropped unanswered, unverified (`signature_rate_limited`),
+//! and the requester retries (N2). A flood of forged signatures so costs at most that many verifications a
+//! second, whatever ids it writes.
+//!
+//! Promises: memory is bounded (4096 requesters' windows and rate buckets, 1024 retries
+//! remembered); a request that was refused moves no window.
 
 use std::collections::{BTreeMap, VecDeque};
 
 use ayllu_core::{Duration, Instant, NodeId};
 use ayllu_wire::{OperatorPublic, OperatorSignature, ReplayWindow, SignedRequest};
+
+use crate::admission::{Bucket, Rate};
+
+/// Signatures verified per requester: the core's default request rate (`Limits`).
+const VERIFY_EACH: Rate = Rate { burst: 100, every: Duration::from_millis(20) };
+/// Signatures verified over all requesters together: about 5 % of a core at ~50 us each.
+const VERIFY_ALL: Rate = Rate { burst: 200, every: Duration::from_millis(1) };
 
 /// Requesters whose signed-request windows are kept (the least recently used is forgotten
 /// first: it can then replay requests older than its newest applied one).
@@ -36,6 +50,8 @@ pub(crate) enum Refusal {
     BadSignature,
     /// A valid signature on a request applied before (outside the retry horizon).
     Replayed,
+    /// Over the rate of signatures verified (not verified, not answered).
+    RateLimited,
 }
 
 impl Refusal {
@@ -45,6 +61,7 @@ impl Refusal {
             Refusal::Unsigned => "unsigned",
             Refusal::BadSignature => "bad_signature",
             Refusal::Replayed => "replayed",
+            Refusal::RateLimited => "signature_rate_limited",
         }
     }
 }
@@ -54,6 +71,9 @@ pub(crate) struct OperatorGate {
     key: OperatorPublic,
     windows: BTreeMap<NodeId, (ReplayWindow, Instant)>,
     recent: VecDeque<(NodeId, u64, Instant)>,
+    /// Signatures left to verify, per requester and in all.
+    rates: BTreeMap<NodeId, Bucket>,
+    all: Option<Bucket>,
     /// Windows changed since the state file was last written.
     pub(crate) dirty: bool,
 }
@@ -61,7 +81,7 @@ pub(crate) struct OperatorGate {
 impl OperatorGate {
     pub(crate) fn new(key: OperatorPublic, windows: BTreeMap<NodeId, ReplayWindow>) -> Self {
         let windows = windows.into_iter().map(|(n, w)| (n, (w, Instant::ZERO))).collect();
-        OperatorGate { key, windows, recent: VecDeque::new(), dirty: false }
+        OperatorGate { key, windows, recent: VecDeque::new(), rates: BTreeMap::new(), all: None, dirty: false }
     }
 
     /// Whether `request` may be applied. Only structure changes are gated; other requests
@@ -76,6 +96,9 @@ impl OperatorGate {
             return Ok(());
         }
         let sig = signature.ok_or(Refusal::Unsigned)?;
+        if !self.may_verify(now, request.requester) {
+            return Err(Refusal::RateLimited);
+        }
         if !self.key.verify(request, sig) {
             return Err(Refusal::BadSignature);
         }
@@ -102,6 +125,27 @@ impl OperatorGate {
         }
         self.recent.push_back((requester, id, now));
         Ok(())
+    }
+
+    /// Whether one more signature from `requester` may be verified now (its rate, then the
+    /// rate of all; a token is taken from both or neither).
+    fn may_verify(&mut self, now: Instant, requester: NodeId) -> bool {
+        if !self.rates.contains_key(&requester) && self.rates.len() >= MAX_REQUESTERS {
+            // The bucket counted longest ago has refilled the most: forgetting it only lets its
+            // requester verify sooner.
+            if let Some(oldest) = self.rates.iter().min_by_key(|(_, b)| b.at).map(|(n, _)| *n) {
+                self.rates.remove(&oldest);
+            }
+        }
+        let each = self.rates.entry(requester).or_insert_with(|| VERIFY_EACH.full(now));
+        if !VERIFY_EACH.peek(each, now) {
+            return false;
+        }
+        let all = self.all.get_or_insert_with(|| VERIFY_ALL.full(now));
+        if !VERIFY_ALL.take(all, now) {
+            return false;
+        }
+        self.rates.get_mut(&requester).is_some_and(|b| VERIFY_EACH.take(b, now))
     }
 
     /// The newest signed request id applied from each requester, to save.

@@ -183,6 +183,87 @@ pub fn wander_class(hz: f64) -> Result<BehaviorClass, Error> {
     Ok(c)
 }
 
+/// The avoid behavior's name.
+pub const AVOID: &str = "AVOID";
+
+/// How [`avoid_class`] turns away: when the nearest echo in the front sector is under `near`
+/// metres, turn at `turn` rad/s towards the side with more room.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Avoid {
+    /// Distance (m, from the rim) under which an echo ahead makes the robot turn away.
+    pub near: f64,
+    /// Turn rate (rad/s) while avoiding.
+    pub turn: f64,
+    /// Half-width of the front sector (rad) whose beams count.
+    pub sector: f64,
+}
+
+impl Default for Avoid {
+    /// Turns before [`SafeVelocity::default`] stops the robot (0.3 m), so a robot heading for
+    /// a wall turns while it slows.
+    fn default() -> Self {
+        Avoid { near: 0.6, turn: 0.8, sector: 0.8 }
+    }
+}
+
+/// `Avoid`: at 10 Hz, reads `Ranges` (fed from SONAR); when something is nearer than
+/// `near` in the front sector, writes a turn away from it to `Rotate` (the side whose nearest
+/// echo is farther wins; straight ahead turns left). Writes nothing when the way is clear, so
+/// the layer it overrides takes over again once its override window ends. Stale sonar: nothing
+/// (SafeVelocity already stops the robot).
+pub fn avoid_class(cfg: Avoid) -> Result<BehaviorClass, Error> {
+    let mut c = BehaviorClass::new("Avoid");
+    let ranges = c.port(PortSpec::new("Ranges", Vec::<f64>::new()).lifespan(SONAR_LIFESPAN))?;
+    let rotate = c.port(PortSpec::new("Rotate", 0.0))?;
+    c.every_hz("Avoid", 10.0, move |ctx| {
+        let Some(ayllu_core::Value::Vector(r)) = ctx.get_ref(ranges) else { return };
+        let n = r.len();
+        let (mut left, mut right, mut ahead) = (f64::INFINITY, f64::INFINITY, f64::INFINITY);
+        for (k, &d) in r.iter().enumerate() {
+            // Beam k points k * 2π / n counter-clockwise: angles in (0, π) are on the left.
+            let a = k as f64 * (std::f64::consts::TAU / n as f64);
+            let off = a.min(std::f64::consts::TAU - a);
+            if off > cfg.sector + 1e-9 {
+                continue;
+            }
+            ahead = ahead.min(d);
+            if a > 1e-9 && a < std::f64::consts::PI {
+                left = left.min(d);
+            } else if a > std::f64::consts::PI {
+                right = right.min(d);
+            }
+        }
+        if ahead < cfg.near {
+            let w = if left >= right { cfg.turn } else { -cfg.turn };
+            let _ = ctx.write(rotate, w);
+        }
+    })?;
+    Ok(c)
+}
+
+/// The classic three-layer subsumption controller on a body (SONAR and BASE already on `node`):
+/// `VEL` ([`safe_velocity_class`]) drives `BASE.Translate` from the sonar; `WANDER`
+/// ([`random_wander_class`], seeded by `seed`) turns `BASE.Rotate`; `AVOID` ([`avoid_class`])
+/// overrides `BASE.Rotate` ([`ConnectionKind::OverrideIn`], [`OVERRIDE_PERIOD`]) while
+/// something is close ahead. What `ayllu node --controller wander` runs, on any body.
+pub fn wander_avoid(node: &mut NodeCore, seed: u64) -> Result<(), Error> {
+    node.define(safe_velocity_class(SafeVelocity::default())?)?;
+    node.define(random_wander_class(10.0, seed)?)?;
+    node.define(avoid_class(Avoid::default())?)?;
+    node.create("SafeVelocity", VEL)?;
+    node.create("RandomWander", WANDER)?;
+    node.create("Avoid", AVOID)?;
+    let wire = |node: &mut NodeCore, (sb, sp): (&str, &str), (db, dp): (&str, &str), kind: ConnectionKind| {
+        node.connect(&Endpoint::local(sb, sp), &Endpoint::local(db, dp), kind, ConnectOptions::default()).map(|_| ())
+    };
+    wire(node, (SONAR, "Ranges"), (VEL, "Ranges"), ConnectionKind::Normal)?;
+    wire(node, (SONAR, "Ranges"), (AVOID, "Ranges"), ConnectionKind::Normal)?;
+    wire(node, (VEL, "Translate"), (BASE, "Translate"), ConnectionKind::Normal)?;
+    wire(node, (WANDER, "Rotate"), (BASE, "Rotate"), ConnectionKind::Normal)?;
+    wire(node, (AVOID, "Rotate"), (BASE, "Rotate"), ConnectionKind::OverrideIn(OVERRIDE_PERIOD))?;
+    Ok(())
+}
+
 /// How often an observer offers its eligibility (`Local`, which BLE broadcasts to its peers).
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum Eligibility {

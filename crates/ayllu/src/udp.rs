@@ -10,8 +10,16 @@
 //!   replay windows and reply reassembly is bounded, so a flood cannot grow it.
 //! * N5: with a team key, every datagram carries a MAC and is checked against a per-sender
 //!   replay window; without one the team is open.
-//! * N6: HELLO every `hello_ms` to static peers, group and broadcast addresses and known peers;
-//!   a peer silent for three of its periods is forgotten. A new peer is greeted at once.
+//! * N5, D-N5.4: a keyed sender this node has no memory of (no window, restored or made in this
+//!   run, that it has answered a CHALLENGE in) has its port messages and requests dropped
+//!   (`not_fresh`) until it sends an authenticated ECHO of our cookie; its window then restarts
+//!   above that ECHO, so datagrams captured before a restart are refused without `state=`.
+//! * N6: HELLO every `hello_ms` to static peers, group and broadcast addresses and protected
+//!   peers; a peer silent for three of its periods is forgotten. A new peer is greeted at once,
+//!   with a CHALLENGE: real nodes prove each other's address as they greet.
+//! * D-N6.3-6.6: peers with a proven address, named by `peer=` or in use are never displaced by
+//!   a newcomer; newcomers are let in at a rate per source address and block
+//!   (`admission.rs`), and an unproven peer is forgotten on a short clock of its own.
 //! * Return routability: answers to an address that has not proven it receives are bounded to
 //!   three times what came from it; larger ones wait for a CHALLENGE/ECHO round trip
 //!   ([`crate::routability`]). CHALLENGEs we receive are echoed at once.
@@ -32,6 +40,7 @@ use ayllu_wire::{
     ReplyAssembler, SignedRequest, WireMessage,
 };
 
+use crate::admission::{Admission, Bucket, Rate};
 use crate::datagram::{DatagramSocket, OsSocket};
 use crate::error::Error;
 use crate::operator::OperatorGate;
@@ -47,6 +56,23 @@ const MAX_REPLAY_SENDERS: usize = 4096;
 /// The longest HELLO period a peer may announce: it bounds how long a forged peer stays in the
 /// table (three periods) and so how long it is greeted.
 const MAX_PEER_INTERVAL: Duration = Duration::from_secs(60);
+/// An unproven peer (one that has not echoed a cookie, authenticated, been named in the URL or
+/// been sent to) is kept this many of *our* HELLO periods from when it was let in, whatever
+/// period it announces and however often it is heard: a real node proves its address within
+/// one round trip of its greeting, so only forgers run out this clock (N4, N6).
+const UNPROVEN_PERIODS: u64 = 3;
+/// Bounds on that lifetime, whatever `hello_ms` says.
+const MIN_UNPROVEN_LIFETIME: Duration = Duration::from_secs(1);
+const MAX_UNPROVEN_LIFETIME: Duration = Duration::from_secs(10);
+/// A peer this node sent a message to (a connection's port messages, a request, a group's
+/// messages sent to it by unicast) within this long is *in use* and keeps its place.
+const IN_USE: Duration = MAX_PEER_INTERVAL;
+/// CHALLENGEs sent to newcomers the admission rate refused (so that a real node can still join
+/// during a flood by proving its address): at most this many, over all senders.
+const REFUSED_CHALLENGES: Rate = Rate { burst: 64, every: Duration::from_millis(4) };
+/// How often an unproven peer, or a keyed sender not yet known fresh, is challenged again
+/// while it is heard (the first CHALLENGE or ECHO may be lost).
+const RECHALLENGE: Duration = Duration::from_millis(250);
 const MAX_ASSEMBLIES: usize = 64;
 /// Report bytes held by all reply assemblies together: the oldest go first beyond it (one
 /// honest report is at most 64 parts of 1.4 KB at the default MTU; forged parts could
@@ -222,9 +248,20 @@ fn discovery_warning(config: &UdpConfig, error: &str) -> String {
     )
 }
 
-/// When a peer silent since `last_heard` is forgotten: three of its HELLO periods (N6).
-fn expiry(p: &Peer) -> Instant {
-    p.last_heard + p.interval * 3
+/// When a peer is forgotten (N4, N6): three of its HELLO periods after it was last heard; and
+/// an unproven one, not in use, `unproven` after it was let in at the latest. Hearing from a
+/// peer, proving it or using it only ever moves this later, so a computed expiry is a lower
+/// bound (`next_expiry`).
+fn expiry(p: &Peer, unproven: Duration) -> Instant {
+    let normal = p.last_heard + p.interval * 3;
+    if p.budget.proven || p.fixed {
+        return normal;
+    }
+    let mut short = p.admitted + unproven;
+    if let Some(used) = p.used {
+        short = short.max(used + IN_USE);
+    }
+    normal.min(short)
 }
 
 #[derive(Clone, Debug)]
@@ -234,21 +271,48 @@ struct Peer {
     groups: Vec<String>,
     interval: Duration,
     last_heard: Instant,
-    /// Datagrams accepted from it (saturating).
-    heard: u32,
-    /// It authenticated (keyed team).
-    authenticated: bool,
-    /// What its address may still be sent before it proves it receives there.
+    /// When it was let in (or its address last changed): an unproven peer's clock starts here.
+    admitted: Instant,
+    /// Its address is one the URL names (`peer=`): the operator vouched for it.
+    fixed: bool,
+    /// When this node last sent it a message (a connection, a request, a group's unicast).
+    used: Option<Instant>,
+    /// When it was last sent a CHALLENGE (at most one per [`RECHALLENGE`]).
+    challenged: Option<Instant>,
+    /// What its address may still be sent before it proves it receives there; `proven` once
+    /// it echoed a cookie, or authenticated as a sender known to be fresh.
     budget: Budget,
 }
 
 impl Peer {
-    /// A peer is *proven* once it authenticated, or sent a second datagram: proven peers are
-    /// greeted every period and are never evicted to make room for a newcomer; an unproven one
-    /// (one forged HELLO) gets one greeting.
-    fn proven(&self) -> bool {
-        self.authenticated || self.heard >= 2
+    /// A *protected* peer is never displaced by a newcomer and is greeted every period: its
+    /// address is proven (ECHO, or a fresh authenticated datagram), named in the URL, or in use
+    /// by this node. Anyone can send a second datagram or announce a group in an open team, so
+    /// neither protects (docs/semantics.md N4).
+    fn protected(&self, now: Instant) -> bool {
+        self.budget.proven || self.fixed || self.used.is_some_and(|u| now < u + IN_USE)
     }
+}
+
+/// What [`UdpTransport::admit`] let through: the sender, whether it is new to the peer table,
+/// and whether its datagram may be applied whole (`fresh`: not a keyed sender this node has no
+/// memory of and that has not yet answered a CHALLENGE, D-N5.4).
+struct Admitted {
+    sender: NodeId,
+    is_new: bool,
+    fresh: bool,
+}
+
+/// A keyed sender's replay window (N5), with when it was last used, and what is known of its
+/// freshness: a window made here for a sender this node has no memory of accepts numbers, but
+/// the datagrams are applied only once the sender answered a CHALLENGE with an authenticated
+/// ECHO (D-N5.4).
+struct SenderWindow {
+    window: ReplayWindow,
+    used: Instant,
+    fresh: bool,
+    /// When it was last challenged for freshness.
+    challenged: Option<Instant>,
 }
 
 /// A node's UDP transport. `S` is the socket: a real one, or a test bus / fault injector.
@@ -265,8 +329,12 @@ pub struct UdpTransport<S: DatagramSocket = OsSocket> {
     peers: BTreeMap<NodeId, Peer>,
     /// Peers forgotten since the node last asked ([`Transport::take_lost_peers`]).
     lost: Vec<NodeId>,
-    /// Replay windows by sender, with when each was last used (outlive peer entries, N5).
-    replay: BTreeMap<NodeId, (ReplayWindow, Instant)>,
+    /// Replay windows by sender (outlive peer entries, N5), and their senders' freshness.
+    replay: BTreeMap<NodeId, SenderWindow>,
+    /// Newcomers' admission rates by source address and block (N4).
+    admission: Admission,
+    /// CHALLENGEs left for newcomers the admission rate refused ([`REFUSED_CHALLENGES`]).
+    refused_challenges: Bucket,
     /// Replay windows changed since they were last saved to `config.state` (D-N5.3).
     replay_dirty: bool,
     /// When the windows may next be saved (at most once a second).
@@ -429,7 +497,16 @@ impl<S: DatagramSocket> UdpTransport<S> {
             Some(path) if config.key.is_some() || config.operator.is_some() => load_marks(path, &mut warnings),
             _ => Marks::default(),
         };
-        let replay = if config.key.is_some() { marks.datagrams } else { BTreeMap::new() };
+        // A sender whose mark was saved is one this node remembers: its numbers above the mark
+        // are fresh (D-N5.3).
+        let replay = match config.key {
+            Some(_) => marks
+                .datagrams
+                .into_iter()
+                .map(|(n, (window, used))| (n, SenderWindow { window, used, fresh: true, challenged: None }))
+                .collect(),
+            None => BTreeMap::new(),
+        };
         let operator = config.operator.map(|key| OperatorGate::new(key, marks.requests));
         let cookies = Cookies::new().map_err(|e| Error::Io { what: "making the cookie secret".into(), error: e })?;
         if let Some(IpAddr::V4(ip)) = config.discovery.map(|a| a.ip()) {
@@ -452,6 +529,8 @@ impl<S: DatagramSocket> UdpTransport<S> {
             peers: BTreeMap::new(),
             lost: Vec::new(),
             replay,
+            admission: Admission::default(),
+            refused_challenges: REFUSED_CHALLENGES.full(Instant::ZERO),
             replay_dirty: false,
             next_save: Instant::ZERO,
             held: VecDeque::new(),
@@ -503,16 +582,24 @@ impl<S: DatagramSocket> UdpTransport<S> {
 
     /// Where a destination's datagrams go now, into `out` (emptied first; a buffer kept
     /// between messages, since this runs for every message sent).
-    fn route(&self, to: &Destination, out: &mut Vec<SocketAddr>) {
+    /// The peers it names are marked in use (N4).
+    fn route(&mut self, to: &Destination, out: &mut Vec<SocketAddr>) {
         out.clear();
+        let now = self.now;
         match to {
-            Destination::Node(n) => out.extend(self.peers.get(n).map(|p| p.addr)),
+            Destination::Node(n) => out.extend(self.peers.get_mut(n).map(|p| {
+                p.used = Some(now);
+                p.addr
+            })),
             Destination::Group(g) => {
                 if let Some((_, a)) = self.config.groups.iter().find(|(name, _)| **name == **g) {
                     out.push(*a);
                 } else if let Some(b) = self.config.broadcast {
                     out.push(b);
                 } else {
+                    // A group membership in use keeps a member's place through its proof, not
+                    // through the announcement: anyone can announce a group, and a real member
+                    // proves its address at its greeting (N4). So it is not marked in use here.
                     out.extend(self.peers.values().filter(|p| p.groups.iter().any(|x| **x == **g)).map(|p| p.addr));
                     out.dedup();
                 }
@@ -523,21 +610,42 @@ impl<S: DatagramSocket> UdpTransport<S> {
     /// Check an authenticated datagram's number against its sender's replay window (N5), kept
     /// apart from the peer table so that it outlives the peer entry; at most
     /// [`MAX_REPLAY_SENDERS`] windows, the least recently used forgotten first (counted).
-    fn accept_sequence(&mut self, sender: NodeId, seq: u64) -> bool {
+    /// `None` for a number seen before, else whether the sender is known to be fresh. A
+    /// window made here, for a sender this node has no memory of (a first contact, a restart
+    /// without `state=`, a window evicted), starts not fresh (D-N5.4).
+    fn accept_sequence(&mut self, sender: NodeId, seq: u64) -> Option<bool> {
         if !self.replay.contains_key(&sender) && self.replay.len() >= MAX_REPLAY_SENDERS {
-            if let Some(oldest) = self.replay.iter().min_by_key(|(_, (_, used))| *used).map(|(n, _)| *n) {
+            if let Some(oldest) = self.replay.iter().min_by_key(|(_, w)| w.used).map(|(n, _)| *n) {
                 self.replay.remove(&oldest);
                 self.count("replay_window_evicted");
             }
         }
         let now = self.now;
-        let (window, used) = self.replay.entry(sender).or_insert_with(|| (ReplayWindow::new(), now));
-        if !window.accept(seq) {
-            return false;
+        let w = self.replay.entry(sender).or_insert_with(|| SenderWindow {
+            window: ReplayWindow::new(),
+            used: now,
+            fresh: false,
+            challenged: None,
+        });
+        if !w.window.accept(seq) {
+            return None;
         }
-        *used = now;
+        w.used = now;
         self.replay_dirty = true;
-        true
+        Some(w.fresh)
+    }
+
+    /// Whether `rest` holds an ECHO of a cookie this node made for `sender` at `from`.
+    fn echoes_cookie(&self, sender: NodeId, from: SocketAddr, rest: &[WireMessage]) -> bool {
+        rest.iter()
+            .any(|m| matches!(m, WireMessage::Echo { cookie } if self.cookies.check(self.now, sender, from, cookie)))
+    }
+
+    /// Send `sender` at `from` a CHALLENGE now (pushed into the turn's datagram for `from`).
+    fn challenge(&mut self, sender: NodeId, from: SocketAddr) {
+        let cookie = self.cookies.make(self.now, sender, from);
+        self.push(from, &WireMessage::Challenge { cookie });
+        self.count("challenges_sent");
     }
 
     /// Write the newest accepted number of every sender to `config.state`, atomically (a
@@ -552,7 +660,7 @@ impl<S: DatagramSocket> UdpTransport<S> {
         self.replay_dirty = false;
         self.next_save = now + Duration::from_secs(1);
         let mut text: String =
-            self.replay.iter().filter_map(|(n, (w, _))| w.newest().map(|seq| format!("{} {seq}\n", n.0))).collect();
+            self.replay.iter().filter_map(|(n, w)| w.window.newest().map(|seq| format!("{} {seq}\n", n.0))).collect();
         if let Some(gate) = &mut self.operator {
             gate.dirty = false;
             text.extend(gate.marks().map(|(n, id)| format!("op {} {id}\n", n.0)));
@@ -695,7 +803,8 @@ impl<S: DatagramSocket> UdpTransport<S> {
         targets.extend(self.config.discovery);
         // Unproven peers were greeted once when first heard; greeting them every period would
         // reflect traffic at whatever address a forger wrote.
-        targets.extend(self.peers.values().filter(|p| p.proven()).map(|p| p.addr));
+        let now = self.now;
+        targets.extend(self.peers.values().filter(|p| p.protected(now)).map(|p| p.addr));
         targets.sort();
         targets.dedup();
         let hello = self.hello();
@@ -716,17 +825,37 @@ impl<S: DatagramSocket> UdpTransport<S> {
         let decoded = decode_into(&self.buf[..len], &self.receiver, &mut self.names, &mut sink);
         let not_member = sink.not_member;
         let admitted = match decoded {
-            Ok(header) => self.admit(header, from, len),
+            Ok(header) => self.admit(header, from, len, &rest),
             Err(reason) => {
                 self.count(reason.name());
                 None
             }
         };
-        let Some((sender, is_new)) = admitted else {
+        let Some(Admitted { sender, is_new, fresh }) = admitted else {
             self.inbox.truncate(mark);
             self.decoded = rest;
             return;
         };
+        if !fresh {
+            // A keyed sender not yet known fresh (D-N5.4): its port messages and requests may
+            // be replays captured before this node started; they wait for its ECHO (values are
+            // best effort, N1; requests are retried, N2). Replies go through: they match only
+            // our own pending requests, whose ids start at this run's boot time.
+            let ports = self.inbox.len() - mark;
+            self.inbox.truncate(mark);
+            let mut refused = ports as u64;
+            rest.retain(|m| {
+                let applies =
+                    matches!(m, WireMessage::Port(_) | WireMessage::GroupPort { .. } | WireMessage::Request { .. })
+                        || matches!(m, WireMessage::UnknownRequest { .. });
+                refused += u64::from(applies);
+                !applies
+            });
+            if refused > 0 {
+                self.counters.add_n("not_fresh", refused);
+                self.generation += 1;
+            }
+        }
         if not_member > 0 {
             self.counters.add_n("not_member", not_member);
             self.generation += 1;
@@ -757,7 +886,10 @@ impl<S: DatagramSocket> UdpTransport<S> {
                         Ok(()) => self.inbox.push_back((sender, Message::Control(ControlMessage { id, body }))),
                         Err(refusal) => {
                             self.count(refusal.cause());
-                            if refusal != crate::operator::Refusal::Replayed {
+                            // A replay or a request over the rate is not answered: the answer
+                            // would be the very traffic the limit is for.
+                            use crate::operator::Refusal;
+                            if !matches!(refusal, Refusal::Replayed | Refusal::RateLimited) {
                                 // Answered, so the requester learns why rather than retrying.
                                 let what =
                                     if matches!(body, ControlBody::Connect { .. }) { "CONNECT" } else { "DISCONNECT" };
@@ -782,11 +914,12 @@ impl<S: DatagramSocket> UdpTransport<S> {
                 WireMessage::Echo { cookie } => {
                     if self.cookies.check(now, sender, from, &cookie) {
                         if let Some(p) = self.peers.get_mut(&sender) {
-                            if !p.budget.proven {
+                            if p.addr == from && !p.budget.proven {
                                 p.budget.proven = true;
                                 self.count("addresses_proven");
                             }
                         }
+                        self.one_node_per_address(sender, from);
                     } else {
                         self.count("bad_cookie");
                     }
@@ -819,6 +952,20 @@ impl<S: DatagramSocket> UdpTransport<S> {
                     }
                     if is_new {
                         self.greet.push((sender, from));
+                    } else if let Some(p) = self.peers.get_mut(&sender) {
+                        // Proving each other is part of greeting (N6): a peer still unproven
+                        // is challenged again at its HELLOs, within its 3x budget, until it
+                        // echoes or its short clock runs out.
+                        let due = p.challenged.is_none_or(|t| now >= t + RECHALLENGE);
+                        if p.addr == from && !p.budget.proven && due {
+                            p.challenged = Some(now);
+                            let challenge = (ayllu_wire::HEADER_LEN
+                                + ayllu_wire::MESSAGE_HEADER_LEN
+                                + ayllu_wire::COOKIE_LEN) as u64;
+                            if p.budget.spend(challenge) {
+                                self.challenge(sender, from);
+                            }
+                        }
                     }
                     self.count("hellos_received");
                     hello = true;
@@ -832,17 +979,46 @@ impl<S: DatagramSocket> UdpTransport<S> {
         }
         if is_new || hello {
             // A new peer, or a new HELLO period, may expire before every other peer.
+            let unproven = self.unproven_lifetime();
             if let Some(p) = self.peers.get(&sender) {
-                self.next_expiry = self.next_expiry.min(expiry(p));
+                self.next_expiry = self.next_expiry.min(expiry(p, unproven));
             }
         }
     }
 
+    /// How long an unproven peer is kept ([`UNPROVEN_PERIODS`] of our HELLO period, bounded).
+    fn unproven_lifetime(&self) -> Duration {
+        (self.config.hello_interval * UNPROVEN_PERIODS).clamp(MIN_UNPROVEN_LIFETIME, MAX_UNPROVEN_LIFETIME)
+    }
+
+    /// `sender` proved it receives at `from`: it becomes that peer's address (a proven peer
+    /// that moved), and other ids at the same address that proved nothing stronger leave the
+    /// table. One socket is one node (lite/README.md), so an attacker that answers CHALLENGEs
+    /// holds at most one proven place per address it really receives at, not one per id.
+    fn one_node_per_address(&mut self, sender: NodeId, from: SocketAddr) {
+        let now = self.now;
+        if let Some(p) = self.peers.get_mut(&sender) {
+            if p.addr != from {
+                p.addr = from;
+                p.budget = Budget { proven: true, ..Budget::default() };
+                p.admitted = now;
+                p.fixed = self.config.peers.contains(&from);
+                self.count("addresses_proven");
+            }
+        }
+        let before = self.peers.len();
+        self.peers.retain(|n, p| *n == sender || p.addr != from || p.fixed);
+        for _ in self.peers.len()..before {
+            self.count("peer_replaced");
+        }
+    }
+
     /// The checks a decoded datagram passes before anything in it is applied (our own
-    /// looped-back broadcast, another node with our id, a replayed number, a full peer table),
-    /// and the peer table's update for its sender: `(sender, whether the sender is new)`, or
-    /// `None`, counted, for a datagram to drop.
-    fn admit(&mut self, header: Header, from: SocketAddr, len: usize) -> Option<(NodeId, bool)> {
+    /// looped-back broadcast, another node with our id, a replayed number, the admission of a
+    /// newcomer, a full peer table), and the peer table's update for its sender; `None`,
+    /// counted, for a datagram to drop. `rest` is the datagram's messages other than its
+    /// leading port messages (an ECHO among them proves the sender's address at once).
+    fn admit(&mut self, header: Header, from: SocketAddr, len: usize, rest: &[WireMessage]) -> Option<Admitted> {
         if header.sender == self.id {
             if self.is_own(from, header.seq) {
                 // Our own broadcast, looped back by the network.
@@ -862,50 +1038,128 @@ impl<S: DatagramSocket> UdpTransport<S> {
             return None;
         }
         let now = self.now;
-        let default_interval = self.config.hello_interval;
-        if header.authenticated && !self.accept_sequence(header.sender, header.seq) {
-            self.count("replayed");
-            return None;
-        }
-        let is_new = !self.peers.contains_key(&header.sender);
-        if is_new && self.peers.len() >= MAX_PEERS {
-            // Make room by forgetting the unproven peer heard from longest ago; proven peers
-            // are never evicted for a newcomer (a flood of forged ids cannot push real peers out).
-            let oldest = self.peers.iter().filter(|(_, p)| !p.proven()).min_by_key(|(_, p)| p.last_heard);
-            match oldest.map(|(n, _)| *n) {
-                Some(n) => {
-                    self.peers.remove(&n);
-                    self.count("peer_evicted");
-                }
+        let sender = header.sender;
+        // Checked only for a datagram that carries an ECHO (rare): one MAC each.
+        let has_echo = rest.iter().any(|m| matches!(m, WireMessage::Echo { .. }));
+        let echoed = has_echo && self.echoes_cookie(sender, from, rest);
+        // A keyed sender is *fresh* once this node remembers it (a window of this run or the
+        // state file) and it answered a CHALLENGE of this run with an authenticated ECHO: a
+        // captured datagram is older than that ECHO, and the window restarts above it (D-N5.4).
+        let mut fresh = true;
+        if header.authenticated {
+            match self.accept_sequence(sender, header.seq) {
                 None => {
-                    self.count("peer_table_full");
+                    self.count("replayed");
                     return None;
+                }
+                Some(true) => {}
+                Some(false) if echoed => {
+                    if let Some(w) = self.replay.get_mut(&sender) {
+                        w.window = ReplayWindow::after(header.seq);
+                        w.fresh = true;
+                    }
+                    self.count("senders_fresh");
+                }
+                Some(false) => fresh = false,
+            }
+        }
+        // What an authenticated datagram proves (the sender holds the key and receives at its
+        // address) holds only for a fresh one: a replay comes from wherever the attacker is.
+        let trusted = header.authenticated && fresh;
+        let is_new = !self.peers.contains_key(&sender);
+        if is_new {
+            // The operator vouched for an address named in the URL, for one id at a time.
+            let fixed = self.config.peers.contains(&from) && !self.peers.values().any(|p| p.fixed && p.addr == from);
+            // Only a newcomer that proves nothing spends an admission token.
+            let vouched = trusted || fixed || echoed;
+            if !(vouched || self.admission.admit(now, from.ip())) {
+                self.count("admission_limited");
+                // A real newcomer greets: challenge it (within a global rate, and within 3x
+                // of this datagram: a CHALLENGE is 39 bytes, a HELLO datagram at least 30), so
+                // that its ECHO lets it in past the rate.
+                let greets = rest.iter().any(|m| matches!(m, WireMessage::Hello { .. }));
+                if greets && REFUSED_CHALLENGES.take(&mut self.refused_challenges, now) {
+                    self.challenge(sender, from);
+                }
+                return None;
+            }
+            if self.peers.len() >= MAX_PEERS {
+                // Make room by forgetting the unprotected peer let in longest ago (the nearest
+                // to its own expiry); protected peers are never displaced by a newcomer.
+                let oldest = self.peers.iter().filter(|(_, p)| !p.protected(now)).min_by_key(|(_, p)| p.admitted);
+                match oldest.map(|(n, _)| *n) {
+                    Some(n) => {
+                        self.peers.remove(&n);
+                        self.count("peer_evicted");
+                    }
+                    None => {
+                        self.count("peer_table_full");
+                        return None;
+                    }
+                }
+            }
+            self.peers.insert(
+                sender,
+                Peer {
+                    addr: from,
+                    name: String::new(),
+                    groups: Vec::new(),
+                    interval: self.config.hello_interval,
+                    last_heard: now,
+                    admitted: now,
+                    fixed,
+                    used: None,
+                    challenged: None,
+                    budget: Budget::default(),
+                },
+            );
+        }
+        let peer = self.peers.get_mut(&sender).expect("inserted above");
+        let (mut challenge_at, mut unconfirmed) = (None, false);
+        if peer.addr != from {
+            if trusted || echoed || !(peer.budget.proven || peer.fixed) {
+                // A fresh authenticated datagram, a proof, or a peer that had nothing to lose:
+                // the peer moved. The proof was for the old address; the new one starts over.
+                peer.budget.reset();
+                peer.addr = from;
+                peer.admitted = now;
+                peer.fixed = self.config.peers.contains(&from);
+                peer.challenged = None;
+            } else {
+                // Anyone can write a proven peer's id: its messages are applied (an open team
+                // authenticates nothing), but its traffic keeps going to the proven address
+                // until the new one proves itself (QUIC's path validation, RFC 9000 8.2).
+                unconfirmed = true;
+                if peer.challenged.is_none_or(|t| now >= t + RECHALLENGE) {
+                    peer.challenged = Some(now);
+                    challenge_at = Some(from);
                 }
             }
         }
-        let peer = self.peers.entry(header.sender).or_insert_with(|| Peer {
-            addr: from,
-            name: String::new(),
-            groups: Vec::new(),
-            interval: default_interval,
-            last_heard: now,
-            heard: 0,
-            authenticated: false,
-            budget: Budget::default(),
-        });
-        peer.heard = peer.heard.saturating_add(1);
-        peer.authenticated |= header.authenticated;
-        if peer.addr != from {
-            // Proof was for the old address; the new one starts over.
-            peer.budget.reset();
+        if peer.addr == from {
+            peer.last_heard = now;
+            peer.budget.received = peer.budget.received.saturating_add(len as u64);
+            // Forging a fresh authenticated datagram needs the team key.
+            peer.budget.proven |= trusted;
         }
-        peer.addr = from;
-        peer.last_heard = now;
-        peer.budget.received = peer.budget.received.saturating_add(len as u64);
-        // Forging an authenticated datagram needs the team key (and a fresh number).
-        peer.budget.proven |= header.authenticated;
+        if !fresh {
+            // Challenged for freshness, from wherever it came (a replay's address is the
+            // attacker's: the CHALLENGE is no larger than the datagram, so no amplification).
+            if let Some(w) = self.replay.get_mut(&sender) {
+                if w.challenged.is_none_or(|t| now >= t + RECHALLENGE) {
+                    w.challenged = Some(now);
+                    challenge_at = Some(from);
+                }
+            }
+        }
+        if unconfirmed {
+            self.count("address_unconfirmed");
+        }
+        if let Some(to) = challenge_at {
+            self.challenge(sender, to);
+        }
         self.count_hot(Hot::DatagramsReceived, 1);
-        Some((header.sender, is_new))
+        Some(Admitted { sender, is_new, fresh })
     }
 
     /// Read datagrams (at most [`RECV_BATCH`]) until one puts a message into the inbox or the
@@ -1021,7 +1275,13 @@ impl<S: DatagramSocket> UdpTransport<S> {
     fn send_message(&mut self, to: &Destination, message: &Message) -> Sent {
         // The hot path, a port message to one node: one lookup, no list of addresses.
         if let (Destination::Node(n), Message::Port(p)) = (to, message) {
-            let Some(addr) = self.peers.get(n).map(|peer| peer.addr) else { return self.hold(*n, message.clone()) };
+            let now = self.now;
+            let Some(addr) = self.peers.get_mut(n).map(|peer| {
+                peer.used = Some(now);
+                peer.addr
+            }) else {
+                return self.hold(*n, message.clone());
+            };
             self.push_port(addr, p, None);
             self.unflushed += 1;
             return Sent::Now;
@@ -1241,10 +1501,12 @@ impl<S: DatagramSocket> Transport for UdpTransport<S> {
             let hello = self.hello();
             for (node, addr) in greet {
                 self.push(addr, &hello);
-                if self.peers.get(&node).is_some_and(|p| !p.budget.proven && p.addr == addr) {
-                    // Proves the peer's address before it asks for anything large.
-                    let cookie = self.cookies.make(self.now, node, addr);
-                    self.push(addr, &WireMessage::Challenge { cookie });
+                let now = self.now;
+                if let Some(p) = self.peers.get_mut(&node).filter(|p| !p.budget.proven && p.addr == addr) {
+                    // Proves the peer's address as part of the greeting: a proven peer keeps its
+                    // place in the table (N4) and may ask for anything large.
+                    p.challenged = Some(now);
+                    self.challenge(node, addr);
                 }
             }
         }
@@ -1298,10 +1560,11 @@ impl<S: DatagramSocket> Transport for UdpTransport<S> {
         // The peer table is walked only when a peer may have expired, not every loop turn.
         if now >= self.next_expiry {
             let before = self.peers.len();
+            let unproven = self.unproven_lifetime();
             // Kept until the node takes them (bounded, in case nobody does).
             let lost = &mut self.lost;
             self.peers.retain(|id, p| {
-                let alive = now < expiry(p);
+                let alive = now < expiry(p, unproven);
                 if !alive && lost.len() < MAX_PEERS {
                     lost.push(*id);
                 }
@@ -1310,7 +1573,7 @@ impl<S: DatagramSocket> Transport for UdpTransport<S> {
             for _ in self.peers.len()..before {
                 self.count("peer_expired");
             }
-            self.next_expiry = self.peers.values().map(expiry).min().unwrap_or(Instant::MAX);
+            self.next_expiry = self.peers.values().map(|p| expiry(p, unproven)).min().unwrap_or(Instant::MAX);
         }
         if now >= self.next_hello {
             self.announce();

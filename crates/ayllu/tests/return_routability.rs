@@ -92,7 +92,12 @@ fn forged_requests_make_a_node_send_a_victim_at_most_three_times_their_bytes() {
         "{received} bytes reached the victim for {sent} sent"
     );
     assert!(received < report_bytes * 2, "not even two whole reports got through");
-    assert!(count(n, "amplification_limited") >= 90, "large answers were refused and counted");
+    // The fresh forged ids from one address are mostly refused at admission now (N4); what
+    // is let in is answered within the bound.
+    assert!(
+        count(n, "amplification_limited") + count(n, "admission_limited") >= 90,
+        "large answers, or forged requesters, were refused and counted"
+    );
 }
 
 #[test]

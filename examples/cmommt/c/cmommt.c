@@ -108,8 +108,14 @@ int main(int argc, char **argv) {
      * from $AYLLU_NODE and $AYLLU_URL). */
     ayInitIPCommsAs((uint32_t)robot, argv[2]);
     /* CHANGED: ayInitPioControl("/dev/ttyS0") drove a Pioneer's serial port; here the body
-     * (VISION, SONAR, BASE) is served over UDP by `ayllu sim serve`. */
+     * (VISION, SONAR, BASE) is served over UDP by `ayllu sim serve`. On a ROS 2 robot this is
+     * the one line that changes: ayInitRos2Body("robot.toml") makes the body the robot's
+     * topics (docs/ros2.md; `make ros2-c` builds this file so, with AYLLU_ROS2_BODY). */
+#ifdef AYLLU_ROS2_BODY
+    ayInitRos2Body(AYLLU_ROS2_BODY);
+#else
     ayInitSimBody(TARGETS);
+#endif
 
     MakeSafeVelBeh(VEL);
     /* CHANGED: MakeWanderBeh(WANDER): seeded, to compare with the Rust team in the same world. */

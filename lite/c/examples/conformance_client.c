@@ -42,6 +42,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/socket.h>
+#include <sys/time.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -482,10 +483,57 @@ static int craft(const char *cse, const ayl_value *a, const ayl_value *b, int *c
     return len;
 }
 
+/* In a keyed team, make raw_node known fresh before its first crafted datagram: a node with no
+ * memory of a keyed sender applies its PORTs only after it answered a CHALLENGE with an
+ * authenticated ECHO (spec/protocol.md, "CHALLENGE and ECHO"; docs/semantics.md D-N5.4). A node
+ * that does not challenge sends nothing, and the one-second wait ends. */
+static void raw_fresh(void) {
+    static int done;
+    ayl_writer w;
+    ayl_datagram d;
+    ayl_msg m;
+    uint8_t in[AYL_MAX_DATAGRAM];
+    struct timeval tv = {1, 0}, none = {0, 0};
+    int len;
+    if (!keyed || done) {
+        return;
+    }
+    done = 1;
+    if (ayl_writer_begin(&w, raw_buf, sizeof raw_buf, node.cfg.team, raw_node, ++raw_seq, 1) != 0 ||
+        add_hello(&w) != 0 || (len = ayl_writer_finish(&w, key)) < 0 ||
+        posix_udp_send(&raw_sock, &target, raw_buf, (size_t)len) != 0) {
+        return;
+    }
+    setsockopt(raw_sock, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+    for (;;) {
+        ssize_t n = recv(raw_sock, in, sizeof in, 0);
+        if (n <= 0) {
+            break;
+        }
+        if (ayl_decode(&d, in, (size_t)n, node.cfg.team, key) != AYL_OK) {
+            continue;
+        }
+        while (ayl_next(&d, &m)) {
+            if (m.kind == AYL_KIND_CHALLENGE) {
+                m.kind = AYL_KIND_ECHO;
+                if (ayl_writer_begin(&w, raw_buf, sizeof raw_buf, node.cfg.team, raw_node, ++raw_seq, 1) == 0 &&
+                    ayl_writer_add(&w, &m) == 0 && (len = ayl_writer_finish(&w, key)) >= 0) {
+                    (void)posix_udp_send(&raw_sock, &target, raw_buf, (size_t)len);
+                }
+                setsockopt(raw_sock, SOL_SOCKET, SO_RCVTIMEO, &none, sizeof none);
+                return;
+            }
+        }
+    }
+    setsockopt(raw_sock, SOL_SOCKET, SO_RCVTIMEO, &none, sizeof none);
+}
+
 static void cmd_raw(int argc, char **argv) {
     ayl_value a, b;
-    int have = argc >= 4 && parse_value(argv[2], &a) == 0 && parse_value(argv[3], &b) == 0;
-    int copies, len = craft(argv[1], have ? &a : NULL, have ? &b : NULL, &copies), i;
+    int have, copies, len, i;
+    raw_fresh();
+    have = argc >= 4 && parse_value(argv[2], &a) == 0 && parse_value(argv[3], &b) == 0;
+    len = craft(argv[1], have ? &a : NULL, have ? &b : NULL, &copies);
     if (len < 0) {
         printf("err unknown case or values for this team mode: %s\n", argv[1]);
         return;

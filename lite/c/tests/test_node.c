@@ -3,7 +3,8 @@
  * time): exposing ports, applying PORT writes with connection-kind semantics for storing,
  * stale and type drops, the PORT/REQUEST/HELLO datagrams the node builds (decoded and checked
  * field by field), requests with retries and multi-part report reassembly, READ/LIST served
- * by the lite node, and authentication with replay protection.
+ * by the lite node, answers held to 3x what their address sent (return routability), and
+ * authentication with replay protection.
  */
 #include <stdio.h>
 #include <string.h>
@@ -392,6 +393,26 @@ static void test_hello_and_peers(void) {
     CHECK(ayl_node_peer_addr(&a.node, 2) != NULL);
 }
 
+/* A HELLO announcing 0xFFFFFFFF ms (a forger's, to keep its address greeted for months) is
+ * believed up to AYL_MAX_PEER_INTERVAL_MS, as by the Rust node. */
+static void test_hello_period_is_capped(void) {
+    static tnode a, b;
+    ayl_addr to_b = addr_of(2);
+    net_clear();
+    tnode_init(&a, 1, 1, NULL);
+    tnode_init(&b, 2, 2, NULL);
+    a.node.cfg.hello_interval_ms = 0xFFFFFFFFu;
+    CHECK(ayl_node_add_peer(&a.node, 2, &to_b) == 0);
+    ayl_node_poll(&a.node, 0);
+    ayl_node_poll(&b.node, 0);
+    CHECK(ayl_node_peer_addr(&b.node, 1) != NULL);
+    b.node.next_hello_ns = UINT64_MAX; /* keep b quiet */
+    ayl_node_poll(&b.node, 3ull * AYL_MAX_PEER_INTERVAL_MS * MS);
+    CHECK(ayl_node_peer_addr(&b.node, 1) != NULL);
+    ayl_node_poll(&b.node, 3ull * AYL_MAX_PEER_INTERVAL_MS * MS + MS);
+    CHECK(ayl_node_peer_addr(&b.node, 1) == NULL);
+}
+
 static void test_requests(void) {
     static tnode a, b;
     static uint8_t out[512];
@@ -731,6 +752,137 @@ static void test_challenge_is_echoed_and_report_reassembles(void) {
               "%.*s", (int)ans.text.len, ans.text.ptr);
 }
 
+/* Bytes queued in the network for `to`. */
+static size_t net_bytes_to(uint8_t to) {
+    size_t sum = 0;
+    int i;
+    for (i = 0; i < net_count; i++) {
+        packet *p = &net[(net_head + i) % NET_SLOTS];
+        sum += p->to == to ? p->len : 0;
+    }
+    return sum;
+}
+
+/* A REQUEST of `op` (READ of Log.Text if op is READ) from node 66 at `from_addr`, fed into the
+ * node as if received: a forger writes any source address. Returns the datagram's length. */
+static size_t forge_request(tnode *t, uint8_t from_addr, uint64_t dseq, uint8_t op) {
+    uint8_t buf[256];
+    ayl_writer w;
+    ayl_msg m;
+    ayl_addr from = addr_of(from_addr);
+    int len;
+    memset(&m, 0, sizeof m);
+    m.kind = AYL_KIND_REQUEST;
+    m.u.request.id = 1000 + dseq;
+    m.u.request.op = op;
+    if (op == AYL_OP_READ) {
+        m.u.request.behavior = ayl_s("Log");
+        m.u.request.port = ayl_s("Text");
+    }
+    ayl_writer_begin(&w, buf, sizeof buf, 7, 66, dseq, 0);
+    CHECK(ayl_writer_add(&w, &m) == 0);
+    len = ayl_writer_finish(&w, NULL);
+    CHECK(len > 0);
+    CHECK(ayl_node_receive(&t->node, buf, (size_t)len, &from, 0) == AYL_OK);
+    return (size_t)len;
+}
+
+static void test_answers_keep_to_three_times_what_an_address_sent(void) {
+    /* Return routability (spec, "CHALLENGE and ECHO"): a lite node answers an address with at
+     * most 3x the bytes it received from it, and sends no CHALLENGE; an answer over that is
+     * not sent and is counted amplification_limited. */
+    static tnode a, b;
+    static uint8_t text_store[400], out[1024];
+    static const char *const names[] = {"LeftWheelSpeed", "RightWheelSpeed", "BatteryVoltage", "Temperature",
+                                        "Heading", "Odometry"};
+    ayl_addr to_a = addr_of(1);
+    ayl_value v;
+    ayl_request_msg q;
+    ayl_reply_msg ans;
+    uint64_t id, t;
+    size_t i, in = 0, list_len = 0, req_len = 0;
+    int sends;
+    net_clear();
+    tnode_init(&a, 1, 1, NULL);
+    a.node.next_hello_ns = UINT64_MAX;
+    for (i = 0; i < 6; i++) {
+        v = ayl_float(0.0);
+        CHECK(ayl_node_expose(&a.node, i < 4 ? "Drive" : "Nav", names[i], &v, NULL, 0, NULL, NULL) >= 0);
+    }
+    memset(text_store, 'x', sizeof text_store);
+    v = ayl_text_n((const char *)text_store, sizeof text_store);
+    CHECK(ayl_node_expose(&a.node, "Log", "Text", &v, text_store, sizeof text_store, NULL, NULL) >= 0);
+
+    /* One forged LIST (32 bytes) from the victim's address (9): its answer, a datagram of
+     * over 96 bytes, is not sent, and is counted. */
+    in = forge_request(&a, 9, 1, AYL_OP_LIST);
+    CHECK_MSG(in == 32, "a LIST request is %zu bytes", in);
+    CHECK(net_bytes_to(9) == 0 && a.io.sent == 0);
+    CHECK(a.node.counters[AYL_AMPLIFICATION_LIMITED] == 1);
+    CHECK(strcmp(ayl_cause_name(AYL_AMPLIFICATION_LIMITED), "amplification_limited") == 0);
+    /* A forged READ of a 400-byte text: the same. */
+    in += forge_request(&a, 9, 2, AYL_OP_READ);
+    CHECK(net_bytes_to(9) == 0 && a.node.counters[AYL_AMPLIFICATION_LIMITED] == 2);
+
+    /* A flood of forged requests at one victim: whatever goes out stays within 3x of it. */
+    for (i = 3; i < 60; i++) {
+        in += forge_request(&a, 9, i, i % 2 ? AYL_OP_LIST : AYL_OP_READ);
+        CHECK_MSG(net_bytes_to(9) <= 3 * in, "%zu bytes answered to %zu received", net_bytes_to(9), in);
+    }
+    CHECK(a.node.counters[AYL_AMPLIFICATION_LIMITED] > 30);
+    CHECK_MSG(net_bytes_to(9) > 2 * in, "the budget is used, not wasted: %zu of %zu", net_bytes_to(9), 3 * in);
+
+    /* A real requester (node 2 at address 2) asks for the LIST: its first request is too small
+     * for the answer, its retries bring the budget up to it, and it gets the whole report. */
+    net_clear();
+    tnode_init(&b, 2, 2, NULL);
+    b.node.next_hello_ns = UINT64_MAX; /* nothing but the request adds to its budget */
+    memset(&q, 0, sizeof q);
+    q.op = AYL_OP_LIST;
+    CHECK(ayl_node_request(&b.node, &to_a, &q, out, sizeof out, &id) == 0);
+    req_len = net_peek(1)->len;
+    for (t = 0; t < 5000 * MS && ayl_node_request_take(&b.node, id, &ans, NULL) == AYL_REQ_PENDING; t += 50 * MS) {
+        packet *reply;
+        ayl_node_poll(&a.node, t);
+        reply = net_peek(2);
+        list_len = reply != NULL ? reply->len : list_len;
+        ayl_node_poll(&b.node, t);
+    }
+    sends = (int)b.pending[0].sends;
+    printf("test_node: a %zu-byte LIST answer to %zu-byte requests went out at send %d\n", list_len, req_len, sends);
+    CHECK(ayl_node_request_take(&b.node, id, &ans, NULL) == AYL_REQ_FREE); /* taken in the loop */
+    CHECK_MSG(ans.result == AYL_RESULT_REPORT && ans.text.len > 150 && memcmp(ans.text.ptr, "{\"node\":1,", 10) == 0,
+              "%.*s", (int)ans.text.len, ans.text.ptr);
+    /* Answered at the first send whose total reaches a third of the answer, and no later. */
+    CHECK_MSG(list_len > 3 * req_len && (size_t)sends == (list_len + 3 * req_len - 1) / (3 * req_len),
+              "a %zu-byte answer to %zu-byte requests took %d sends", list_len, req_len, sends);
+
+    /* A small answer (at most 3x its request) goes out at once, to any address. */
+    q.op = AYL_OP_READ;
+    q.behavior = ayl_s("Nav");
+    q.port = ayl_s("Heading");
+    CHECK(ayl_node_request(&b.node, &to_a, &q, out, sizeof out, &id) == 0);
+    ayl_node_poll(&a.node, t);
+    ayl_node_poll(&b.node, t);
+    CHECK(ayl_node_request_take(&b.node, id, &ans, NULL) == AYL_REQ_DONE && ans.result == AYL_RESULT_VALUE);
+
+    /* The table holds AYL_BUDGETS addresses; a new one replaces the least recently heard, which
+     * starts over from nothing when it comes back. */
+    for (i = 0; i < AYL_BUDGETS; i++) {
+        (void)forge_request(&a, (uint8_t)(100 + i), 500 + i, 99);
+    }
+    CHECK(a.node.budgets[0].used && a.node.budgets[AYL_BUDGETS - 1].used);
+    {
+        size_t found2 = 0, found100 = 0;
+        for (i = 0; i < AYL_BUDGETS; i++) {
+            found2 += a.node.budgets[i].addr.bytes[0] == 2;
+            found100 += a.node.budgets[i].addr.bytes[0] == 100;
+        }
+        CHECK_MSG(found2 == 0 && found100 == 1, "the requester at 2 (heard longest ago) replaced: %zu %zu", found2,
+                  found100);
+    }
+}
+
 /* The golden vector request_disconnect_signed: DISCONNECT 19, id 49, node 3 to node 9, team 7,
  * signed by the operator whose seed is 32 x 0x11. */
 static const char SIGNED_DISCONNECT_HEX[] =
@@ -897,10 +1049,12 @@ int main(void) {
     test_stale_and_windows();
     test_group_membership();
     test_hello_and_peers();
+    test_hello_period_is_capped();
     test_requests();
     test_retries();
     test_report_reassembly_and_auth();
     test_challenge_is_echoed_and_report_reassembles();
+    test_answers_keep_to_three_times_what_an_address_sent();
     test_operator_signatures();
     test_replay_window_and_codec_edges();
     test_oversized_receive();

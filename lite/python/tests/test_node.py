@@ -208,6 +208,118 @@ def test_lite_answers_read_and_list_and_refuses_the_rest(pair: tuple[al.LiteNode
         b.write(1, "Cam", "Log", "y" * 2000)
 
 
+def _lite_with_a_large_list(node_id: int, key: bytes | None = None, **kwargs: Any) -> al.LiteNode:
+    """A lite node whose LIST answer is several times a LIST request, with a 400-byte text port."""
+    lite = al.LiteNode(node_id, TEAM, key=key, bind=LOOP, **kwargs)
+    for port in ("LeftWheelSpeed", "RightWheelSpeed", "BatteryVoltage", "Temperature"):
+        lite.expose("Drive", port, 0.0)
+    for port in ("Heading", "Odometry"):
+        lite.expose("Nav", port, 0.0)
+    lite.expose("Log", "Text", "x" * 400)
+    return lite
+
+
+def _datagrams(sock: socket.socket, key: bytes | None = None) -> list[tuple[int, al.Datagram]]:
+    """Every datagram waiting at ``sock`` (or arriving within 0.2 s), with its size."""
+    got: list[tuple[int, al.Datagram]] = []
+    sock.settimeout(0.2)
+    while True:
+        try:
+            data = sock.recv(9000)
+        except TimeoutError:
+            return got
+        got.append((len(data), al.decode(data, TEAM, key)))
+
+
+def test_a_forged_request_is_answered_within_three_times_what_its_address_sent() -> None:
+    # Return routability (spec, "CHALLENGE and ECHO"): a forger writes a victim's address as the
+    # source of requests; the lite node sends that address at most 3x the bytes it received
+    # from it. It sends no CHALLENGE: an answer over the budget is not sent, and is counted.
+    lite = _lite_with_a_large_list(1)
+    victim = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    victim.bind(LOOP)
+    at = victim.getsockname()
+    try:
+        forged = al.encode(TEAM, 66, 1, [al.Request(1000, al.Op.LIST)])
+        assert len(forged) == 32
+        assert lite.handle_datagram(forged, at) is None
+        assert lite.counters["amplification_limited"] == 1
+        got = _datagrams(victim)
+        # Only the greeting a node heard for the first time gets (one per node id, as Ayllu
+        # nodes do): no answer.
+        assert [type(m) for _, d in got for m in d.messages] == [al.Hello]
+
+        # A flood at the same victim, LISTs and READs of the 400-byte text: the answers that go
+        # out stay within 3x of what came "from" the victim.
+        sent_in = len(forged)
+        for i in range(2, 60):
+            read = al.Request(1000 + i, al.Op.READ, behavior="Log", port="Text")
+            op = al.Request(1000 + i, al.Op.LIST) if i % 2 else read
+            data = al.encode(TEAM, 66, i, [op])
+            sent_in += len(data)
+            lite.handle_datagram(data, at)
+        answers = [(size, d) for size, d in _datagrams(victim) if any(isinstance(m, al.Reply) for m in d.messages)]
+        answered = sum(size for size, _ in answers)
+        assert 0 < answered <= al.AMPLIFICATION_FACTOR * sent_in, (answered, sent_in)
+        assert lite.counters["amplification_limited"] > 30
+        assert lite.counters["amplification_limited"] + len(answers) == 59
+    finally:
+        victim.close()
+        lite.close()
+
+
+@pytest.mark.parametrize("key", [None, KEY], ids=["open", "keyed"])
+def test_a_real_requester_gets_a_large_answer_at_a_retry(key: bytes | None) -> None:
+    # A real requester's retries add to its budget: an answer larger than 3x one request goes
+    # out at a retry, at the latest the first whose total reaches a third of it (the HELLOs the
+    # two exchange when they first hear each other count too). An authenticated request proves
+    # nothing to a lite node (it cannot tell a replay from before its restart), so the keyed
+    # team is held to the same rule.
+    lite = _lite_with_a_large_list(1, key)
+    asker = al.LiteNode(2, TEAM, key=key, bind=LOOP, hello_interval_ms=600_000)
+    try:
+        lite.start()
+        asker.poll()  # its first HELLO goes nowhere: it knows no peer yet
+        report = asker.list_node(lite.address)
+        assert report["behaviors"][0]["ports"][:2] == ["LeftWheelSpeed", "RightWheelSpeed"]
+        request = len(al.encode(TEAM, 2, 1, [al.Request(1, al.Op.LIST)], key=key))
+        text = json.dumps(report, separators=(",", ":"))
+        answer = len(al.encode(TEAM, 1, 1, [al.Reply(1, report=text)], key=key))
+        sends = -(-answer // (al.AMPLIFICATION_FACTOR * request))
+        assert answer > al.AMPLIFICATION_FACTOR * request and sends > 1
+        limited = lite.counters["amplification_limited"]
+        assert 1 <= limited <= sends - 1, (limited, sends)
+        # A READ whose answer is within 3x is answered at the first send.
+        assert asker.read(lite.address, "Nav", "Heading") == 0.0
+        assert lite.counters["amplification_limited"] == limited
+        # The 400-byte text (a 440-byte answer to a 40-byte READ), after what was left of the
+        # budget is spent: at a retry too.
+        assert asker.read(lite.address, "Log", "Text") == "x" * 400
+        assert lite.counters["amplification_limited"] > limited
+        ((received, answered),) = lite._budgets.values()
+        assert answered <= al.AMPLIFICATION_FACTOR * received
+    finally:
+        asker.close()
+        lite.close()
+
+
+def test_the_budget_table_is_bounded_and_replaces_the_least_recently_heard() -> None:
+    lite = al.LiteNode(1, TEAM, bind=LOOP)
+    try:
+        empty = al.encode(TEAM, 66, 1, [])
+        first = ("127.0.0.1", 1)
+        lite.handle_datagram(empty, first)
+        for port in range(2, al.BUDGET_TABLE_MAX + 1):
+            lite.handle_datagram(empty, ("127.0.0.1", port))
+        lite.handle_datagram(empty, first)  # heard again: now the most recent
+        lite.handle_datagram(empty, ("127.0.0.2", 1))
+        assert len(lite._budgets) == al.BUDGET_TABLE_MAX
+        assert first in lite._budgets and ("127.0.0.1", 2) not in lite._budgets
+        assert lite._budgets[first] == [2 * len(empty), 0]
+    finally:
+        lite.close()
+
+
 class FakeNode:
     """A scripted Ayllu node on a raw socket: answers requests with `answer(request)` ->
     list of replies, and can ignore the first few requests or leave out parts once. With
@@ -449,3 +561,23 @@ def test_an_unusable_period_is_refused_naming_the_argument_and_the_range(
     # The largest and smallest usable periods still pass.
     a.connection(2, "b", "p", kind=al.ConnKind.SUPPRESS, period_s=1e-9)
     a.connection(2, "b", "p", kind=al.ConnKind.SUPPRESS, period_s=584 * 365 * 86400.0)
+
+
+def test_a_forged_hello_cannot_keep_an_address_for_months_or_grow_memory() -> None:
+    """A HELLO announcing 0xFFFFFFFF ms is believed up to 60 s, as by the Rust node, and a flood
+    of invented ids keeps at most MAX_HEARD of them (the one heard longest ago goes)."""
+    now = [0.0]
+    node = al.LiteNode(1, TEAM, bind=LOOP, clock=lambda: now[0])
+    try:
+        forged = ("127.0.0.9", 9)
+        hello = al.encode(TEAM, 77, 1, [al.Hello(0xFFFFFFFF, "forger", ())])
+        assert node.handle_datagram(hello, forged) is None
+        assert 77 in node.peers()
+        now[0] = 3 * 60.0 + 1.0  # three of the capped period, not three of 49 days
+        assert 77 not in node.peers()
+        for sender in range(1000, 1000 + al.MAX_HEARD + 50):
+            node.handle_datagram(al.encode(TEAM, sender, 1, [al.Hello(1000, "", ())]), forged)
+        assert len(node.peers()) <= al.MAX_HEARD
+        assert node.counters.get("peer_evicted", 0) >= 50
+    finally:
+        node.close()

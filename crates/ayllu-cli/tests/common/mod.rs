@@ -11,6 +11,7 @@
 #![allow(dead_code)]
 
 pub mod netns;
+pub mod ros2;
 
 use std::io::{BufRead, BufReader, Read};
 use std::process::{Child, Command, Stdio};
