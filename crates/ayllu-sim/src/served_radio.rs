@@ -27,7 +27,8 @@ use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 use std::sync::{Arc, Mutex, MutexGuard};
 
-use ayllu::{PeerInfo, Sent, Transport};
+use ayllu::transport::TransportWrapper;
+use ayllu::{Sent, Transport};
 use ayllu_core::{Destination, Duration, Instant, Message, NodeId, Outgoing};
 
 use crate::radio::{wire_len, RadioConfig, Station};
@@ -154,9 +155,17 @@ impl<T: Transport> RadioLink<T> {
     }
 }
 
-impl<T: Transport> Transport for RadioLink<T> {
-    fn local(&self) -> NodeId {
-        self.inner.local()
+/// Sending, receiving, timing and counting go through the radio; everything else reaches the
+/// wrapped transport unchanged.
+impl<T: Transport> TransportWrapper for RadioLink<T> {
+    type Inner = T;
+
+    fn inner(&self) -> &T {
+        &self.inner
+    }
+
+    fn inner_mut(&mut self) -> &mut T {
+        &mut self.inner
     }
 
     fn send(&mut self, out: Outgoing) -> Sent {
@@ -206,22 +215,6 @@ impl<T: Transport> Transport for RadioLink<T> {
         None
     }
 
-    fn wait(&mut self, timeout: std::time::Duration) {
-        self.inner.wait(timeout)
-    }
-
-    fn join(&mut self, group: &str) {
-        self.inner.join(group)
-    }
-
-    fn leave(&mut self, group: &str) {
-        self.inner.leave(group)
-    }
-
-    fn flush(&mut self) {
-        self.inner.flush()
-    }
-
     fn tick(&mut self, now: Instant) -> Option<Instant> {
         let next = {
             let mut s = lock(&self.state);
@@ -249,22 +242,6 @@ impl<T: Transport> Transport for RadioLink<T> {
     fn counters_generation(&self) -> u64 {
         let c = lock(&self.state).counts;
         self.inner.counters_generation().wrapping_add(c.sent + c.lost + c.cut)
-    }
-
-    fn peers(&self) -> Vec<PeerInfo> {
-        self.inner.peers()
-    }
-
-    fn take_lost_peers(&mut self, out: &mut Vec<NodeId>) {
-        self.inner.take_lost_peers(out)
-    }
-
-    fn take_warnings(&mut self, out: &mut Vec<String>) {
-        self.inner.take_warnings(out)
-    }
-
-    fn address(&self) -> Option<String> {
-        self.inner.address()
     }
 }
 
@@ -294,28 +271,66 @@ mod tests {
         let radio = RadioConfig { loss: 0.0, delay: 0.1, jitter: 0.0, range: None, partitions: Vec::new() };
         let (mut link, handle) = RadioLink::new(net.attach(NodeId(1)).unwrap(), &radio, 7);
         let t0 = Instant::ZERO + Duration::from_secs(1);
-        link.tick(t0);
+        Transport::tick(&mut link, t0);
         peer.send(Outgoing { to: Destination::Node(NodeId(1)), message: message(1.0) });
         body.send(Outgoing { to: Destination::Node(NodeId(1)), message: message(2.0) });
         // The body's message comes at once; the peer's is held for the delay.
-        let (from, _) = link.recv().expect("the body's message");
+        let (from, _) = Transport::recv(&mut link).expect("the body's message");
         assert_eq!(from, crate::served_robot::body_node(1));
-        assert!(link.recv().is_none(), "the peer's message waits 100 ms");
-        assert_eq!(link.tick(t0), Some(t0 + Duration::from_millis(100)));
-        link.tick(t0 + Duration::from_millis(100));
-        assert_eq!(link.recv().map(|(f, _)| f), Some(NodeId(2)));
+        assert!(Transport::recv(&mut link).is_none(), "the peer's message waits 100 ms");
+        assert_eq!(Transport::tick(&mut link, t0), Some(t0 + Duration::from_millis(100)));
+        Transport::tick(&mut link, t0 + Duration::from_millis(100));
+        assert_eq!(Transport::recv(&mut link).map(|(f, _)| f), Some(NodeId(2)));
         // Out of reach: cut.
         handle.set_reach(&[1.0, 0.0]);
         peer.send(Outgoing { to: Destination::Node(NodeId(1)), message: message(3.0) });
-        link.tick(t0 + Duration::from_secs(1));
-        assert!(link.recv().is_none());
+        Transport::tick(&mut link, t0 + Duration::from_secs(1));
+        assert!(Transport::recv(&mut link).is_none());
         assert_eq!(handle.counts().cut, 1);
         // Sending: to the body is wiring, to a peer is radio.
-        link.send(Outgoing { to: Destination::Node(crate::served_robot::body_node(1)), message: message(4.0) });
-        link.send(Outgoing { to: Destination::Node(NodeId(2)), message: message(5.0) });
+        Transport::send(
+            &mut link,
+            Outgoing { to: Destination::Node(crate::served_robot::body_node(1)), message: message(4.0) },
+        );
+        Transport::send(&mut link, Outgoing { to: Destination::Node(NodeId(2)), message: message(5.0) });
         let c = handle.counts();
         assert_eq!((c.sent, c.delivered), (1, 1));
         assert!(c.bytes > 0);
+    }
+
+    #[test]
+    fn a_request_larger_than_a_datagram_fails_at_once_through_the_radio() {
+        // Through the radio the UDP transport's failed requests once went unheard (the link
+        // forwarded lost peers and warnings by hand, not them): a PREPARE too large for a
+        // datagram was retried for 5 s. As a TransportWrapper the link passes every event on.
+        use ayllu::datagram::DatagramBus;
+        use ayllu::{BehaviorClass, ControlBody, Lockstep, Node, PortSpec, RequestStatus, UdpConfig, UdpTransport};
+        let bus = DatagramBus::new();
+        let mut team = Lockstep::new("radio-request-too-large");
+        let mut nodes = Vec::new();
+        for id in 1..=2u32 {
+            let at: std::net::SocketAddr = format!("10.0.0.{id}:7400").parse().unwrap();
+            let mut config = UdpConfig::new(at);
+            config.broadcast = Some("10.0.0.255:7400".parse().unwrap());
+            config.hello_interval = Duration::from_millis(100);
+            let udp = UdpTransport::with_socket(NodeId(id), config, bus.bind(at).unwrap()).unwrap();
+            let (link, _handle) = RadioLink::new(udp, &RadioConfig::default(), 7);
+            let i = team.add_node(Node::new(team.clock().clone(), link));
+            let mut relay = BehaviorClass::new("Relay");
+            relay.port(PortSpec::new("In", 0i64)).unwrap();
+            team.node(i).define(relay).unwrap();
+            nodes.push(i);
+        }
+        team.advance(Duration::from_millis(250), Duration::from_millis(1));
+        let changes: Vec<ayllu::Change> =
+            (0..130).map(|i| ayllu::Change::Create { class: "Relay".into(), name: format!("C{i:03}") }).collect();
+        let prepare = ControlBody::Prepare { txn: 1, changes, hold: Duration::from_secs(5) };
+        let id = team.node(nodes[0]).core_mut().request(NodeId(2), prepare).unwrap();
+        team.step();
+        match team.nodes()[nodes[0]].core().request_status(id) {
+            Some(RequestStatus::Failed(e)) => assert!(e.contains("more than one datagram"), "{e}"),
+            other => panic!("retried instead of failing at once: {other:?}"),
+        }
     }
 
     #[test]
@@ -348,7 +363,7 @@ mod tests {
         let mut got = 0;
         for i in 0..1000 {
             peer.send(Outgoing { to: Destination::Node(NodeId(1)), message: message(f64::from(i)) });
-            while link.recv().is_some() {
+            while Transport::recv(&mut link).is_some() {
                 got += 1;
             }
         }

@@ -11,7 +11,10 @@
 //!
 //! Like the engine's causes, each appears once it is not zero.
 
-use ayllu::{Instant, Message, NodeId, Outgoing, PeerInfo, Sent, Transport, UdpTransport};
+use std::collections::VecDeque;
+
+use ayllu::transport::TransportWrapper;
+use ayllu::{Message, NodeId, Outgoing, SendTally, Transport, UdpTransport};
 
 use crate::zenoh_socket::ZenohSocket;
 
@@ -44,30 +47,21 @@ impl ZenohTransport {
     }
 }
 
-impl Transport for ZenohTransport {
-    fn local(&self) -> NodeId {
-        self.inner.local()
+/// Sending and receiving go straight to the engine (its batch paths too); only the counters
+/// change.
+impl TransportWrapper for ZenohTransport {
+    type Inner = UdpTransport<ZenohSocket>;
+    fn inner(&self) -> &Self::Inner {
+        &self.inner
     }
-    fn send(&mut self, out: Outgoing) -> Sent {
-        self.inner.send(out)
+    fn inner_mut(&mut self) -> &mut Self::Inner {
+        &mut self.inner
     }
-    fn recv(&mut self) -> Option<(NodeId, Message)> {
-        self.inner.recv()
+    fn send_all(&mut self, outbox: &mut VecDeque<Outgoing>, tally: &mut SendTally) {
+        self.inner.send_all(outbox, tally)
     }
-    fn wait(&mut self, timeout: std::time::Duration) {
-        self.inner.wait(timeout)
-    }
-    fn join(&mut self, group: &str) {
-        self.inner.join(group)
-    }
-    fn leave(&mut self, group: &str) {
-        self.inner.leave(group)
-    }
-    fn flush(&mut self) {
-        self.inner.flush()
-    }
-    fn tick(&mut self, now: Instant) -> Option<Instant> {
-        self.inner.tick(now)
+    fn recv_all(&mut self, deliver: &mut dyn FnMut(NodeId, &Message)) {
+        self.inner.recv_all(deliver)
     }
     fn counters(&self) -> Vec<(String, u64)> {
         let mut out = self.inner.counters();
@@ -95,20 +89,5 @@ impl Transport for ZenohTransport {
         // Every part only grows, so the sum changes whenever any of them does.
         let [a, b] = self.socket_counts();
         self.inner.counters_generation().wrapping_add(a).wrapping_add(b)
-    }
-    fn set_real_time(&mut self, real_time: bool) {
-        self.inner.set_real_time(real_time)
-    }
-    fn peers(&self) -> Vec<PeerInfo> {
-        self.inner.peers()
-    }
-    fn take_lost_peers(&mut self, out: &mut Vec<NodeId>) {
-        self.inner.take_lost_peers(out)
-    }
-    fn take_warnings(&mut self, out: &mut Vec<String>) {
-        self.inner.take_warnings(out)
-    }
-    fn address(&self) -> Option<String> {
-        self.inner.address()
     }
 }

@@ -45,7 +45,7 @@ pub use mem::{MemNetwork, MemTransport};
 pub use node::{Node, NodeStats};
 pub use recording::{RecordOptions, RecordStats, Recorder};
 pub use replay::{Recording, Replay};
-pub use transport::{register_scheme, PeerInfo, SchemeFactory, SendTally, Sent, Transport};
+pub use transport::{register_scheme, PeerInfo, SchemeFactory, SendTally, Sent, Transport, TransportEvent};
 pub use udp::UdpTransport;
 pub use udp_config::{default_url, UdpConfig, DEFAULT_URL, URL_ENV};
 

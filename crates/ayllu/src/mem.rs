@@ -18,7 +18,7 @@ use std::sync::{Arc, Condvar, Mutex, OnceLock};
 use ayllu_core::{Destination, Message, NodeId, Outgoing};
 
 use crate::error::Error;
-use crate::transport::{Sent, Transport};
+use crate::transport::{Sent, Transport, TransportEvent};
 
 type Inbox = Arc<(Mutex<VecDeque<(NodeId, Message)>>, Condvar)>;
 
@@ -146,9 +146,9 @@ impl Transport for MemTransport {
             g.remove(&self.id);
         }
     }
-    fn take_lost_peers(&mut self, out: &mut Vec<NodeId>) {
+    fn take_events(&mut self, out: &mut Vec<TransportEvent>) {
         if let Some(lost) = lock(&self.network.hub).lost.get_mut(&self.id) {
-            out.append(lost);
+            out.extend(lost.drain(..).map(TransportEvent::PeerLost));
         }
     }
 }

@@ -16,7 +16,7 @@ use ayllu_core::{
 use crate::clock::{Clock, MonotonicClock};
 use crate::driver::Driver;
 use crate::error::Error;
-use crate::transport::{self, SendTally, Transport};
+use crate::transport::{self, SendTally, Transport, TransportEvent};
 
 /// Traffic figures of one node.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -72,12 +72,8 @@ pub struct Node {
     joined_generation: u64,
     counters_generation: u64,
     transport_due: Option<Instant>,
-    /// Scratch list of the peers the transport lost this turn.
-    lost: Vec<NodeId>,
-    /// Scratch list of the transport's new warnings.
-    new_warnings: Vec<String>,
-    /// Requests the transport found unsendable (reused).
-    failed_requests: Vec<(NodeId, u64, String)>,
+    /// Scratch list of the transport's events (reused).
+    events: Vec<TransportEvent>,
     /// The flight recorder, drained every turn (see [`Node::record`]).
     recorder: Option<crate::recording::Recorder>,
     /// The drivers of the node's bodies (see [`Node::attach`]), in the order attached.
@@ -118,9 +114,7 @@ impl Node {
             joined_generation: 0,
             counters_generation: 0,
             transport_due: None,
-            lost: Vec::new(),
-            new_warnings: Vec::new(),
-            failed_requests: Vec::new(),
+            events: Vec::new(),
             recorder: None,
             drivers: Vec::new(),
         }
@@ -310,17 +304,9 @@ impl Node {
             *received += 1;
             core.receive_shared(now, from, message);
         });
-        // Peers the transport gave up on: what they held on our ports is released (D3.7).
         // After receiving, so that a dead node's last message still queued cannot take back
         // what its departure released.
-        self.transport.take_lost_peers(&mut self.lost);
-        for node in self.lost.drain(..) {
-            self.core.node_lost(now, node);
-        }
-        self.transport.take_warnings(&mut self.new_warnings);
-        for w in self.new_warnings.drain(..) {
-            self.core.warn(w);
-        }
+        self.take_transport_events(now);
         for d in &mut self.drivers {
             d.input(&mut self.core, now);
         }
@@ -355,13 +341,27 @@ impl Node {
             self.stats.held += tally.held;
             self.stats.dropped += tally.dropped;
             if tally.dropped > 0 {
-                self.transport.take_failed_requests(&mut self.failed_requests);
-                for (to, id, why) in self.failed_requests.drain(..) {
-                    self.core.fail_request(to, id, why);
-                }
+                // A request the transport cannot send fails now, not after its retries.
+                self.take_transport_events(self.clock.now());
             }
         }
         self.transport.flush();
+    }
+
+    /// Act on what the transport has to tell, in its order.
+    fn take_transport_events(&mut self, now: Instant) {
+        self.transport.take_events(&mut self.events);
+        for event in self.events.drain(..) {
+            match event {
+                // Peers the transport gave up on: what they held on our ports is released
+                // (D3.7).
+                TransportEvent::PeerLost(node) => {
+                    self.core.node_lost(now, node);
+                }
+                TransportEvent::Warning(w) => self.core.warn(w),
+                TransportEvent::RequestFailed { to, id, why } => self.core.fail_request(to, id, why),
+            }
+        }
     }
 
     /// Sleep on the transport until a message may have arrived or `timeout` passes. For

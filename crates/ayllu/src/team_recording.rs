@@ -30,7 +30,7 @@ use ayllu_core::{ConnectionKind, Endpoint, Message, NodeId, NodeReport, Outgoing
 
 use crate::mcap_records::{self, McapRecord};
 use crate::team_channels::{self, PortChannel, Via};
-use crate::transport::{PeerInfo, Sent, Transport};
+use crate::transport::{SendTally, Transport, TransportWrapper};
 
 /// One port message as a listener heard it.
 #[derive(Clone, Debug, PartialEq)]
@@ -90,12 +90,14 @@ impl<T: Transport> Tap<T> {
     }
 }
 
-impl<T: Transport> Transport for Tap<T> {
-    fn local(&self) -> NodeId {
-        self.inner.local()
+/// Only what is received is seen; everything else reaches the wrapped transport unchanged.
+impl<T: Transport> TransportWrapper for Tap<T> {
+    type Inner = T;
+    fn inner(&self) -> &T {
+        &self.inner
     }
-    fn send(&mut self, out: Outgoing) -> Sent {
-        self.inner.send(out)
+    fn inner_mut(&mut self) -> &mut T {
+        &mut self.inner
     }
     fn recv(&mut self) -> Option<(NodeId, Message)> {
         let (from, message) = self.inner.recv()?;
@@ -114,41 +116,12 @@ impl<T: Transport> Transport for Tap<T> {
         }
         Some((from, message))
     }
-    fn wait(&mut self, timeout: StdDuration) {
-        self.inner.wait(timeout)
-    }
-    fn join(&mut self, group: &str) {
-        self.inner.join(group)
-    }
-    fn leave(&mut self, group: &str) {
-        self.inner.leave(group)
-    }
-    fn flush(&mut self) {
-        self.inner.flush()
-    }
-    fn tick(&mut self, now: ayllu_core::Instant) -> Option<ayllu_core::Instant> {
-        self.inner.tick(now)
-    }
-    fn counters(&self) -> Vec<(String, u64)> {
-        self.inner.counters()
+    // Sending and counting are unchanged: the wrapped transport's batch paths serve.
+    fn send_all(&mut self, outbox: &mut VecDeque<Outgoing>, tally: &mut SendTally) {
+        self.inner.send_all(outbox, tally)
     }
     fn counters_into(&self, out: &mut Vec<(String, u64)>) {
         self.inner.counters_into(out)
-    }
-    fn counters_generation(&self) -> u64 {
-        self.inner.counters_generation()
-    }
-    fn peers(&self) -> Vec<PeerInfo> {
-        self.inner.peers()
-    }
-    fn take_lost_peers(&mut self, out: &mut Vec<NodeId>) {
-        self.inner.take_lost_peers(out)
-    }
-    fn take_warnings(&mut self, out: &mut Vec<String>) {
-        self.inner.take_warnings(out)
-    }
-    fn address(&self) -> Option<String> {
-        self.inner.address()
     }
 }
 

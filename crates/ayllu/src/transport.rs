@@ -82,24 +82,11 @@ pub trait Transport: Send {
     fn peers(&self) -> Vec<PeerInfo> {
         Vec::new()
     }
-    /// Move the peers forgotten since the last call (silent for their liveness period, N6)
-    /// into `out`. The node then releases what they held (D3.7). Transports without liveness
-    /// report none.
-    fn take_lost_peers(&mut self, out: &mut Vec<NodeId>) {
-        let _ = out;
-    }
-    /// Move new warnings about the network (another node using this node's id, ...) into
-    /// `out`; the node adds them to its report's warnings.
-    fn take_warnings(&mut self, out: &mut Vec<String>) {
-        let _ = out;
-    }
-    /// Move the control requests found unsendable since the last call into `out`: (the node
-    /// it was for, its id, why), e.g. larger than one datagram. The node fails each at once
-    /// ([`ayllu_core::NodeCore::fail_request`]) rather than retrying it for 5 s. Transports
-    /// that carry any size report none.
-    fn take_failed_requests(&mut self, out: &mut Vec<(NodeId, u64, String)>) {
-        let _ = out;
-    }
+    /// Move what happened on the network since the last call into `out`, in the order it
+    /// happened (see [`TransportEvent`]). No default: a transport says what it has to tell,
+    /// even if that is nothing, and a wrapper ([`TransportWrapper`]) passes its inner
+    /// transport's events on unless it overrides this.
+    fn take_events(&mut self, out: &mut Vec<TransportEvent>);
     /// Where peers reach this node, as a peer's URL would name it (`127.0.0.1:45125` for
     /// `udp://`), once bound: a node bound to port 0 learns its real port here. `None` for
     /// transports without addresses (`mem://`).
@@ -108,10 +95,186 @@ pub trait Transport: Send {
     }
 }
 
+/// What a transport tells its node besides the messages it delivers. The node acts on each
+/// as it takes them, after receiving ([`Transport::take_events`]).
+#[derive(Clone, Debug, PartialEq)]
+pub enum TransportEvent {
+    /// A peer forgotten: silent for its liveness period (N6), or gone from an in-process
+    /// network. The node releases what it held on our ports (D3.7).
+    PeerLost(NodeId),
+    /// Something about the network the node's report should warn of (another node using this
+    /// node's id, a discovery address that cannot be joined, ...).
+    Warning(String),
+    /// A control request this transport cannot send at all, e.g. larger than one datagram.
+    /// The node fails it at once ([`ayllu_core::NodeCore::fail_request`]) rather than
+    /// retrying it for 5 s.
+    RequestFailed {
+        /// The node it was for.
+        to: NodeId,
+        /// The request's id.
+        id: u64,
+        /// Why it cannot be sent, and what to do.
+        why: String,
+    },
+}
+
+/// A transport built around another one, changing part of what it does: the recording tap,
+/// the simulator's radio link, the zenoh transport. Implementing this rather than
+/// [`Transport`] gives every method the wrapper does not override to the inner transport, so
+/// a wrapper cannot drop what it does not know of (the events of [`Transport::take_events`]
+/// above all: three wrappers that forwarded methods by hand once lost failed requests, and an
+/// oversized request retried for 5 s through them).
+///
+/// The batch methods (`send_all`, `recv_all`, `counters_into`) default to the wrapper's own
+/// `send`, `recv` and `counters`, so a wrapper that changes one of those is seen on the batch
+/// paths too; a wrapper that changes none of them may override the batch methods to reach the
+/// inner transport's faster ones. A method added to [`Transport`] is added here, with a default
+/// that reaches the inner transport, and to the blanket implementation below (and to the box's
+/// forwarding). It is not re-exported at the crate root, so `use ayllu::*` does not bring it
+/// into scope: where both traits are, call a wrapper's methods as [`Transport`]'s
+/// (`Transport::recv(&mut tap)`).
+pub trait TransportWrapper: Send {
+    /// The transport wrapped.
+    type Inner: Transport + ?Sized;
+    /// The transport wrapped.
+    fn inner(&self) -> &Self::Inner;
+    /// The transport wrapped.
+    fn inner_mut(&mut self) -> &mut Self::Inner;
+    /// [`Transport::local`].
+    fn local(&self) -> NodeId {
+        self.inner().local()
+    }
+    /// [`Transport::send`].
+    fn send(&mut self, out: Outgoing) -> Sent {
+        self.inner_mut().send(out)
+    }
+    /// [`Transport::send_all`]: through this wrapper's `send`.
+    fn send_all(&mut self, outbox: &mut VecDeque<Outgoing>, tally: &mut SendTally) {
+        while let Some(out) = outbox.pop_front() {
+            tally.add(TransportWrapper::send(self, out));
+        }
+    }
+    /// [`Transport::recv`].
+    fn recv(&mut self) -> Option<(NodeId, Message)> {
+        self.inner_mut().recv()
+    }
+    /// [`Transport::recv_all`]: through this wrapper's `recv`.
+    fn recv_all(&mut self, deliver: &mut dyn FnMut(NodeId, &Message)) {
+        while let Some((from, message)) = TransportWrapper::recv(self) {
+            deliver(from, &message);
+        }
+    }
+    /// [`Transport::wait`].
+    fn wait(&mut self, timeout: std::time::Duration) {
+        self.inner_mut().wait(timeout)
+    }
+    /// [`Transport::join`].
+    fn join(&mut self, group: &str) {
+        self.inner_mut().join(group)
+    }
+    /// [`Transport::leave`].
+    fn leave(&mut self, group: &str) {
+        self.inner_mut().leave(group)
+    }
+    /// [`Transport::flush`].
+    fn flush(&mut self) {
+        self.inner_mut().flush()
+    }
+    /// [`Transport::tick`].
+    fn tick(&mut self, now: Instant) -> Option<Instant> {
+        self.inner_mut().tick(now)
+    }
+    /// [`Transport::counters`].
+    fn counters(&self) -> Vec<(String, u64)> {
+        self.inner().counters()
+    }
+    /// [`Transport::set_real_time`].
+    fn set_real_time(&mut self, real_time: bool) {
+        self.inner_mut().set_real_time(real_time)
+    }
+    /// [`Transport::counters_into`]: this wrapper's `counters`.
+    fn counters_into(&self, out: &mut Vec<(String, u64)>) {
+        *out = TransportWrapper::counters(self);
+    }
+    /// [`Transport::counters_generation`].
+    fn counters_generation(&self) -> u64 {
+        self.inner().counters_generation()
+    }
+    /// [`Transport::peers`].
+    fn peers(&self) -> Vec<PeerInfo> {
+        self.inner().peers()
+    }
+    /// [`Transport::take_events`].
+    fn take_events(&mut self, out: &mut Vec<TransportEvent>) {
+        self.inner_mut().take_events(out)
+    }
+    /// [`Transport::address`].
+    fn address(&self) -> Option<String> {
+        self.inner().address()
+    }
+}
+
+/// Every method of a wrapper is its [`TransportWrapper`] method: overridden there, or reaching
+/// the inner transport.
+impl<W: TransportWrapper> Transport for W {
+    fn local(&self) -> NodeId {
+        TransportWrapper::local(self)
+    }
+    fn send(&mut self, out: Outgoing) -> Sent {
+        TransportWrapper::send(self, out)
+    }
+    fn send_all(&mut self, outbox: &mut VecDeque<Outgoing>, tally: &mut SendTally) {
+        TransportWrapper::send_all(self, outbox, tally)
+    }
+    fn recv(&mut self) -> Option<(NodeId, Message)> {
+        TransportWrapper::recv(self)
+    }
+    fn recv_all(&mut self, deliver: &mut dyn FnMut(NodeId, &Message)) {
+        TransportWrapper::recv_all(self, deliver)
+    }
+    fn wait(&mut self, timeout: std::time::Duration) {
+        TransportWrapper::wait(self, timeout)
+    }
+    fn join(&mut self, group: &str) {
+        TransportWrapper::join(self, group)
+    }
+    fn leave(&mut self, group: &str) {
+        TransportWrapper::leave(self, group)
+    }
+    fn flush(&mut self) {
+        TransportWrapper::flush(self)
+    }
+    fn tick(&mut self, now: Instant) -> Option<Instant> {
+        TransportWrapper::tick(self, now)
+    }
+    fn counters(&self) -> Vec<(String, u64)> {
+        TransportWrapper::counters(self)
+    }
+    fn set_real_time(&mut self, real_time: bool) {
+        TransportWrapper::set_real_time(self, real_time)
+    }
+    fn counters_into(&self, out: &mut Vec<(String, u64)>) {
+        TransportWrapper::counters_into(self, out)
+    }
+    fn counters_generation(&self) -> u64 {
+        TransportWrapper::counters_generation(self)
+    }
+    fn peers(&self) -> Vec<PeerInfo> {
+        TransportWrapper::peers(self)
+    }
+    fn take_events(&mut self, out: &mut Vec<TransportEvent>) {
+        TransportWrapper::take_events(self, out)
+    }
+    fn address(&self) -> Option<String> {
+        TransportWrapper::address(self)
+    }
+}
+
 /// A boxed transport is a transport: commands that open whatever URL they are given
 /// ([`open`], [`open_named`]) can still wrap the result (a recording tap, the simulator's
-/// radio link) or hand it to `Node::new`. Every method forwards, the defaulted ones too, so
-/// the box changes nothing a node can observe.
+/// radio link) or hand it to `Node::new`. The box is the transport itself, not a wrapper that
+/// changes it: every method forwards, the defaulted ones too, so the box changes nothing a
+/// node can observe.
 impl Transport for Box<dyn Transport> {
     fn local(&self) -> NodeId {
         (**self).local()
@@ -158,14 +321,8 @@ impl Transport for Box<dyn Transport> {
     fn peers(&self) -> Vec<PeerInfo> {
         (**self).peers()
     }
-    fn take_lost_peers(&mut self, out: &mut Vec<NodeId>) {
-        (**self).take_lost_peers(out)
-    }
-    fn take_warnings(&mut self, out: &mut Vec<String>) {
-        (**self).take_warnings(out)
-    }
-    fn take_failed_requests(&mut self, out: &mut Vec<(NodeId, u64, String)>) {
-        (**self).take_failed_requests(out)
+    fn take_events(&mut self, out: &mut Vec<TransportEvent>) {
+        (**self).take_events(out)
     }
     fn address(&self) -> Option<String> {
         (**self).address()

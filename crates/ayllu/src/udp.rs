@@ -45,7 +45,7 @@ use crate::datagram::{DatagramSocket, OsSocket};
 use crate::error::Error;
 use crate::operator::OperatorGate;
 use crate::routability::{Budget, Cookies};
-use crate::transport::{PeerInfo, SendTally, Sent, Transport};
+use crate::transport::{PeerInfo, SendTally, Sent, Transport, TransportEvent};
 use crate::udp_config::{UdpConfig, MAX_DATAGRAM};
 
 /// Bounds that keep a flood from growing memory (N4).
@@ -327,8 +327,9 @@ pub struct UdpTransport<S: DatagramSocket = OsSocket> {
     /// No peer expires before this (a lower bound: hearing from a peer only delays its expiry).
     next_expiry: Instant,
     peers: BTreeMap<NodeId, Peer>,
-    /// Peers forgotten since the node last asked ([`Transport::take_lost_peers`]).
-    lost: Vec<NodeId>,
+    /// Peers lost, warnings and failed requests since the node last asked
+    /// ([`Transport::take_events`]), in order.
+    events: Vec<TransportEvent>,
     /// Replay windows by sender (outlive peer entries, N5), and their senders' freshness.
     replay: BTreeMap<NodeId, SenderWindow>,
     /// Newcomers' admission rates by source address and block (N4).
@@ -341,15 +342,11 @@ pub struct UdpTransport<S: DatagramSocket = OsSocket> {
     next_save: Instant,
     /// Messages for nodes not heard from yet (never reported as sent, see [`Sent::Held`]).
     held: VecDeque<Held>,
-    /// Requests found larger than a datagram, for [`Transport::take_failed_requests`].
-    failed_requests: Vec<(NodeId, u64, String)>,
     /// The first datagram sequence number this transport used: datagrams carrying our id and
     /// a number in `[seq_start, seq)` from our own address are our own, looped back.
     seq_start: u64,
     /// Addresses from which another node with our id was heard (reported once each).
     duplicates: Vec<SocketAddr>,
-    /// Warnings for the node to report ([`Transport::take_warnings`]).
-    warnings: Vec<String>,
     /// Sending to the discovery address failed once (warned about once).
     discovery_failed: bool,
     /// Saving the replay marks failed once (warned about once).
@@ -527,17 +524,15 @@ impl<S: DatagramSocket> UdpTransport<S> {
             next_hello: Instant::ZERO,
             next_expiry: Instant::MAX,
             peers: BTreeMap::new(),
-            lost: Vec::new(),
+            events: warnings.into_iter().map(TransportEvent::Warning).collect(),
             replay,
             admission: Admission::default(),
             refused_challenges: REFUSED_CHALLENGES.full(Instant::ZERO),
             replay_dirty: false,
             next_save: Instant::ZERO,
             held: VecDeque::new(),
-            failed_requests: Vec::new(),
             seq_start: boot,
             duplicates: Vec::new(),
-            warnings,
             discovery_failed: false,
             state_warned: false,
             joined: Vec::new(),
@@ -673,10 +668,10 @@ impl<S: DatagramSocket> UdpTransport<S> {
                 self.count("state_error");
                 if !self.state_warned {
                     self.state_warned = true;
-                    self.warnings.push(format!(
+                    self.events.push(TransportEvent::Warning(format!(
                         "cannot save replay marks to {}: {e}; a restart may accept replayed datagrams",
                         path.display()
-                    ));
+                    )));
                 }
             }
         }
@@ -773,7 +768,7 @@ impl<S: DatagramSocket> UdpTransport<S> {
                 self.count("send_error");
                 if Some(to) == self.config.discovery && !self.discovery_failed {
                     self.discovery_failed = true;
-                    self.warnings.push(discovery_warning(&self.config, &e.to_string()));
+                    self.events.push(TransportEvent::Warning(discovery_warning(&self.config, &e.to_string())));
                 }
             }
         }
@@ -1029,11 +1024,11 @@ impl<S: DatagramSocket> UdpTransport<S> {
             self.count("duplicate_id");
             if !self.duplicates.contains(&from) && self.duplicates.len() < MAX_DUPLICATES {
                 self.duplicates.push(from);
-                self.warnings.push(format!(
+                self.events.push(TransportEvent::Warning(format!(
                     "another node with this node's id {} is sending from {from}: node ids must be unique in a team \
                      (its messages are dropped and counted as duplicate_id)",
                     self.id.0
-                ));
+                )));
             }
             return None;
         }
@@ -1358,7 +1353,7 @@ impl<S: DatagramSocket> UdpTransport<S> {
                     if let (Destination::Node(n), Some(too_big)) = (to, self.oversized_request(&parts)) {
                         let Message::Control(c) = message else { unreachable!("requests are control messages") };
                         self.count("too_large");
-                        self.failed_requests.push((*n, c.id, too_big));
+                        self.events.push(TransportEvent::RequestFailed { to: *n, id: c.id, why: too_big });
                         self.route_buf = addrs;
                         return Sent::Dropped;
                     }
@@ -1562,11 +1557,11 @@ impl<S: DatagramSocket> Transport for UdpTransport<S> {
             let before = self.peers.len();
             let unproven = self.unproven_lifetime();
             // Kept until the node takes them (bounded, in case nobody does).
-            let lost = &mut self.lost;
+            let events = &mut self.events;
             self.peers.retain(|id, p| {
                 let alive = now < expiry(p, unproven);
-                if !alive && lost.len() < MAX_PEERS {
-                    lost.push(*id);
+                if !alive && events.len() < MAX_PEERS {
+                    events.push(TransportEvent::PeerLost(*id));
                 }
                 alive
             });
@@ -1627,14 +1622,8 @@ impl<S: DatagramSocket> Transport for UdpTransport<S> {
     fn address(&self) -> Option<String> {
         self.local_addr().map(|a| a.to_string())
     }
-    fn take_lost_peers(&mut self, out: &mut Vec<NodeId>) {
-        out.append(&mut self.lost);
-    }
-    fn take_failed_requests(&mut self, out: &mut Vec<(NodeId, u64, String)>) {
-        out.append(&mut self.failed_requests);
-    }
-    fn take_warnings(&mut self, out: &mut Vec<String>) {
-        out.append(&mut self.warnings);
+    fn take_events(&mut self, out: &mut Vec<TransportEvent>) {
+        out.append(&mut self.events);
     }
 }
 
