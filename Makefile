@@ -37,13 +37,17 @@ test:
 ## The core's tests that reach ports through remembered addresses (crates/ayllu-core/src/sequence.rs,
 ## NodeCore::deliver_to) and run process bodies through borrowed pointers, under AddressSanitizer:
 ## a stale address is a use after free there. Needs rustup's nightly toolchain (the sanitizer flag
-## is unstable); without one it says so and skips. About a minute; its own target directory.
+## is unstable): installs it (minimal profile) if missing, and fails naming it if that cannot be
+## done; AYLLU_SKIP=asan skips it on purpose, loudly. About a minute; its own target directory.
 test-asan:
-	@if $(CARGO) +nightly --version >/dev/null 2>&1; then \
-		RUSTFLAGS="-Zsanitizer=address" CARGO_TARGET_DIR=$(abspath $(TARGET_DIR))/asan $(CARGO) +nightly test \
-			-p ayllu-core --target x86_64-unknown-linux-gnu --test receive_cache --test remote \
-			--test structure --test structure_from_process --test process_periodic --test process_triggered; \
-	else echo "test-asan: skipped: no nightly toolchain (rustup toolchain install nightly)"; fi
+	@if ! $(CARGO) +nightly --version >/dev/null 2>&1; then \
+		case ",$$AYLLU_SKIP," in *,asan,*) echo "*** SKIPPED: test-asan (AYLLU_SKIP=asan): the core's pointer paths were NOT run under ASan ***"; exit 0;; esac; \
+		echo "test-asan: installing rustup's nightly toolchain (the sanitizer flag is unstable)"; \
+		rustup toolchain install nightly --profile minimal || { echo "test-asan: no nightly toolchain and it could not be installed (rustup toolchain install nightly); AYLLU_SKIP=asan skips this on purpose" >&2; exit 1; }; \
+	fi; \
+	RUSTFLAGS="-Zsanitizer=address" CARGO_TARGET_DIR=$(abspath $(TARGET_DIR))/asan $(CARGO) +nightly test \
+		-p ayllu-core --target x86_64-unknown-linux-gnu --test receive_cache --test remote \
+		--test structure --test structure_from_process --test process_periodic --test process_triggered
 
 ## The book (docs/, mkdocs.yml): concepts, tutorials, troubleshooting and the references, built
 ## into target/book (open target/book/index.html) with the API references under api/ (rustdoc,

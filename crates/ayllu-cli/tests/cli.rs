@@ -239,10 +239,24 @@ fn a_window_held_by_hand_lasts_while_repeated_and_lapses_after() {
             LIMIT,
         )
     });
-    // Still inhibited well after one window would have lapsed: the writes renewed it.
-    std::thread::sleep(Duration::from_millis(1000));
-    let why = relay.why("RELAY.Out");
-    assert_eq!(windows_of(&why, "Inhibit").len(), 1, "held by repetition: {why}");
+    // Held by repetition: decided on the node's own clock, not on how long we slept. The first
+    // window seen, and when it was to end; then an answer at a node time past that end with
+    // the window still open (renewed, so ending later): one window, never two.
+    let seconds = |v: &Json| v.as_f64().unwrap_or_else(|| panic!("seconds expected: {v}"));
+    let first_end = wait_for(LIMIT, Duration::from_millis(20), || {
+        let why = relay.why("RELAY.Out");
+        windows_of(&why, "Inhibit").first().map(|w| seconds(&w["ends"]))
+    })
+    .expect("the repeated writes never opened an inhibit window");
+    let renewed = wait_for(LIMIT, Duration::from_millis(50), || {
+        let why = relay.why("RELAY.Out");
+        let windows = windows_of(&why, "Inhibit");
+        (seconds(&why["now"]) >= first_end).then(|| (windows.len(), windows.first().map(|w| seconds(&w["ends"]))))
+    });
+    match renewed {
+        Some((1, Some(end))) => assert!(end > first_end, "the window open after {first_end} s ends at {end} s"),
+        other => panic!("not held by repetition past the first window's end ({first_end} s): {other:?}"),
+    }
     let done = hold.join().unwrap().ok();
     assert!(done.stdout.contains("confirmed; then") && done.stdout.contains("more over"), "{done:?}");
     // Released: the last window ends 0.3 s after the last write.

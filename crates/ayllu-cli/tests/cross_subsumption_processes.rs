@@ -13,7 +13,8 @@
 //!   derived from the configured periods with room for a busy machine (see [`Bounds`]), never
 //!   from how fast this machine was; the measured times are printed.
 //!
-//! The namespace variant needs root and `ip`; without them it prints `SKIPPED: ...` and passes.
+//! The namespace variants need root and `ip` (and nftables, /dev/net/tun); without them they
+//! fail, naming what is missing, unless `AYLLU_SKIP` asks to skip it ([`common::unavailable`]).
 
 mod common;
 
@@ -21,7 +22,7 @@ use std::time::{Duration, Instant};
 
 use ayllu::BleConfig;
 use common::netns::Netns;
-use common::{ayllu, start_on_loopback, wait_for, Proc, BIN};
+use common::{ayllu, start_on_loopback, unavailable, wait_for, Proc, BIN};
 use serde_json::Value as Json;
 
 const SIGHT: [&str; 3] = ["1:0.9,2:0.5", "1:0.6,2:0.8,3:0.4", "3:0.7,4:0.5"];
@@ -230,10 +231,7 @@ fn three_processes_on_loopback_settle_and_survive_a_kill() {
 fn three_processes_in_network_namespaces_use_real_subnet_broadcast() {
     let net = match Netns::create("ay", 77, 3) {
         Ok(net) => net,
-        Err(reason) => {
-            eprintln!("SKIPPED: network namespaces unavailable: {reason}");
-            return;
-        }
+        Err(reason) => return unavailable("netns", &reason),
     };
     // Declared after `net`, so the processes die before their namespaces go.
     let nodes: Vec<Proc> = (1..=3)
@@ -329,14 +327,10 @@ fn three_processes_with_loss_a_partition_and_a_kill_keep_the_arbitration_propert
     const LOSS: u32 = 30;
     let net = match Netns::create("ft", 83, 3) {
         Ok(net) => net,
-        Err(reason) => {
-            eprintln!("SKIPPED: network namespaces unavailable: {reason}");
-            return;
-        }
+        Err(reason) => return unavailable("netns", &reason),
     };
     if let Err(reason) = (0..3).try_for_each(|i| filter(&net, i, LOSS)) {
-        eprintln!("SKIPPED: nftables unavailable in the namespaces (scripts/install-test-tools installs it): {reason}");
-        return;
+        return unavailable("nft", &reason);
     }
     let bounds = Bounds::new();
     let mut nodes: Vec<Proc> = (1..=3)
@@ -447,27 +441,20 @@ fn three_processes_through_the_userspace_shaper_keep_the_arbitration_properties(
     //   lease ran out; n1 restarted: the team returns to the first assignment;
     // * the shaper's own counters show every fault happened.
     if !std::path::Path::new("/dev/net/tun").exists() {
-        eprintln!("SKIPPED: no /dev/net/tun, the shaper cannot make TAP interfaces");
-        return;
+        return unavailable("tun", "no /dev/net/tun, the shaper cannot make TAP interfaces");
     }
     let net = match Netns::bare("sh", 85, 3) {
         Ok(net) => net,
-        Err(reason) => {
-            eprintln!("SKIPPED: network namespaces unavailable: {reason}");
-            return;
-        }
+        Err(reason) => return unavailable("netns", &reason),
     };
     // Declared after `net` and before the nodes: dropped (killed) after them, before the
     // namespaces go.
+    // Any failure of the shaper fails the test: its own errors name /dev/net/tun and
+    // TUNSETIFF too, so telling the environment from a broken `ayllu shape` by the message
+    // would let the latter pass as skipped. AYLLU_SKIP=tun is the way to skip it.
     let shaper = match start_shaper(&net, 3, &SHAPE, 120) {
         Ok(shaper) => shaper,
-        // The device node exists but TAP interfaces cannot be made (no tun driver, a
-        // container without the capability): the environment, not the code.
-        Err(reason) if reason.contains("/dev/net/tun") || reason.contains("TUNSETIFF") => {
-            eprintln!("SKIPPED: the shaper cannot make TAP interfaces: {reason}");
-            return;
-        }
-        Err(reason) => panic!("{reason}"),
+        Err(reason) => panic!("the shaper (`ayllu shape`): {reason}"),
     };
     let bounds = Bounds::new();
     let start_node = |i: usize| {

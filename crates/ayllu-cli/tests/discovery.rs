@@ -4,8 +4,8 @@
 //! node of another team is named as such in the tool's error, not taken for silence.
 //!
 //! Each "machine" is a network namespace on a bridge that the test creates, so the multicast
-//! never touches the host's own network. Without root or `ip` the tests print `SKIPPED: ...`
-//! and pass.
+//! never touches the host's own network. Without root or `ip` the tests fail, naming what is
+//! missing, unless `AYLLU_SKIP=netns` asks to skip them.
 
 mod common;
 
@@ -22,7 +22,7 @@ fn namespaces(tag: &str, subnet: u8, n: usize) -> Option<Netns> {
     match Netns::create(tag, subnet, n) {
         Ok(net) => Some(net),
         Err(reason) => {
-            eprintln!("SKIPPED: network namespaces unavailable: {reason}");
+            common::unavailable("netns", &reason);
             None
         }
     }

@@ -1,8 +1,8 @@
 //! The README's team example runs as printed: its shell block (three `ayllu node` robots with
 //! no addresses, then `list`, `why` and `write` with no flags) is taken from README.md and run
 //! by bash inside a network namespace (one "machine" with zero-configuration discovery), with
-//! `target/release/ayllu` replaced by the binary under test. Without root or `ip` it prints
-//! `SKIPPED: ...` and passes.
+//! `target/release/ayllu` replaced by the binary under test. Without root or `ip` it fails,
+//! naming what is missing, unless `AYLLU_SKIP=netns` asks to skip it.
 
 mod common;
 
@@ -23,10 +23,7 @@ fn team_block() -> String {
 fn the_readme_team_example_runs_as_printed() {
     let net = match Netns::create("rm", 82, 1) {
         Ok(net) => net,
-        Err(reason) => {
-            eprintln!("SKIPPED: network namespaces unavailable: {reason}");
-            return;
-        }
+        Err(reason) => return common::unavailable("netns", &reason),
     };
     let script = team_block()
         .lines()

@@ -15,7 +15,7 @@
 //!
 //! Verdicts use generous margins over measured figures (in the comments), since real
 //! processes on a real clock never run the same twice. The namespace variant needs root and
-//! `ip`; without them it prints `SKIPPED: ...` and passes.
+//! `ip`; without them it fails, naming what is missing, unless `AYLLU_SKIP=netns` asks to skip it.
 
 mod common;
 
@@ -236,10 +236,7 @@ fn a_served_world_and_three_robot_processes_in_network_namespaces() {
     // Namespace 0 hosts the server, 1..=3 the robots.
     let net = match Netns::create("sd", 78, ROBOTS + 1) {
         Ok(net) => net,
-        Err(reason) => {
-            eprintln!("SKIPPED: network namespaces unavailable: {reason}");
-            return;
-        }
+        Err(reason) => return common::unavailable("netns", &reason),
     };
     references();
     let broadcast = format!("{}:7400", net.broadcast());

@@ -136,8 +136,14 @@ def test_override_in_admits_only_its_holder(pair: tuple[al.LiteNode, al.LiteNode
 def test_inhibit_and_write_inhibit_do_not_write(pair: tuple[al.LiteNode, al.LiteNode]) -> None:
     a, b = pair
     a.expose("B", "P", 0)
+    received = a.counters.get("received", 0)
     b.write(1, "B", "P", 1, kind=al.ConnKind.INHIBIT, period_s=0.1)
     b.write(1, "B", "P", 2, kind=al.ConnKind.WRITE_INHIBIT, period_s=0.1)
+    # Both arrived and were applied as windows, and neither wrote the value (its C twin checks
+    # the same after injecting them).
+    wait_for(lambda: a.counters.get("received", 0) >= received + 2, a)
+    assert a.get("B", "P") == 0
+    # Override-out writes: its window stops only propagation, which a lite port never does.
     b.write(1, "B", "P", 3, kind=al.ConnKind.OVERRIDE_OUT, period_s=0.1)
     wait_for(lambda: a.get("B", "P") == 3, a)
 

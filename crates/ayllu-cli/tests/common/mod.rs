@@ -23,6 +23,29 @@ use serde_json::Value as Json;
 /// The binary under test.
 pub const BIN: &str = env!("CARGO_BIN_EXE_ayllu");
 
+/// What a test needs and this machine cannot give it: `need` is one of `netns` (network
+/// namespaces: root and `ip`), `nft` (nftables in them), `tun` (TAP interfaces for the
+/// shaper). The test fails here, naming what is missing, unless the environment asks to skip
+/// exactly that (`AYLLU_SKIP=netns,nft,tun`, a comma-separated list): then it says SKIPPED
+/// loudly and the caller returns. `make test` and CI never ask, so no end-to-end test of real
+/// broadcast and faults passes by skipping (docs/testing.md).
+pub fn unavailable(need: &str, reason: &str) {
+    // libtest names each test's thread after the test.
+    let test = std::thread::current().name().unwrap_or("this test").to_owned();
+    let asked = std::env::var("AYLLU_SKIP").unwrap_or_default();
+    if asked.split(',').any(|n| n.trim() == need) {
+        eprintln!("\n*** SKIPPED: {test}: {need} unavailable (AYLLU_SKIP={asked}): {reason} ***\n");
+        return;
+    }
+    let how = match need {
+        "netns" => "run as root with `ip` (iproute2) installed",
+        "nft" => "install nftables (scripts/install-test-tools does)",
+        "tun" => "give the test /dev/net/tun (the tun driver; in a container, the device and CAP_NET_ADMIN)",
+        _ => "see docs/testing.md",
+    };
+    panic!("{test} needs {need}, which is unavailable here: {reason}; {how}, or set AYLLU_SKIP={need} to skip it");
+}
+
 fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
     m.lock().unwrap_or_else(|e| e.into_inner())
 }
