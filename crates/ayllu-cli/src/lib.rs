@@ -409,14 +409,11 @@ pub fn parse_port_path(s: &str) -> Result<PortPath, String> {
 /// any run, and small enough for every duration type (1e300 used to panic).
 pub const MAX_SECS: f64 = 1e9;
 
-/// A number as a message prints it: as usual for everyday sizes, in exponent form for the very
-/// large and the very small (`1e300`, not its 301 digits; `1e-300`, not 300 zeros).
+/// A number as a message prints it: the core's [`ayllu_core::Compact`] (plainly for everyday
+/// sizes, in exponent form for the very large and the very small: `1e300`, not its 301
+/// digits), so the tool, C and Python print the same number the same way.
 pub fn compact(x: f64) -> String {
-    if x == 0.0 || !x.is_finite() || (1e-3..1e9).contains(&x.abs()) {
-        format!("{x}")
-    } else {
-        format!("{x:e}")
-    }
+    ayllu_core::Compact(x).to_string()
 }
 
 /// Seconds: finite, at least 1 ns (the clock's resolution), at most [`MAX_SECS`].

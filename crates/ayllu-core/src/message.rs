@@ -124,6 +124,22 @@ pub enum ControlBody {
     },
 }
 
+impl ControlBody {
+    /// Whether this request changes the receiver's structure: the right a node's access rules
+    /// (`Access::structure`) and an operator key guard. One list for both, so a new kind of
+    /// request cannot be guarded by one and not the other.
+    pub fn changes_structure(&self) -> bool {
+        matches!(
+            self,
+            ControlBody::Connect { .. }
+                | ControlBody::Disconnect { .. }
+                | ControlBody::Prepare { .. }
+                | ControlBody::Commit { .. }
+                | ControlBody::Abort { .. }
+        )
+    }
+}
+
 /// What a successful request returns.
 #[derive(Clone, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]

@@ -1720,15 +1720,7 @@ impl NodeCore {
     }
 
     fn apply_control(&mut self, from: NodeId, body: ControlBody) -> Result<ReplyBody, Error> {
-        let changes_structure = matches!(
-            body,
-            ControlBody::Connect { .. }
-                | ControlBody::Disconnect { .. }
-                | ControlBody::Prepare { .. }
-                | ControlBody::Commit { .. }
-                | ControlBody::Abort { .. }
-        );
-        if changes_structure && !self.access.structure.admits(from) {
+        if body.changes_structure() && !self.access.structure.admits(from) {
             return Err(Error::NotAllowed {
                 what: format!("{from} may not change this node's structure (its access rules)"),
             });

@@ -142,16 +142,10 @@ impl fmt::Debug for OperatorPublic {
     }
 }
 
-/// Whether a request changes the receiver's structure, the right an operator key guards.
+/// Whether a request changes the receiver's structure, the right an operator key guards: the
+/// core's one list ([`ControlBody::changes_structure`]), which its access rules use too.
 pub fn changes_structure(body: &ControlBody) -> bool {
-    matches!(
-        body,
-        ControlBody::Connect { .. }
-            | ControlBody::Disconnect { .. }
-            | ControlBody::Prepare { .. }
-            | ControlBody::Commit { .. }
-            | ControlBody::Abort { .. }
-    )
+    body.changes_structure()
 }
 
 #[cfg(test)]
