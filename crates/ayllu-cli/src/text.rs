@@ -68,18 +68,11 @@ pub fn parse_value(ty: ValueType, text: &str) -> Result<Value, String> {
     }
 }
 
-/// A value as plain JSON: numbers, booleans, strings, bytes as a hex string, vectors as arrays.
-pub fn value_json(v: &Value) -> Json {
-    match v {
-        Value::Bool(b) => json!(b),
-        Value::Int(i) => json!(i),
-        // NaN and infinities have no JSON number; serde_json writes them as null.
-        Value::Float(x) => json!(x),
-        Value::Text(s) => json!(&**s),
-        Value::Bytes(b) => json!(b.iter().map(|x| format!("{x:02x}")).collect::<String>()),
-        Value::Vector(xs) => json!(&**xs),
-    }
-}
+/// A value as JSON: the one form Ayllu writes everywhere (recordings, the Foxglove layout,
+/// the tool's `--json`): numbers, booleans, strings, bytes as a hex string, vectors as arrays,
+/// and a float that is not finite as `"NaN"`, `"inf"` or `"-inf"` (JSON has no such numbers;
+/// `null` would lose which it was). See [`ayllu::team_channels::value_json`].
+pub use ayllu::team_channels::value_json;
 
 /// `{cause: count}` for the non-zero counters.
 pub fn counted(counters: &Counters) -> Json {
@@ -366,6 +359,6 @@ mod tests {
         assert_eq!(value_json(&Value::Int(3)), json!(3));
         assert_eq!(value_json(&Value::bytes(&[1, 255])), json!("01ff"));
         assert_eq!(value_json(&Value::vector(&[1.0, 2.0])), json!([1.0, 2.0]));
-        assert_eq!(value_json(&Value::Float(f64::NAN)), Json::Null);
+        assert_eq!(value_json(&Value::Float(f64::NAN)), json!("NaN"));
     }
 }
