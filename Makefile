@@ -90,7 +90,7 @@ bench-peers:
 ## directory (target/zenoh), never part of `make test`; the first build takes 5-10 min.
 ZENOH_CARGO = cd crates/ayllu-zenoh && CARGO_TARGET_DIR=$(abspath $(TARGET_DIR))/zenoh $(CARGO)
 zenoh:
-	$(ZENOH_CARGO) build --release
+	$(ZENOH_CARGO) build --release --features tool
 
 ## Its lints and tests (nodes in one process and as processes, routers, the bridge, conformance,
 ## TLS and access control, network namespaces when root; about 45 s once built): the
@@ -98,12 +98,13 @@ zenoh:
 test-zenoh:
 	$(ZENOH_CARGO) fmt -- --check
 	$(ZENOH_CARGO) clippy --release --all-targets -- -D warnings
-	$(ZENOH_CARGO) test --release
+	$(ZENOH_CARGO) clippy --release --all-targets --features tool -- -D warnings
+	$(ZENOH_CARGO) test --release --features tool
 
 ## Ayllu over zenoh:// (peer mode, and clients of a router) beside udp:// and raw UDP, same run:
 ## round trip and one-way rate, with ratios (about 30 s once built; docs/zenoh.md, "Measured").
 bench-zenoh:
-	$(ZENOH_CARGO) test --release --test zenoh_bench -- --ignored --nocapture
+	$(ZENOH_CARGO) test --release --features tool --test zenoh_bench -- --ignored --nocapture
 
 ## ROS 2 body (crates/ayllu-ros2, docs/ros2.md)
 ## A workspace member the default commands leave out (its DDS stack is ~110 more crates), built
