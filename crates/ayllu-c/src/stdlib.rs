@@ -167,6 +167,20 @@ pub unsafe extern "C" fn ay_sim_body(node: *mut ay_node, targets: u32) -> ay_sta
         if targets == 0 || targets > 64 {
             return Err(Fail::invalid(format!("targets must be 1 to 64, got {targets}")));
         }
-        with_node(node, |s| Ok(ayllu_sim::served_robot::install(s.node.core_mut(), targets as usize)?))
+        with_node(node, |s| install_sim_body(s.node.core_mut(), targets as usize))
     })
+}
+
+#[cfg(feature = "sim")]
+fn install_sim_body(core: &mut ayllu::NodeCore, targets: usize) -> Result<(), Fail> {
+    Ok(ayllu_sim::served_robot::install(core, targets)?)
+}
+
+/// Without the simulator the call exists (the header and a program are the same in both
+/// builds) and says how to get it.
+#[cfg(not(feature = "sim"))]
+fn install_sim_body(_core: &mut ayllu::NodeCore, _targets: usize) -> Result<(), Fail> {
+    Err(Fail::invalid(
+        "libayllu was built without the simulator's robot body: build it with the `sim` feature (the default)",
+    ))
 }
