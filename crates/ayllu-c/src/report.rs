@@ -1,15 +1,12 @@
 //! Introspection from C: `why` a port holds and passes what it does, and the whole node
-//! (`list`), as JSON strings in the shapes `ayllu why --json` and `ayllu list --json` print.
+//! (`list`), as JSON strings in the shapes `ayllu why --json` and `ayllu list --json` print
+//! ([`ayllu::report_json`]: times in seconds, `counted` beside the counters).
 
 use std::ffi::c_char;
 
 use crate::cstr::{owned, put};
 use crate::node::{ay_node, names, with_node};
 use crate::status::{ay_status, boundary, Fail};
-
-fn json<T: serde::Serialize>(value: &T) -> Result<String, Fail> {
-    serde_json::to_string(value).map_err(|e| Fail::invalid(format!("report as JSON: {e}")))
-}
 
 /// Why `behavior.port` holds what it holds and passes what it passes, now: value, freshness,
 /// supplier, active windows and their holders, connections in and out. `*out` receives a
@@ -35,7 +32,7 @@ pub unsafe extern "C" fn ay_node_why_json(
         if out.is_null() {
             return Err(Fail::null("out"));
         }
-        let text = with_node(node, |s| json(&s.node.why(b, p)?))?;
+        let text = with_node(node, |s| Ok(ayllu::report_json::port_report_json(&s.node.why(b, p)?).to_string()))?;
         // SAFETY: the C caller's promise on `out`.
         unsafe { put(out, owned(text), "out") }
     })
@@ -56,7 +53,7 @@ pub unsafe extern "C" fn ay_node_report_json(node: *mut ay_node, out: *mut *mut 
         if out.is_null() {
             return Err(Fail::null("out"));
         }
-        let text = with_node(node, |s| json(&s.node.core().report()))?;
+        let text = with_node(node, |s| Ok(ayllu::report_json::node_report_json(&s.node.core().report()).to_string()))?;
         // SAFETY: the C caller's promise on `out`.
         unsafe { put(out, owned(text), "out") }
     })

@@ -1,17 +1,14 @@
 //! Values and reports as people and scripts read them: parsing a typed value from the command
 //! line, values as plain JSON, reports as text and as JSON.
 //!
-//! JSON reports are the serde form of `NodeReport` / `PortReport` (the same JSON a REPLY
-//! carries, spec/protocol.md), with one addition for scripts: a `counted` object
-//! `{cause: count}` beside each positional `counters` array.
+//! JSON reports are [`ayllu::report_json`]'s, the shape C and Python use too.
 
 use std::fmt::Write as _;
 
 use ayllu::{
-    Counters, Endpoint, Node, NodeId, NodeReport, PeerInfo, PortReport, Trigger, Value, ValueType, BEST, BLE_SELECT,
-    INHIBIT, LOCAL,
+    Endpoint, Node, NodeId, NodeReport, PeerInfo, Trigger, Value, ValueType, BEST, BLE_SELECT, INHIBIT, LOCAL,
 };
-use serde_json::{json, Map, Value as Json};
+use serde_json::{json, Value as Json};
 
 /// The first line a long-running command (`node`, `sim robot`) prints, as soon as its socket
 /// is bound: `{"listening":"127.0.0.1:45125","node":1}`. A node started on port 0 tells here
@@ -74,53 +71,7 @@ pub fn parse_value(ty: ValueType, text: &str) -> Result<Value, String> {
 /// `null` would lose which it was). See [`ayllu::team_channels::value_json`].
 pub use ayllu::team_channels::value_json;
 
-/// `{cause: count}` for the non-zero counters.
-pub fn counted(counters: &Counters) -> Json {
-    Json::Object(counters.nonzero().map(|(d, n)| (d.name().to_owned(), json!(n))).collect())
-}
-
-/// The serde form of a port report plus `counted`, times in seconds.
-pub fn port_report_json(r: &PortReport) -> Json {
-    let mut j = serde_json::to_value(r).unwrap_or(Json::Null);
-    if let Json::Object(m) = &mut j {
-        m.insert("counted".to_owned(), counted(&r.counters));
-    }
-    seconds(&mut j);
-    j
-}
-
-/// The serde form of a node report plus `counted` (core), `transport_counted` and `body_counted`, times in
-/// seconds.
-pub fn node_report_json(r: &NodeReport) -> Json {
-    let mut j = serde_json::to_value(r).unwrap_or(Json::Null);
-    if let Json::Object(m) = &mut j {
-        m.insert("counted".to_owned(), counted(&r.counters));
-        let transport: Map<String, Json> = r.transport.iter().map(|(k, v)| (k.clone(), json!(v))).collect();
-        m.insert("transport_counted".to_owned(), Json::Object(transport));
-        let body: Map<String, Json> = r.body.iter().map(|(k, v)| (k.clone(), json!(v))).collect();
-        m.insert("body_counted".to_owned(), Json::Object(body));
-    }
-    seconds(&mut j);
-    j
-}
-
-/// Replace every time (`Instant` and `Duration` serialize as `{"nanos": N}`) by seconds, a
-/// number people and scripts read directly. (The wire keeps nanoseconds: exact integers.)
-fn seconds(j: &mut Json) {
-    match j {
-        Json::Object(m) => {
-            if m.len() == 1 {
-                if let Some(n) = m.get("nanos").and_then(Json::as_u64) {
-                    *j = json!(n as f64 / 1e9);
-                    return;
-                }
-            }
-            m.values_mut().for_each(seconds);
-        }
-        Json::Array(a) => a.iter_mut().for_each(seconds),
-        _ => {}
-    }
-}
+pub use ayllu::report_json::{counted, node_report_json, port_report_json};
 
 /// A value for people: floats with at most 15 significant digits (so the sum 0.1 + 0.2 shows
 /// as 0.3, not 0.30000000000000004), everything else as the value prints. JSON output keeps

@@ -543,14 +543,15 @@ impl Node {
     fn why(&self, py: Python<'_>, behavior: &str, port: &str) -> PyResult<Py<PyAny>> {
         let (json, text) = self.shared.with(py, |n| {
             let r = n.why(behavior, port).map_err(errors::runtime)?;
-            Ok((wiring::json(&r)?, r.to_string()))
+            Ok((ayllu::report_json::port_report_json(&r).to_string(), r.to_string()))
         })?;
         wiring::report(py, &json, Some(text))
     }
 
     /// The whole node (behaviors, connections, counters, warnings) as an `ayllu.Report`.
     fn report(&self, py: Python<'_>) -> PyResult<Py<PyAny>> {
-        let json = self.shared.with(py, |n| wiring::json(&n.core().report()))?;
+        let json =
+            self.shared.with(py, |n| Ok(ayllu::report_json::node_report_json(&n.core().report()).to_string()))?;
         wiring::report(py, &json, None)
     }
 

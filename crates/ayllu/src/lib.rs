@@ -25,6 +25,7 @@ pub mod rate;
 pub mod recording;
 pub mod recording_format;
 pub mod replay;
+pub mod report_json;
 pub mod routability;
 #[cfg(target_os = "linux")]
 pub mod shaper;
