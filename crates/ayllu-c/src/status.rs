@@ -66,25 +66,16 @@ impl Fail {
     }
 }
 
-/// The code for each refusal of the core (its `Display` is the message).
+/// The code for each refusal of the core: its [`ayllu_core::ErrorKind`], the classification
+/// Python's exceptions come from too (its `Display` is the message).
 pub(crate) fn core_status(e: &ayllu_core::Error) -> ay_status {
-    use ayllu_core::Error as E;
-    match e {
-        E::UnknownClass { .. }
-        | E::UnknownBehavior { .. }
-        | E::UnknownPort { .. }
-        | E::NotAPort { .. }
-        | E::UnknownConnection { .. }
-        | E::UnknownProcess { .. } => ay_status::AY_ERR_UNKNOWN,
-        E::TypeMismatch { .. } | E::KindNotSupported { .. } | E::VectorShape { .. } => ay_status::AY_ERR_TYPE,
-        E::ZeroPeriod { .. }
-        | E::NegativePeriod { .. }
-        | E::InvalidDuration { .. }
-        | E::BelowResolution { .. }
-        | E::ZeroProcessPeriod { .. }
-        | E::ZeroWindow { .. } => ay_status::AY_ERR_PERIOD,
-        E::InvalidRate { .. } => ay_status::AY_ERR_RATE,
-        _ => ay_status::AY_ERR_INVALID,
+    use ayllu_core::ErrorKind as K;
+    match e.kind() {
+        K::Unknown => ay_status::AY_ERR_UNKNOWN,
+        K::Type => ay_status::AY_ERR_TYPE,
+        K::Period => ay_status::AY_ERR_PERIOD,
+        K::Rate => ay_status::AY_ERR_RATE,
+        K::Invalid => ay_status::AY_ERR_INVALID,
     }
 }
 

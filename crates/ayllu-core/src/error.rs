@@ -192,6 +192,63 @@ pub enum Error {
     },
 }
 
+/// What kind of refusal an [`Error`] is: the one classification C's status codes
+/// (`AY_ERR_UNKNOWN`, ...), Python's exception classes (`NotFoundError`, ...) and the tool's
+/// messages come from, so the three agree on every error. Decided once per variant in
+/// [`Error::kind`], with no catch-all: a new variant cannot compile without its kind.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash)]
+pub enum ErrorKind {
+    /// No class, behavior, port, process or connection of that name (or the name is not a
+    /// port). C `AY_ERR_UNKNOWN`; Python `NotFoundError` (a `LookupError`).
+    Unknown,
+    /// A value, port or register of the wrong type (rule S1), a kind or shape the type cannot
+    /// have. C `AY_ERR_TYPE`; Python `ValueTypeError` (a `TypeError`).
+    Type,
+    /// A period, lifespan, window or duration that is zero where one is required, negative,
+    /// not finite or under the clock's resolution. C `AY_ERR_PERIOD`; Python `InvalidError`.
+    Period,
+    /// A rate that is zero, negative or not finite. C `AY_ERR_RATE`; Python `InvalidError`.
+    Rate,
+    /// Any other argument refused. C `AY_ERR_INVALID`; Python `InvalidError` (a `ValueError`).
+    Invalid,
+}
+
+impl Error {
+    /// This error's kind (see [`ErrorKind`]).
+    pub fn kind(&self) -> ErrorKind {
+        use ErrorKind as K;
+        match self {
+            Error::UnknownClass { .. }
+            | Error::UnknownBehavior { .. }
+            | Error::UnknownPort { .. }
+            | Error::NotAPort { .. }
+            | Error::UnknownConnection { .. }
+            | Error::UnknownProcess { .. } => K::Unknown,
+            Error::TypeMismatch { .. } | Error::KindNotSupported { .. } | Error::VectorShape { .. } => K::Type,
+            Error::ZeroPeriod { .. }
+            | Error::NegativePeriod { .. }
+            | Error::InvalidDuration { .. }
+            | Error::BelowResolution { .. }
+            | Error::ZeroProcessPeriod { .. }
+            | Error::ZeroWindow { .. } => K::Period,
+            Error::InvalidRate { .. } => K::Rate,
+            Error::DuplicateName { .. }
+            | Error::EmptyName { .. }
+            | Error::WindowOnNormalPort { .. }
+            | Error::TooLongForNetwork { .. }
+            | Error::ReservedName { .. }
+            | Error::GroupSource
+            | Error::NoConnectionBetween { .. }
+            | Error::Transaction { .. }
+            | Error::NotLocal { .. }
+            | Error::TooManyRegisters { .. }
+            | Error::NotAllowed { .. }
+            | Error::Ble { .. }
+            | Error::Refused { .. } => K::Invalid,
+        }
+    }
+}
+
 impl fmt::Display for Error {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {

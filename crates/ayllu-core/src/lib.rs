@@ -71,7 +71,7 @@ pub use ble::{check_inhibit_period, minimum_inhibit_period, BleConfig, BleGroup,
 pub use change::{Applied, Change, ChangeOutcome};
 pub use connection::{ConnectOptions, ConnectionInfo, ConnectionKind};
 pub use counters::{Counters, DropCause};
-pub use error::Error;
+pub use error::{Error, ErrorKind};
 pub use introspect::{BehaviorReport, NodeReport, PortReport, ProcessReport, RegisterReport, WindowReport};
 pub use journal::{Entry, Event};
 pub use message::{ControlBody, ControlMessage, Destination, Message, Outgoing, PortMessage, ReplyBody};

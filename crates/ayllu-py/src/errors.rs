@@ -89,17 +89,16 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     Ok(())
 }
 
-/// The exception for a core error.
+/// The exception for a core error: from its [`ayllu_core::ErrorKind`], the classification C's
+/// status codes come from too, so both sort every error alike (a name that is not a port is
+/// not found in both; a vector of the wrong shape is a type error in both).
 pub fn core(e: CoreError) -> PyErr {
+    use ayllu_core::ErrorKind as K;
     let msg = e.to_string();
-    match e {
-        CoreError::UnknownClass { .. }
-        | CoreError::UnknownBehavior { .. }
-        | CoreError::UnknownPort { .. }
-        | CoreError::UnknownConnection { .. }
-        | CoreError::UnknownProcess { .. } => NotFoundError::new_err(msg),
-        CoreError::TypeMismatch { .. } => ValueTypeError::new_err(msg),
-        _ => InvalidError::new_err(msg),
+    match e.kind() {
+        K::Unknown => NotFoundError::new_err(msg),
+        K::Type => ValueTypeError::new_err(msg),
+        K::Period | K::Rate | K::Invalid => InvalidError::new_err(msg),
     }
 }
 

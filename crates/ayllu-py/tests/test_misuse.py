@@ -224,3 +224,26 @@ def test_bad_urls_and_duplicate_nodes_are_refused() -> None:
     team.add(1)
     with pytest.raises(ayllu.InvalidError, match="already"):
         team.add(1)
+
+
+def test_errors_are_sorted_as_the_c_library_sorts_them() -> None:
+    # One classification (ayllu_core::ErrorKind) gives C its status and Python its class; the C
+    # twin is test_misuse.c's "sorted as Python" checks. A slot named as a port was
+    # InvalidError here and AY_ERR_UNKNOWN in C; a vector Sum without a shape was InvalidError
+    # here and AY_ERR_TYPE in C.
+    class Holder(ayllu.Behavior):
+        count = ayllu.Slot(0, name="Count")
+        out = ayllu.Port(0, name="Out")
+
+    node = ayllu.Node(1, manual=True)
+    node.create(Holder, "H")
+    with pytest.raises(ayllu.NotFoundError, match="is a slot") as e:
+        node.connect(ayllu.local("H", "Count"), ayllu.local("H", "Out"))
+    assert isinstance(e.value, LookupError)
+
+    class Shapeless(ayllu.Behavior):
+        total = ayllu.Port([], kind="sum", name="Total")
+
+    with pytest.raises(ayllu.ValueTypeError, match="takes its shape from its default") as t:
+        node.create(Shapeless, "S")
+    assert isinstance(t.value, TypeError)

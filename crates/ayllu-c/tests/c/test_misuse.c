@@ -104,6 +104,12 @@ static void wrong_types(void) {
     out.port = "Out";
     fl.port = "Float";
     FAILS(ay_node_connect(node_, &out, &fl, AY_NORMAL, 0, 0, NULL), AY_ERR_TYPE, "Float");
+    /* Sorted as Python sorts them (one ErrorKind; its twin is test_misuse.py's
+     * test_errors_are_sorted_as_the_c_library_sorts_them): a slot named as a port is unknown
+     * (NotFoundError), a vector Sum without a shape a type error (ValueTypeError). */
+    fl.port = "Count";
+    FAILS(ay_node_connect(node_, &out, &fl, AY_NORMAL, 0, 0, NULL), AY_ERR_UNKNOWN, "is a slot");
+    fl.port = "Float";
     /* Kinds a type cannot have, reserved and taken names, unknown kind constants. */
     OK(ay_class_new("Bad", &c));
     FAILS(ay_class_port_text(c, "T", "x", AY_PORT_MAX, 0, 0, NULL), AY_ERR_TYPE, "Max port cannot hold text");
@@ -117,6 +123,10 @@ static void wrong_types(void) {
     FAILS(ay_class_port_int(c, "L", 0, AY_PORT_NORMAL, -1.0, 0, NULL), AY_ERR_PERIOD, "lifespan");
     FAILS(ay_class_port_float(c, "N", 0, AY_PORT_NORMAL, NAN, 0, NULL), AY_ERR_PERIOD, "lifespan");
     FAILS(ay_class_port_vector(c, "V", NULL, 3, AY_PORT_NORMAL, 0, 0, NULL), AY_ERR_NULL, "initial");
+    {
+        double none[1] = {0};
+        FAILS(ay_class_port_vector(c, "S", none, 0, AY_PORT_SUM, 0, 0, NULL), AY_ERR_TYPE, "takes its shape");
+    }
     FAILS(ay_class_on_write(c, "P", "Nothing", meddle, NULL), AY_ERR_UNKNOWN, "Nothing");
     FAILS(ay_class_on_monostable(c, "P", "Nothing", meddle, NULL), AY_ERR_UNKNOWN, "Nothing");
     FAILS(ay_class_every_hz(c, "P", 10.0, NULL, NULL), AY_ERR_NULL, "process function");
@@ -236,6 +246,7 @@ int main(void) {
     OK(ay_class_port_float(c, "Max", 0, AY_PORT_MAX, 0, 0, NULL));
     OK(ay_class_port_text(c, "Word", "hello", AY_PORT_NORMAL, 0, 0, NULL));
     OK(ay_class_monostable(c, "M", NULL));
+    OK(ay_class_slot_int(c, "Count", 0, NULL));
     OK(ay_class_every_hz(c, "Meddle", 10.0, meddle, NULL));
     OK(ay_node_define(node_, c));
     OK(ay_node_create(node_, "Box", "B"));
