@@ -81,11 +81,10 @@ pub(crate) unsafe fn endpoint(p: *const ay_endpoint, what: &str) -> Result<Endpo
 
 pub(crate) fn kind(kind: u32, period: f64) -> Result<ConnectionKind, Fail> {
     if kind == AY_NORMAL {
+        // C has no "no period": 0 stands for it. Anything else is the core's PeriodOnNormal
+        // (ConnectionKind::from_parts), as in Python.
         if period != 0.0 {
-            return Err(Fail::new(
-                ay_status::AY_ERR_PERIOD,
-                "a Normal connection has no period (the paper: p is not specified); pass 0",
-            ));
+            return Err(ayllu_core::Error::PeriodOnNormal { seconds: period }.into());
         }
         return Ok(ConnectionKind::Normal);
     }

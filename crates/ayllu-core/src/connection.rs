@@ -7,6 +7,7 @@
 use core::fmt;
 
 use crate::address::ConnectionId;
+use crate::error::Error;
 use crate::time::Duration;
 
 /// What a connection does to its destination port `d` when a message `m` arrives.
@@ -104,6 +105,19 @@ impl ConnectionKind {
             "write-inhibit" | "write_inhibit" => ConnectionKind::WriteInhibit(period),
             _ => return None,
         })
+    }
+
+    /// A kind from its name and its period as the APIs take them (C, Python): the one place
+    /// that decides a Normal connection takes no period (the paper leaves `p` unspecified for
+    /// it: a period there is a mistake, refused rather than ignored) and that every other kind
+    /// needs one (above zero: checked where the connection is made, [`Error::ZeroPeriod`]).
+    pub fn from_parts(name: &str, period: Option<Duration>) -> Result<ConnectionKind, Error> {
+        match (name, period) {
+            ("normal", None) => Ok(ConnectionKind::Normal),
+            ("normal", Some(p)) => Err(Error::PeriodOnNormal { seconds: p.as_secs_f64() }),
+            (_, p) => ConnectionKind::from_name(name, p.unwrap_or(Duration::ZERO))
+                .ok_or_else(|| Error::UnknownConnectionKind { name: name.to_owned() }),
+        }
     }
 }
 

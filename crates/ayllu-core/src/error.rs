@@ -84,6 +84,17 @@ pub enum Error {
         /// The kind, with its zero period.
         kind: ConnectionKind,
     },
+    /// A period given for a Normal connection, which has none
+    /// ([`ConnectionKind::from_parts`](crate::ConnectionKind::from_parts)).
+    PeriodOnNormal {
+        /// The seconds given.
+        seconds: f64,
+    },
+    /// A connection kind name that is none of the six.
+    UnknownConnectionKind {
+        /// The name given.
+        name: String,
+    },
     /// A duration given in seconds was negative
     /// ([`Duration::try_from_secs_f64`](crate::Duration::try_from_secs_f64), D6.8).
     NegativePeriod {
@@ -230,9 +241,11 @@ impl Error {
             | Error::InvalidDuration { .. }
             | Error::BelowResolution { .. }
             | Error::ZeroProcessPeriod { .. }
-            | Error::ZeroWindow { .. } => K::Period,
+            | Error::ZeroWindow { .. }
+            | Error::PeriodOnNormal { .. } => K::Period,
             Error::InvalidRate { .. } => K::Rate,
             Error::DuplicateName { .. }
+            | Error::UnknownConnectionKind { .. }
             | Error::EmptyName { .. }
             | Error::WindowOnNormalPort { .. }
             | Error::TooLongForNetwork { .. }
@@ -273,6 +286,15 @@ impl fmt::Display for Error {
             Error::KindNotSupported { kind, ty } => {
                 write!(f, "a {kind:?} port cannot hold {ty} values")
             }
+            Error::PeriodOnNormal { seconds } => write!(
+                f,
+                "a Normal connection has no period (the paper leaves p unspecified for it): leave it out (got {} s)",
+                Compact(*seconds)
+            ),
+            Error::UnknownConnectionKind { name } => write!(
+                f,
+                "connection kind `{name}` is none of normal, suppress, inhibit, override-in, override-out, write-inhibit"
+            ),
             Error::ZeroPeriod { kind } => write!(
                 f,
                 "a {} connection needs a period above zero",

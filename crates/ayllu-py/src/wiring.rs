@@ -34,16 +34,11 @@ pub fn endpoint(e: &EndpointArg) -> PyResult<Endpoint> {
 /// The connection kind named `name` (`normal`, `suppress`, `inhibit`, `override-in`,
 /// `override-out`, `write-inhibit`) with `period` seconds (required for every kind but normal).
 pub fn kind(name: &str, period: Option<f64>) -> PyResult<ConnectionKind> {
-    let d = match (name, period) {
-        ("normal", _) => ayllu_core::Duration::ZERO,
-        (_, Some(p)) => duration("period", p)?,
-        (_, None) => return Err(errors::value_error(format!("a {name} connection needs a period (seconds)"))),
-    };
-    ConnectionKind::from_name(name, d).ok_or_else(|| {
-        errors::value_error(format!(
-            "connection kind `{name}` is none of normal, suppress, inhibit, override-in, override-out, write-inhibit"
-        ))
-    })
+    if name != "normal" && period.is_none() && ConnectionKind::from_name(name, ayllu_core::Duration::ZERO).is_some() {
+        return Err(errors::value_error(format!("a {name} connection needs a period (seconds)")));
+    }
+    let period = period.map(|p| duration("period", p)).transpose()?;
+    ConnectionKind::from_parts(name, period).map_err(errors::core)
 }
 
 /// An endpoint argument: an `ayllu.Endpoint` (a named tuple `(behavior, port, node, group)`)

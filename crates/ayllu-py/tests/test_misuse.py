@@ -247,3 +247,13 @@ def test_errors_are_sorted_as_the_c_library_sorts_them() -> None:
     with pytest.raises(ayllu.ValueTypeError, match="takes its shape from its default") as t:
         node.create(Shapeless, "S")
     assert isinstance(t.value, TypeError)
+
+
+def test_a_period_on_a_normal_connection_is_refused_as_in_c() -> None:
+    # It used to be ignored in silence here, while C and the tool refused it
+    # (ConnectionKind::from_parts decides for both).
+    node = wiring(["A", "B"])
+    with pytest.raises(ayllu.InvalidError, match="Normal connection has no period") as e:
+        node.connect(ayllu.local("A", "V"), ayllu.local("B", "V"), ayllu.Kind("normal", 0.5))
+    assert isinstance(e.value, ValueError)
+    node.connect(ayllu.local("A", "V"), ayllu.local("B", "V"), ayllu.NORMAL)
