@@ -102,8 +102,10 @@ def test_kinds_refuse_types_they_cannot_merge() -> None:
     class Bad(ayllu.Behavior):
         name = ayllu.Port("text", kind="max", name="Name")
 
-    with pytest.raises(ayllu.InvalidError, match="Max port cannot hold text"):
+    # A type error, as in C (AY_ERR_TYPE): one classification, ayllu_core::ErrorKind.
+    with pytest.raises(ayllu.ValueTypeError, match="Max port cannot hold text") as e:
         ayllu.Node(1, manual=True).define(Bad)
+    assert isinstance(e.value, TypeError)
 
 
 def test_values_are_never_coerced() -> None:
