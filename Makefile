@@ -22,17 +22,23 @@ TARGET_DIR ?= $(or $(CARGO_TARGET_DIR),target)
 ## sockets, the report page in headless Chromium), AylluLite C and Python (golden vectors,
 ## node logic over loopback), libayllu's C tests under ASan+UBSan and its C++17 header check,
 ## and the core's pointer paths under ASan (test-asan).
-## Installs Debian's chromium, pytest and ruff first if missing.
+## Installs Debian's chromium, pytest and ruff first if missing. Ends with a table of where the
+## time went (each suite's build and run apart) and how many tests each ran (scripts/test-step).
+STEP = scripts/test-step
 test:
-	PYTHON=$(PYTHON) scripts/install-test-tools
-	$(CARGO) test --workspace --exclude ayllu-ros2
-	$(MAKE) -C lite/c test
-	$(MAKE) -C crates/ayllu-c test
-	AYLLU_BIN=$(TARGET_DIR)/debug/ayllu $(PYTHON) -m pytest lite/python/tests -q
-	$(CARGO) build -p ayllu-cli
-	$(PYTHON) spec/conformance --ayllu $(TARGET_DIR)/debug/ayllu
-	$(MAKE) test-python
-	$(MAKE) test-asan
+	@$(STEP) start
+	$(STEP) "install test tools" env PYTHON=$(PYTHON) scripts/install-test-tools
+	$(STEP) "rust: build the tests" $(CARGO) test --workspace --exclude ayllu-ros2 --no-run
+	$(STEP) "rust: run the tests" $(CARGO) test --workspace --exclude ayllu-ros2
+	$(STEP) "AylluLite C (build and run)" $(MAKE) -C lite/c test
+	$(STEP) "libayllu C (build and run, ASan)" $(MAKE) -C crates/ayllu-c test
+	$(STEP) "AylluLite Python" env AYLLU_BIN=$(TARGET_DIR)/debug/ayllu $(PYTHON) -m pytest lite/python/tests -q
+	$(STEP) "conformance: build the tool" $(CARGO) build -p ayllu-cli
+	$(STEP) "conformance (spec/conformance)" $(PYTHON) spec/conformance --ayllu $(TARGET_DIR)/debug/ayllu
+	$(STEP) "Python: venv and wheel (release build)" env PYTHON=$(PYTHON) scripts/python-venv
+	$(STEP) "Python: run the tests" $(MAKE) --no-print-directory test-python
+	$(STEP) "ASan: the core's pointer paths (nightly)" $(MAKE) --no-print-directory test-asan
+	@$(STEP) report
 
 ## The core's tests that reach ports through remembered addresses (crates/ayllu-core/src/sequence.rs,
 ## NodeCore::deliver_to) and run process bodies through borrowed pointers, under AddressSanitizer:
