@@ -1,7 +1,7 @@
 //! Values and reports as people and scripts read them: parsing a typed value from the command
 //! line, values as plain JSON, reports as text and as JSON.
 //!
-//! JSON reports are [`ayllu::report_json`]'s, the shape C and Python use too.
+//! JSON reports are `ayllu::report_json`'s, the shape C and Python use too.
 
 use std::fmt::Write as _;
 
@@ -68,7 +68,7 @@ pub fn parse_value(ty: ValueType, text: &str) -> Result<Value, String> {
 /// A value as JSON: the one form Ayllu writes everywhere (recordings, the Foxglove layout,
 /// the tool's `--json`): numbers, booleans, strings, bytes as a hex string, vectors as arrays,
 /// and a float that is not finite as `"NaN"`, `"inf"` or `"-inf"` (JSON has no such numbers;
-/// `null` would lose which it was). See [`ayllu::team_channels::value_json`].
+/// `null` would lose which it was): `ayllu::team_channels::value_json`.
 pub use ayllu::team_channels::value_json;
 
 pub use ayllu::report_json::{counted, node_report_json, port_report_json};
