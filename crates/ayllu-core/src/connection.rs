@@ -14,7 +14,7 @@ use crate::time::Duration;
 ///
 /// Each timed kind opens or refreshes a window on `d` for its period, measured on the node
 /// that owns `d` from when the message is applied (rule S6, S8); the period must be above zero
-/// ([`Error::ZeroPeriod`](crate::Error::ZeroPeriod), D6.8).
+/// ([`Error::ZeroPeriod`], D6.8).
 ///
 /// Brooks's subsumption, a joystick overriding a planner's speed command for 1 s after each
 /// stick message:
