@@ -25,15 +25,21 @@ TARGET_DIR ?= $(or $(CARGO_TARGET_DIR),target)
 ## Installs Debian's chromium, pytest and ruff first if missing. Ends with a table of where the
 ## time went (each suite's build and run apart) and how many tests each ran (scripts/test-step).
 STEP = scripts/test-step
+# Every cargo build of `make test` after the first is this same command, so that nothing is
+# compiled twice with different features (cargo's features for one package differ from the
+# workspace's: see crates/ayllu-c/Makefile). It builds the tests, the tool (target/debug/ayllu,
+# which the integration tests run) and the C library (target/debug/libayllu_c.a).
+WORKSPACE_TESTS = $(CARGO) test --workspace --exclude ayllu-ros2
+C_TEST_BUILDS = DEBUG_LIB_BUILD="$(WORKSPACE_TESTS) --no-run --quiet" TOOL_BUILD="$(WORKSPACE_TESTS) --no-run --quiet" \
+	TEAM_TEST="$(WORKSPACE_TESTS) --test cmommt_team"
 test:
 	@$(STEP) start
 	$(STEP) "install test tools" env PYTHON=$(PYTHON) scripts/install-test-tools
-	$(STEP) "rust: build the tests" $(CARGO) test --workspace --exclude ayllu-ros2 --no-run
-	$(STEP) "rust: run the tests" $(CARGO) test --workspace --exclude ayllu-ros2
+	$(STEP) "rust: build the tests and the tool" $(WORKSPACE_TESTS) --no-run
+	$(STEP) "rust: run the tests" $(WORKSPACE_TESTS)
 	$(STEP) "AylluLite C (build and run)" $(MAKE) -C lite/c test
-	$(STEP) "libayllu C (build and run, ASan)" $(MAKE) -C crates/ayllu-c test
+	$(STEP) "libayllu C (build and run, ASan)" $(MAKE) -C crates/ayllu-c test $(C_TEST_BUILDS)
 	$(STEP) "AylluLite Python" env AYLLU_BIN=$(TARGET_DIR)/debug/ayllu $(PYTHON) -m pytest lite/python/tests -q
-	$(STEP) "conformance: build the tool" $(CARGO) build -p ayllu-cli
 	$(STEP) "conformance (spec/conformance)" $(PYTHON) spec/conformance --ayllu $(TARGET_DIR)/debug/ayllu
 	$(STEP) "Python: venv and wheel (release build)" env PYTHON=$(PYTHON) scripts/python-venv
 	$(STEP) "Python: run the tests" $(MAKE) --no-print-directory test-python

@@ -11,8 +11,8 @@ use std::time::{Duration as StdDuration, Instant as StdInstant};
 
 use ayllu::transport;
 use ayllu::{
-    ConnectOptions, ConnectionId, ConnectionKind, ControlBody, Endpoint, MonotonicClock, Node, NodeId, PeerInfo,
-    ReplyBody, RequestId, RequestStatus,
+    AskError, ConnectOptions, ConnectionId, ConnectionKind, ControlBody, Endpoint, MonotonicClock, Node, NodeId,
+    PeerInfo, ReplyBody, RequestId,
 };
 
 use crate::fail::Fail;
@@ -313,36 +313,30 @@ impl Client {
         )?;
         match self.answer(node, request, &what)? {
             ReplyBody::Connection(c) => Ok(c),
-            other => Err(crate::commands::unexpected(&what, &other)),
+            other => Err(unexpected(&what, &other)),
         }
     }
 
-    /// Wait for the answer to request `id` sent to `node`.
+    /// Wait for the answer to request `id` sent to `node` (`ayllu::Node::await_answer`, until
+    /// the command's deadline or Ctrl-C), with messages that name the request and the node.
     pub fn answer(&mut self, node: NodeId, id: RequestId, what: &str) -> Result<ReplyBody, Fail> {
-        loop {
-            match self.node.core().request_status(id) {
-                Some(RequestStatus::Done(body)) => {
-                    self.node.core_mut().forget_request(id);
-                    return Ok(body);
-                }
-                Some(RequestStatus::Failed(text)) => {
-                    self.node.core_mut().forget_request(id);
-                    return Err(Fail::error(format!("{what}: {node} says: {text}")));
-                }
-                Some(RequestStatus::Pending { .. }) | None => {}
-            }
-            if self.honour_stop && signals::stopped() {
-                return Err(Fail::error(format!("{what}: interrupted before {node} answered")));
-            }
-            if self.expired() {
-                let heard = if self.node.peers().iter().any(|p| p.node == node) {
-                    "it is alive (HELLO heard) but did not answer"
-                } else {
-                    "it has gone silent"
-                };
-                return Err(Fail::error(format!("{what}: no answer from {node} within {}s ({heard})", self.timeout)));
-            }
-            self.pump(SLICE);
-        }
+        let honour_stop = self.honour_stop;
+        let answer = self.node.await_answer(node, id, self.deadline, &mut || honour_stop && signals::stopped());
+        answer.map_err(|e| match e {
+            AskError::Failed(text) => Fail::error(format!("{what}: {node} says: {text}")),
+            AskError::Stopped => Fail::error(format!("{what}: interrupted before {node} answered")),
+            AskError::TimedOut { heard } => Fail::error(format!(
+                "{what}: no answer from {node} within {}s ({})",
+                self.timeout,
+                if heard { "it is alive (HELLO heard) but did not answer" } else { "it has gone silent" }
+            )),
+            AskError::NotSent(e) => Fail::error(format!("{what}: {e}")),
+            AskError::VirtualTime => Fail::error(format!("{what}: {e}")),
+        })
     }
+}
+
+/// A request answered with a body its command does not expect (a node of another version).
+pub(crate) fn unexpected(what: &str, body: &ReplyBody) -> Fail {
+    Fail::error(format!("{what}: unexpected answer {body:?}"))
 }

@@ -16,7 +16,7 @@ use ayllu::{
 };
 use serde_json::json;
 
-use crate::client::{Client, SLICE};
+use crate::client::{unexpected, Client, SLICE};
 use crate::fail::Fail;
 use crate::text::{
     human, node_report_json, node_report_text, other_report_text, parse_value, peer_json, peers_table,
@@ -47,10 +47,6 @@ pub(crate) fn emit(text: &str) -> Result<(), Fail> {
 
 fn pretty(j: &serde_json::Value) -> String {
     serde_json::to_string_pretty(j).unwrap_or_else(|_| "null".to_owned())
-}
-
-pub(crate) fn unexpected(what: &str, body: &ReplyBody) -> Fail {
-    Fail::error(format!("{what}: unexpected answer {body:?}"))
 }
 
 /// `ayllu list`: the nodes heard within the listening time.

@@ -1,11 +1,11 @@
 //! `ayllu graph`: the team's wiring (behaviors, ports, connections with their kinds; remote
 //! and broadcast edges; windows open now) as DOT, Mermaid, SVG, HTML or JSON, like rqt_graph.
 //! It listens for HELLOs, asks every node heard for LIST, asks WHY of the ports where
-//! windowed connections land, and hands the answers to `ayllu::graph`.
+//! windowed connections land, and hands the answers to `crate::team_graph`.
 
 use std::collections::BTreeMap;
 
-use ayllu::graph::TeamGraph;
+use crate::team_graph::TeamGraph;
 use ayllu::{ControlBody, NodeId, NodeReport, ReplyBody};
 use clap::{Args, ValueEnum};
 

@@ -2,11 +2,11 @@
 //! messages lost on the way, like `ros2 topic hz`. It connects the port to one of its own as
 //! `echo` does (CONNECT, DISCONNECT on exit), watches the arrivals through a
 //! `team_recording::Tap` (which sees the connection's sequence numbers, hence losses) and
-//! feeds `ayllu::rate`.
+//! feeds `crate::rate`.
 
 use std::time::{Duration as StdDuration, Instant as StdInstant};
 
-use ayllu::rate::{Arrival, RateReport, RateWindow};
+use crate::rate::{Arrival, RateReport, RateWindow};
 use ayllu::team_recording::{HeardLog, Tap};
 use ayllu::{BehaviorClass, NodeId, PortSpec, Value};
 use clap::Args;

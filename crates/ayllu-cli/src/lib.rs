@@ -29,14 +29,18 @@ mod fail;
 mod foxglove;
 mod graph;
 mod hz;
+mod rate;
 mod record;
 mod replay;
 #[cfg(target_os = "linux")]
 mod shape;
+#[cfg(target_os = "linux")]
+mod shaper;
 mod signals;
 mod sim_cmommt;
 mod sim_files;
 mod sim_serve;
+mod team_graph;
 mod text;
 
 use std::process::ExitCode;
@@ -405,10 +409,6 @@ pub fn parse_port_path(s: &str) -> Result<PortPath, String> {
     }
 }
 
-/// The largest number of seconds (or hertz) an argument takes: about 31 years, far beyond
-/// any run, and small enough for every duration type (1e300 used to panic).
-pub const MAX_SECS: f64 = 1e9;
-
 /// A number as a message prints it: the core's [`ayllu_core::Compact`] (plainly for everyday
 /// sizes, in exponent form for the very large and the very small: `1e300`, not its 301
 /// digits), so the tool, C and Python print the same number the same way.
@@ -416,39 +416,19 @@ pub fn compact(x: f64) -> String {
     ayllu_core::Compact(x).to_string()
 }
 
-/// Seconds: finite, at least 1 ns (the clock's resolution), at most [`MAX_SECS`].
+/// Seconds: what the core's `Duration::try_from_positive_secs` takes (above zero, from 1 ns
+/// to about 584 years), refused in its words, as C and Python refuse them.
 pub fn positive_secs(s: &str) -> Result<f64, String> {
-    let x = positive_number(s)?;
-    // Under half a nanosecond a span rounds to none on the node's clock (D6.8).
-    if x < 0.5e-9 {
-        return Err(format!(
-            "must be at least 1e-9 (1 ns, the clock's resolution) and at most {MAX_SECS:e} (got {})",
-            compact(x)
-        ));
-    }
-    Ok(x)
-}
-
-/// A finite number above zero and at most [`MAX_SECS`]: what seconds and rates share.
-fn positive_number(s: &str) -> Result<f64, String> {
     let x: f64 = s.parse().map_err(|_| format!("`{s}` is not a number"))?;
-    if !x.is_finite() || x <= 0.0 {
-        return Err(format!("must be greater than 0 (got {})", compact(x)));
-    }
-    if x > MAX_SECS {
-        return Err(format!("must be greater than 0 and at most {MAX_SECS:e} (got {})", compact(x)));
-    }
+    ayllu::Duration::try_from_positive_secs(x).map_err(|e| e.to_string())?;
     Ok(x)
 }
 
-/// A rate in hertz: finite, above zero, at most [`MAX_SECS`], and at least `1 / MAX_SECS`, so that the period
-/// between two events (`1 / hz` seconds) is a duration too (`--repeat-hz 1e-300` used to
-/// panic when `write` turned it into its interval).
+/// A rate in hertz: what the core's `Duration::try_from_hz` takes (finite, above zero, with a
+/// period from 1 ns to about 584 years), refused in its words.
 pub fn positive_hz(s: &str) -> Result<f64, String> {
-    let hz = positive_number(s)?;
-    if hz < 1.0 / MAX_SECS {
-        return Err(format!("must be at least {:e} and at most {MAX_SECS:e} (got {})", 1.0 / MAX_SECS, compact(hz)));
-    }
+    let hz: f64 = s.parse().map_err(|_| format!("`{s}` is not a number"))?;
+    ayllu::Duration::try_from_hz(hz).map_err(|e| e.to_string())?;
     Ok(hz)
 }
 
@@ -564,22 +544,24 @@ mod tests {
     #[test]
     fn periods_must_be_positive() {
         assert_eq!(positive_secs("0.5"), Ok(0.5));
-        for bad in ["0", "-1", "nan", "inf", "x", "1e300", "1e10"] {
+        // 1e11 s: beyond the 584 years (18446744073 s) a duration holds.
+        for bad in ["0", "-1", "nan", "inf", "x", "1e300", "1e11"] {
             assert!(positive_secs(bad).is_err(), "{bad}");
         }
     }
 
     #[test]
     fn numbers_out_of_range_print_compactly_with_the_range() {
-        assert_eq!(positive_secs("1e300"), Err("must be greater than 0 and at most 1e9 (got 1e300)".to_owned()));
-        assert_eq!(positive_secs("-1e300"), Err("must be greater than 0 (got -1e300)".to_owned()));
-        assert_eq!(positive_secs("0"), Err("must be greater than 0 (got 0)".to_owned()));
-        assert_eq!(positive_hz("1e-300"), Err("must be at least 1e-9 and at most 1e9 (got 1e-300)".to_owned()));
+        // The core's words, the same the C and Python APIs give (Duration::try_from_positive_secs).
+        let core = |x: f64| ayllu::Duration::try_from_positive_secs(x).unwrap_err().to_string();
+        for (text, x) in [("1e300", 1e300), ("-1e300", -1e300), ("0", 0.0), ("1e-300", 1e-300), ("nan", f64::NAN)] {
+            assert_eq!(positive_secs(text), Err(core(x)), "{text}");
+        }
+        assert!(core(1e300).contains("1e300 s is not a usable duration"), "{}", core(1e300));
+        assert!(core(-1e300).contains("-1e300 s is negative"), "{}", core(-1e300));
         // Seconds under the clock's 1 ns would round to none.
-        assert_eq!(
-            positive_secs("1e-300"),
-            Err("must be at least 1e-9 (1 ns, the clock's resolution) and at most 1e9 (got 1e-300)".to_owned())
-        );
+        assert!(core(1e-300).contains("under 1 ns, the clock's resolution"), "{}", core(1e-300));
+        assert_eq!(positive_hz("1e-300"), Err(ayllu::Duration::try_from_hz(1e-300).unwrap_err().to_string()));
         assert_eq!(positive_secs("1e-9"), Ok(1e-9));
         assert_eq!(compact(12.5), "12.5");
         assert_eq!(compact(1e297), "1e297");
@@ -606,7 +588,8 @@ mod tests {
     #[test]
     fn rates_give_periods_that_are_durations() {
         assert_eq!(positive_hz("0.5"), Ok(0.5));
-        for bad in ["0", "-1", "nan", "inf", "1e300", "1e-300", "1e-10"] {
+        // 1e-11 Hz: a period of 1e11 s, beyond the 584 years a duration holds.
+        for bad in ["0", "-1", "nan", "inf", "1e300", "1e-300", "1e-11"] {
             assert!(positive_hz(bad).is_err(), "{bad}");
         }
         // `write` turns --repeat-hz into its interval: 1e-300 Hz used to panic there.

@@ -1,4 +1,4 @@
-//! `ayllu shape`: the userspace shaper between network namespaces (`ayllu::shaper`), for
+//! `ayllu shape`: the userspace shaper between network namespaces (`crate::shaper`), for
 //! kernels without `tc netem`. This file only reads the arguments and prints: a first line
 //! naming the TAP interfaces it made, then one JSON line of counters per status period.
 //!
@@ -8,8 +8,8 @@
 
 use std::io::Write as _;
 
+use crate::shaper::{self, Hub, ShaperCounts, Tap};
 use ayllu::faults::FaultConfig;
-use ayllu::shaper::{self, Hub, ShaperCounts, Tap};
 use ayllu::{Clock as _, Duration, MonotonicClock};
 use clap::Args;
 use serde_json::json;

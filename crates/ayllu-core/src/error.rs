@@ -95,6 +95,9 @@ pub enum Error {
         /// The name given.
         name: String,
     },
+    /// A span that must be above zero (a timeout, a listening time, a step) was given as zero
+    /// ([`Duration::try_from_positive_secs`](crate::Duration::try_from_positive_secs)).
+    ZeroDuration,
     /// A duration given in seconds was negative
     /// ([`Duration::try_from_secs_f64`](crate::Duration::try_from_secs_f64), D6.8).
     NegativePeriod {
@@ -237,6 +240,7 @@ impl Error {
             | Error::UnknownProcess { .. } => K::Unknown,
             Error::TypeMismatch { .. } | Error::KindNotSupported { .. } | Error::VectorShape { .. } => K::Type,
             Error::ZeroPeriod { .. }
+            | Error::ZeroDuration
             | Error::NegativePeriod { .. }
             | Error::InvalidDuration { .. }
             | Error::BelowResolution { .. }
@@ -299,6 +303,11 @@ impl fmt::Display for Error {
                 f,
                 "a {} connection needs a period above zero",
                 kind.name()
+            ),
+            Error::ZeroDuration => write!(
+                f,
+                "0 s is not allowed here: give a span above zero, from 1 ns (1e-9 s) to {} s (about 584 years)",
+                Duration::MAX_SECS
             ),
             Error::NegativePeriod { seconds } => write!(
                 f,

@@ -254,10 +254,11 @@ mod tests {
 
     #[test]
     fn a_body_that_removes_its_own_behavior_is_dropped_only_after_it_returns() {
-        // The poll calls a body through its process's `Arc` without cloning it (node.rs,
-        // `run_body`): removing the running behavior must not free the body under it. The
-        // instance-specific processes below are held by their state and schedule entry only
-        // (no class holds them), so the removal drops the last other owners.
+        // The poll calls a body through its process's `Arc` without cloning it
+        // (node/scheduler.rs, `run_body`): removing the running behavior must not free the
+        // body under it. The instance-specific processes below are held by their state and
+        // schedule entry only (no class holds them), so the removal drops the last other
+        // owners.
         use std::sync::atomic::{AtomicBool, Ordering::SeqCst};
         let log: Log = Arc::default();
         let mut node = NodeCore::new(NodeId(1));

@@ -137,6 +137,17 @@ impl Duration {
         }
         Ok(Duration { nanos })
     }
+    /// Seconds a user gives for a span that must be above zero (a timeout, a listening time,
+    /// a step): what [`Duration::try_from_secs_f64`] takes, zero refused
+    /// ([`Error::ZeroDuration`]). The one check the CLI's, C's and Python's seconds go through,
+    /// so all three accept the same numbers, from 1 ns to [`Duration::MAX_SECS`], and refuse
+    /// the rest with the same words.
+    pub fn try_from_positive_secs(secs: f64) -> Result<Self, Error> {
+        match Duration::try_from_secs_f64(secs)? {
+            d if d.is_zero() => Err(Error::ZeroDuration),
+            d => Ok(d),
+        }
+    }
     /// The period of a rate in hertz. Zero, negative, NaN or infinite rates are errors.
     pub fn try_from_hz(hz: f64) -> Result<Self, Error> {
         if !(hz.is_finite() && hz > 0.0) {

@@ -18,8 +18,8 @@
 //!   found within one sweep (ports / (a quarter of `why_hz`) seconds at worst);
 //! * a node answers at most 50 requests a second from one sender (its `Limits`, burst 100):
 //!   `list_hz + why_hz` must stay below that, which [`WatchConfig::check`] enforces;
-//! * the watcher forgets each request once its answer is read or it is given up
-//!   (`NodeCore::forget_request`), so its node holds only the requests in flight; the core
+//! * the watcher forgets each request once its answer is read (`NodeCore::take_answer`, how
+//!   every asker collects) or it is given up (`NodeCore::forget_request`), so its node holds only the requests in flight; the core
 //!   would also forget the oldest finished ones by itself past 1,024. Replacing the watcher's
 //!   node every `renew_after` requests is kept as an option (off by default) for a test that a
 //!   watch survives losing its node's state.
@@ -28,7 +28,7 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::time::{Duration as StdDuration, Instant as StdInstant, SystemTime, UNIX_EPOCH};
 
 use ayllu::{MonotonicClock, Node, Transport, UdpConfig, UdpTransport};
-use ayllu_core::{ConnectionKind, ControlBody, Endpoint, NodeId, NodeReport, ReplyBody, RequestId, RequestStatus};
+use ayllu_core::{ConnectionKind, ControlBody, Endpoint, NodeId, NodeReport, ReplyBody, RequestId};
 
 use crate::team_bridge::{is_ble_member, published_ports, LayerClaims, TeamBridge};
 
@@ -329,17 +329,19 @@ impl TeamWatch {
         let now = StdInstant::now();
         let mut keep = Vec::with_capacity(self.pending.len());
         for p in std::mem::take(&mut self.pending) {
-            match self.node.core().request_status(p.id) {
-                Some(RequestStatus::Pending { .. }) if now.duration_since(p.sent) <= GIVE_UP => keep.push(p),
-                status => {
+            match self.node.core_mut().take_answer(p.id) {
+                Some(Ok(body)) => {
+                    self.counts.answers += 1;
+                    self.answered(bridge, &p.asked, body);
+                }
+                Some(Err(_)) => self.counts.failed += 1,
+                None if self.node.core().request_status(p.id).is_some() && now.duration_since(p.sent) <= GIVE_UP => {
+                    keep.push(p)
+                }
+                // Unanswered past the give-up, or forgotten: not retried any more.
+                None => {
                     self.node.core_mut().forget_request(p.id);
-                    match status {
-                        Some(RequestStatus::Done(body)) => {
-                            self.counts.answers += 1;
-                            self.answered(bridge, &p.asked, body);
-                        }
-                        _ => self.counts.failed += 1,
-                    }
+                    self.counts.failed += 1;
                 }
             }
         }

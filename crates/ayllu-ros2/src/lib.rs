@@ -32,6 +32,7 @@ pub mod body;
 pub mod fleet;
 pub mod mapping;
 pub mod messages;
+mod spelling;
 
 use std::fmt;
 use std::path::Path;

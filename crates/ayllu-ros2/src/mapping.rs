@@ -35,6 +35,8 @@ use std::fmt;
 use std::time::Duration;
 
 use crate::messages::{self, FieldKind, FieldRef, MessageType};
+// Public here since mapping errors were its first use: the path stays as it was.
+pub use crate::spelling::closest;
 
 /// Longest array a sample may carry by default (`max_elements`): a 360° scan at a quarter
 /// degree is 1,440 beams; 65,536 leaves room for any lidar's scan line while a forged length
@@ -209,25 +211,6 @@ impl std::error::Error for MappingError {}
 
 fn fail<T>(at: impl Into<String>, message: impl Into<String>) -> Result<T, MappingError> {
     Err(MappingError { at: at.into(), message: message.into() })
-}
-
-/// The candidate closest to `word` (a typo or a shortening of it), if one is close enough to
-/// suggest: by Damerau-Levenshtein distance, at most a third of the word's length (and at least
-/// 1, but less than the whole word), or a candidate the word begins (`sensor` for
-/// `sensor_data`).
-pub fn closest<'a>(word: &str, candidates: impl IntoIterator<Item = &'a str>) -> Option<&'a str> {
-    let limit = (word.chars().count() / 3).max(1);
-    candidates
-        .into_iter()
-        .map(|c| {
-            let d = strsim::damerau_levenshtein(word, c);
-            // A shortening counts as near, but a real typo nearer still wins a tie.
-            (if word.len() >= 3 && c.starts_with(word) { d.min(limit) } else { d }, d, c)
-        })
-        // Near enough, and never a rewrite of the whole word (nothing is "near" an empty one).
-        .filter(|(near, _, _)| *near <= limit && *near < word.chars().count())
-        .min_by_key(|(near, d, _)| (*near, *d))
-        .map(|(_, _, c)| c)
 }
 
 /// `word` among `known`: nothing to say if it is one, else "did you mean" the closest.

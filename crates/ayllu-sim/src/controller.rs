@@ -95,7 +95,7 @@ impl Controller {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ControllerConfig {
     /// BLE claims per second (the paper: 1).
-    #[serde(deserialize_with = "crate::bounds::number_de")]
+    #[serde(deserialize_with = "crate::numbers::number_de")]
     pub claim_hz: f64,
     /// Seed of the wander behaviors (mixed with each node id).
     pub wander_seed: u64,
@@ -104,10 +104,10 @@ pub struct ControllerConfig {
     pub eligibility: Eligibility,
     /// `Planner`: reports and plans per second (each robot reports, then the planner assigns,
     /// this often; an assignment older than [`GOAL_PERIODS`] periods is stale).
-    #[serde(default = "plan_hz", deserialize_with = "crate::bounds::number_de")]
+    #[serde(default = "plan_hz", deserialize_with = "crate::numbers::number_de")]
     pub plan_hz: f64,
     /// `Planner`: where its base station stands (m, arena frame); `None`: the arena's centre.
-    #[serde(default, deserialize_with = "crate::bounds::optional_pair_de")]
+    #[serde(default, deserialize_with = "crate::numbers::optional_pair_de")]
     pub base_station: Option<[f64; 2]>,
 }
 

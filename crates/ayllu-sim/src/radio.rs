@@ -22,10 +22,10 @@ use serde::{Deserialize, Serialize};
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Partition {
     /// When the partition begins (s of virtual time).
-    #[serde(deserialize_with = "crate::bounds::number_de")]
+    #[serde(deserialize_with = "crate::numbers::number_de")]
     pub start: f64,
     /// When it heals (s of virtual time; excluded).
-    #[serde(deserialize_with = "crate::bounds::number_de")]
+    #[serde(deserialize_with = "crate::numbers::number_de")]
     pub end: f64,
     /// The node ids on one side; everyone else is on the other.
     pub island: Vec<u32>,
@@ -35,16 +35,16 @@ pub struct Partition {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct RadioConfig {
     /// Probability that one receiver misses one message.
-    #[serde(deserialize_with = "crate::bounds::number_de")]
+    #[serde(deserialize_with = "crate::numbers::number_de")]
     pub loss: f64,
     /// Base latency of every emission (s of virtual time).
-    #[serde(deserialize_with = "crate::bounds::number_de")]
+    #[serde(deserialize_with = "crate::numbers::number_de")]
     pub delay: f64,
     /// Width of a uniform jitter added to `delay` (s), drawn once per emission.
-    #[serde(deserialize_with = "crate::bounds::number_de")]
+    #[serde(deserialize_with = "crate::numbers::number_de")]
     pub jitter: f64,
     /// Messages reach only robots within this distance (m); `None`: everywhere.
-    #[serde(default, deserialize_with = "crate::bounds::optional_number_de")]
+    #[serde(default, deserialize_with = "crate::numbers::optional_number_de")]
     pub range: Option<f64>,
     /// Scheduled partitions (see [`Partition`]).
     pub partitions: Vec<Partition>,

@@ -36,6 +36,7 @@ use serde_json::{Map, Value as Json};
 
 use crate::bounds;
 use crate::controller::Controller;
+use crate::numbers;
 use crate::scenario::Scenario;
 
 /// `(field path, value)` of each grid axis.
@@ -204,14 +205,14 @@ fn parse(text: &str) -> Result<Map<String, Json>, String> {
 }
 
 /// A TOML value as the scenario's JSON data: TOML's `nan` and `inf`, which JSON cannot write,
-/// become the strings the scenario's numbers read (crate::bounds), so that the bounds, not the
+/// become the strings the scenario's numbers read (crate::numbers), so that the bounds, not the
 /// parser, refuse them and name their field; dates become their text.
 fn json(value: toml::Value) -> Json {
     match value {
         toml::Value::String(s) => Json::String(s),
         toml::Value::Integer(i) => Json::from(i),
         toml::Value::Float(f) if f.is_finite() => Json::from(f),
-        toml::Value::Float(f) => Json::String(bounds::non_finite_text(f).to_owned()),
+        toml::Value::Float(f) => Json::String(numbers::non_finite_text(f).to_owned()),
         toml::Value::Boolean(b) => Json::Bool(b),
         toml::Value::Datetime(d) => Json::String(d.to_string()),
         toml::Value::Array(a) => Json::Array(a.into_iter().map(json).collect()),

@@ -27,10 +27,10 @@ pub enum Motion {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TargetSpec {
     /// Larger is more important; the scenario numbers targets by decreasing priority.
-    #[serde(deserialize_with = "crate::bounds::number_de")]
+    #[serde(deserialize_with = "crate::numbers::number_de")]
     pub priority: f64,
     /// Speed while moving (m/s).
-    #[serde(deserialize_with = "crate::bounds::number_de")]
+    #[serde(deserialize_with = "crate::numbers::number_de")]
     pub speed: f64,
     /// How it moves (see [`Motion`]).
     pub motion: Motion,
@@ -40,51 +40,51 @@ pub struct TargetSpec {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct WorldConfig {
     /// Width and height (m), origin at the bottom-left corner; walls on the border.
-    #[serde(deserialize_with = "crate::bounds::pair_de")]
+    #[serde(deserialize_with = "crate::numbers::pair_de")]
     pub arena: [f64; 2],
     /// Robot radius (m).
-    #[serde(deserialize_with = "crate::bounds::number_de")]
+    #[serde(deserialize_with = "crate::numbers::number_de")]
     pub robot_radius: f64,
     /// Target radius (m).
-    #[serde(deserialize_with = "crate::bounds::number_de")]
+    #[serde(deserialize_with = "crate::numbers::number_de")]
     pub target_radius: f64,
     /// Height of a target (m); its apparent height is `focal * height / distance`.
-    #[serde(deserialize_with = "crate::bounds::number_de")]
+    #[serde(deserialize_with = "crate::numbers::number_de")]
     pub target_height: f64,
     /// Camera focal length in pixels: apparent height 100 px for a 0.5 m target at 1 m.
-    #[serde(deserialize_with = "crate::bounds::number_de")]
+    #[serde(deserialize_with = "crate::numbers::number_de")]
     pub focal: f64,
     /// Fastest forward or backward speed (m/s): [`Command::translate`] is clamped to ±this.
-    #[serde(deserialize_with = "crate::bounds::number_de")]
+    #[serde(deserialize_with = "crate::numbers::number_de")]
     pub max_speed: f64,
     /// Fastest turn (rad/s): [`Command::rotate`] is clamped to ±this.
-    #[serde(deserialize_with = "crate::bounds::number_de")]
+    #[serde(deserialize_with = "crate::numbers::number_de")]
     pub max_turn: f64,
     /// Camera field of view (rad, whole angle, centred on the heading).
-    #[serde(deserialize_with = "crate::bounds::number_de")]
+    #[serde(deserialize_with = "crate::numbers::number_de")]
     pub camera_fov: f64,
     /// Camera range (m): farther targets are not seen.
-    #[serde(deserialize_with = "crate::bounds::number_de")]
+    #[serde(deserialize_with = "crate::numbers::number_de")]
     pub camera_range: f64,
     /// A target counts as observed (metrics) in the field of view and within this distance (m).
-    #[serde(deserialize_with = "crate::bounds::number_de")]
+    #[serde(deserialize_with = "crate::numbers::number_de")]
     pub observe_range: f64,
     /// Sonar beams, evenly spaced around the robot from its heading.
     pub sonar_beams: usize,
     /// Sonar range (m), from the robot's rim; farther echoes are not heard.
-    #[serde(deserialize_with = "crate::bounds::number_de")]
+    #[serde(deserialize_with = "crate::numbers::number_de")]
     pub sonar_range: f64,
     /// Standard deviation of a sighting's bearing (rad), Gaussian.
-    #[serde(deserialize_with = "crate::bounds::number_de")]
+    #[serde(deserialize_with = "crate::numbers::number_de")]
     pub bearing_noise: f64,
     /// Standard deviation of a sighting's apparent height, as a fraction of it (0.05: 5 %).
-    #[serde(deserialize_with = "crate::bounds::number_de")]
+    #[serde(deserialize_with = "crate::numbers::number_de")]
     pub height_noise: f64,
     /// Standard deviation of a sonar range (m), Gaussian.
-    #[serde(deserialize_with = "crate::bounds::number_de")]
+    #[serde(deserialize_with = "crate::numbers::number_de")]
     pub sonar_noise: f64,
     /// Probability that one camera frame misses a visible target (drawn per target and frame).
-    #[serde(deserialize_with = "crate::bounds::number_de")]
+    #[serde(deserialize_with = "crate::numbers::number_de")]
     pub miss_rate: f64,
     /// The targets; in decreasing priority after [`WorldConfig::by_priority`] (which the
     /// scenario applies), so target id n is the n-th most important.

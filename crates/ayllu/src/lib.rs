@@ -3,32 +3,30 @@
 //! Wraps the sans-IO [`ayllu_core`] in what a program needs to run it: a [`Node`] with a
 //! [`Clock`] (real monotonic or [`ManualClock`]) and a [`Transport`] chosen by URL
 //! (`mem://` in-process, `udp://` on IP networks), and [`Lockstep`] for deterministic teams on
-//! virtual time. [`faults`] and, on Linux, [`shaper`] put seeded network faults between
-//! nodes for tests. Everything in the core is re-exported, so `use ayllu::*` is enough.
+//! virtual time. [`faults`] puts seeded network faults between nodes for tests (the userspace
+//! shaper between network namespaces, a tool, lives in `ayllu-cli`). Everything in the core is
+//! re-exported, so `use ayllu::*` is enough.
 
 #![warn(missing_docs)]
 
 mod admission;
+pub mod ask;
 pub mod clock;
 pub mod datagram;
 pub mod driver;
 pub mod error;
 pub mod faults;
-pub mod graph;
 pub mod lockstep;
 mod mcap_records;
 pub mod mem;
 pub mod node;
 pub mod operator;
 pub mod plan_file;
-pub mod rate;
 pub mod recording;
 pub mod recording_format;
 pub mod replay;
 pub mod report_json;
 pub mod routability;
-#[cfg(target_os = "linux")]
-pub mod shaper;
 pub mod stdlib;
 pub mod team_channels;
 pub mod team_recording;
@@ -37,6 +35,7 @@ pub mod transport;
 pub mod udp;
 pub mod udp_config;
 
+pub use ask::AskError;
 pub use ayllu_core::*;
 pub use clock::{Clock, ManualClock, MonotonicClock};
 pub use driver::Driver;

@@ -145,6 +145,11 @@ impl Node {
     pub fn now(&self) -> Instant {
         self.clock.now()
     }
+    /// Whether the node's clock is real time (a [`ManualClock`](crate::ManualClock) is not:
+    /// time moves only when its owner moves it).
+    pub fn is_real_time(&self) -> bool {
+        self.clock.is_real_time()
+    }
     /// The sans-IO core, for reading everything this wrapper does not forward (reports, BLE
     /// status, warnings).
     pub fn core(&self) -> &NodeCore {

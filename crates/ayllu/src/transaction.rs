@@ -407,10 +407,10 @@ impl Coordinator {
                         continue;
                     }
                     let Some(id) = n.abort else { continue };
-                    match core.request_status(id) {
-                        Some(RequestStatus::Done(_)) => n.abort_result = Some(Ok(())),
-                        Some(RequestStatus::Failed(e)) => n.abort_result = Some(Err(e)),
-                        _ => {}
+                    match core.take_answer(id) {
+                        Some(Ok(_)) => n.abort_result = Some(Ok(())),
+                        Some(Err(e)) => n.abort_result = Some(Err(e)),
+                        None => {}
                     }
                 }
                 let end = self.started + self.options.hold;
@@ -443,22 +443,20 @@ impl Coordinator {
                 n.refused = Some((false, "the request could not be sent".into()));
                 continue;
             };
-            match core.request_status(id) {
-                Some(RequestStatus::Done(ReplyBody::Value(Value::Text(t)))) if &*t == "prepared" => {
+            if let Some(RequestStatus::Pending { sends }) = core.request_status(id) {
+                if sends > n.prepare_sent.0 {
+                    n.prepare_sent = (sends, now);
+                }
+                continue;
+            }
+            match core.take_answer(id) {
+                Some(Ok(ReplyBody::Value(Value::Text(t)))) if &*t == "prepared" => {
                     // From the last send: a resent PREPARE's answer says nothing of the first.
                     n.rtt = Some(now - n.prepare_sent.1);
-                    core.forget_request(id);
                 }
-                Some(RequestStatus::Done(other)) => {
-                    n.refused = Some((true, format!("an unexpected answer to PREPARE: {other:?}")));
-                    core.forget_request(id);
-                }
-                Some(RequestStatus::Failed(e)) => {
-                    n.refused = Some((true, e));
-                    core.forget_request(id);
-                }
-                Some(RequestStatus::Pending { sends }) if sends > n.prepare_sent.0 => n.prepare_sent = (sends, now),
-                _ => {}
+                Some(Ok(other)) => n.refused = Some((true, format!("an unexpected answer to PREPARE: {other:?}"))),
+                Some(Err(e)) => n.refused = Some((true, e)),
+                None => {}
             }
         }
     }
@@ -486,8 +484,8 @@ impl Coordinator {
             // Any copy's answer will do: each places the switch within its own round trip.
             let mut answer = None;
             for &(id, sent) in &n.copies {
-                match core.request_status(id) {
-                    Some(RequestStatus::Done(ReplyBody::Value(Value::Int(x)))) => {
+                match core.take_answer(id) {
+                    Some(Ok(ReplyBody::Value(Value::Int(x)))) => {
                         let shift = |t: Instant| {
                             if x >= 0 {
                                 t + Duration::from_nanos(x.unsigned_abs())
@@ -498,16 +496,16 @@ impl Coordinator {
                         answer = Some(Ok(SwitchWindow { earliest: shift(sent), latest: shift(now) }));
                         break;
                     }
-                    Some(RequestStatus::Done(other)) => {
+                    Some(Ok(other)) => {
                         answer = Some(Err(format!("an unexpected answer to COMMIT: {other:?}")));
                         break;
                     }
                     // The node refused: it aborted by itself (its hold ended) or never prepared.
-                    Some(RequestStatus::Failed(e)) => {
+                    Some(Err(e)) => {
                         answer = Some(Err(e));
                         break;
                     }
-                    _ => {}
+                    None => {}
                 }
             }
             if answer.is_none() && now >= end {

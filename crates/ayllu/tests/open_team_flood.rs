@@ -9,10 +9,15 @@
 //! lives at most 3 s at the default period, 10 s at any; admission buckets refill in under
 //! 4 s), so the flood outlasts each of them.
 //!
-//! The verdict counts values, not time: each value the sender writes is numbered, each number
-//! belongs to the phase in which it was written, and a phase's figure is the share of its
-//! numbers that arrived, against the share without the flood. Thresholds are generous (90 %),
-//! but a displaced peer delivers 0 % and fails them.
+//! The verdict counts values and peer-table entries, not time: each value the sender writes is
+//! numbered, each number belongs to the second in which it was written, and the receiver notes
+//! every step at which the proven sender was missing from its peer table. What the flood must
+//! not do is displace the real peer: it stays in the table throughout, values arrive in every
+//! second of the flood, and one second after it every value arrives again. How large a share
+//! arrives *during* the flood is printed, not judged: it measures how much CPU the receiving
+//! thread got beside 100,000 datagrams a second (99.8 % on an idle 2-core machine, 66 % beside
+//! four compilers), which is not what this test is about; a displaced peer delivers 0 % in the
+//! seconds it is out, and fails.
 
 use std::collections::HashSet;
 use std::net::{SocketAddr, UdpSocket};
@@ -80,8 +85,13 @@ fn a_flood_of_forged_ids_does_not_silence_an_open_team() {
             addr_tx.send(node.address().unwrap().parse::<SocketAddr>().unwrap()).unwrap();
             let mut last = Value::Int(0);
             let mut max_peers = 0;
+            // Steps at which node 1, once proven (in the table), was missing from it.
+            let (mut proven, mut displaced) = (false, 0u64);
             while !stop.load(Relaxed) {
                 node.step();
+                let present = node.peers().iter().any(|p| p.node == NodeId(1));
+                proven |= present;
+                displaced += u64::from(proven && !present);
                 let v = node.read("R", "In").unwrap();
                 if v != last {
                     if let Value::Int(k) = v {
@@ -92,7 +102,7 @@ fn a_flood_of_forged_ids_does_not_silence_an_open_team() {
                 max_peers = max_peers.max(node.peers().len());
                 node.wait(StdDuration::from_millis(1));
             }
-            (node.transport_counters(), max_peers, node.peers().len())
+            (node.transport_counters(), max_peers, node.peers().len(), displaced)
         })
     };
     let to_receiver = addr_rx.recv().unwrap();
@@ -157,7 +167,7 @@ fn a_flood_of_forged_ids_does_not_silence_an_open_team() {
     let flood_end = StdInstant::now();
     std::thread::sleep(StdDuration::from_secs(2));
     stop.store(true, Relaxed);
-    let (receiver_counters, max_peers, peers_at_end) = receiver.join().unwrap();
+    let (receiver_counters, max_peers, peers_at_end, displaced) = receiver.join().unwrap();
     let sender_counters = sender.join().unwrap();
 
     // Each written number belongs to the phase it was written in.
@@ -188,9 +198,18 @@ fn a_flood_of_forged_ids_does_not_silence_an_open_team() {
     let share = |i: usize| shares[i].0 as f64 / shares[i].1.max(1) as f64;
     assert!(shares.iter().all(|(_, of)| *of >= 50), "values were written in every phase: {shares:?}");
     assert!(share(0) >= 0.9, "without the flood the flow delivers: {shares:?}");
-    for (i, (name, _, _)) in phases.iter().enumerate().skip(1) {
-        assert!(share(i) >= 0.9 * share(0), "{name}: {:.3} of the values, {:.3} without the flood", share(i), share(0));
+    assert_eq!(displaced, 0, "the proven sender was missing from the receiver's peer table at {displaced} steps");
+    // Values arrive in every whole second of the flood: a displaced peer's seconds are empty.
+    let mut from = flood_start;
+    while from + second <= flood_end {
+        let in_second: Vec<i64> =
+            written.iter().filter(|(_, t)| *t >= from && *t < from + second).map(|(k, _)| *k).collect();
+        let got = in_second.iter().filter(|k| received.contains(k)).count();
+        println!("flood second {:.0}: {got} of {}", (from - flood_start).as_secs_f64(), in_second.len());
+        assert!(got > 0, "no value of the flood's second {:?} arrived: {shares:?}", from - flood_start);
+        from += second;
     }
+    assert!(share(2) >= 0.9 * share(0), "first second after: {:.3}, {:.3} without the flood", share(2), share(0));
     // Back to everything one second after the flood (a value or two lost to the loopback's
     // buffers, none to the peer table).
     assert!(shares[3].0 + 2 >= shares[3].1, "after a second, every value arrives: {shares:?}");

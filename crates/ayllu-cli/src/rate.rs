@@ -82,11 +82,6 @@ impl RateWindow {
         self.arrivals.len()
     }
 
-    /// Whether nothing arrived yet.
-    pub fn is_empty(&self) -> bool {
-        self.arrivals.is_empty()
-    }
-
     /// The window's figures.
     pub fn report(&self) -> RateReport {
         let a: Vec<Arrival> = self.arrivals.iter().copied().collect();

@@ -11,7 +11,7 @@
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 
-use ayllu_core::{ConnectionKind, Endpoint, NodeId, NodeReport, PortReport};
+use ayllu::{ConnectionKind, Endpoint, NodeId, NodeReport, PortReport};
 use serde_json::{json, Value as Json};
 
 /// The HTML page's self-check, for people and for the browser test: once loaded, the page
@@ -141,13 +141,13 @@ fn kind_color(kind: ConnectionKind) -> &'static str {
     }
 }
 
-fn port_kind_name(kind: ayllu_core::PortKind) -> &'static str {
+fn port_kind_name(kind: ayllu::PortKind) -> &'static str {
     match kind {
-        ayllu_core::PortKind::Normal => "normal",
-        ayllu_core::PortKind::Max => "max",
-        ayllu_core::PortKind::Min => "min",
-        ayllu_core::PortKind::Sum => "sum",
-        ayllu_core::PortKind::Priority => "priority",
+        ayllu::PortKind::Normal => "normal",
+        ayllu::PortKind::Max => "max",
+        ayllu::PortKind::Min => "min",
+        ayllu::PortKind::Sum => "sum",
+        ayllu::PortKind::Priority => "priority",
     }
 }
 
@@ -201,7 +201,7 @@ impl TeamGraph {
                     priority: c.priority,
                     sent: c.sent,
                     active: None,
-                    target: crate::team_channels::destination_text(r.node, &c.destination),
+                    target: ayllu::team_channels::destination_text(r.node, &c.destination),
                 };
                 match &c.destination {
                     Endpoint::Local { behavior, port } => edges.push(edge(
@@ -536,11 +536,11 @@ impl TeamGraph {
         let mut legend = String::new();
         for (i, kind) in [
             ConnectionKind::Normal,
-            ConnectionKind::Suppress(ayllu_core::Duration::ZERO),
-            ConnectionKind::Inhibit(ayllu_core::Duration::ZERO),
-            ConnectionKind::OverrideIn(ayllu_core::Duration::ZERO),
-            ConnectionKind::OverrideOut(ayllu_core::Duration::ZERO),
-            ConnectionKind::WriteInhibit(ayllu_core::Duration::ZERO),
+            ConnectionKind::Suppress(ayllu::Duration::ZERO),
+            ConnectionKind::Inhibit(ayllu::Duration::ZERO),
+            ConnectionKind::OverrideIn(ayllu::Duration::ZERO),
+            ConnectionKind::OverrideOut(ayllu::Duration::ZERO),
+            ConnectionKind::WriteInhibit(ayllu::Duration::ZERO),
         ]
         .into_iter()
         .enumerate()
@@ -621,7 +621,7 @@ fn group_id(group: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use ayllu_core::{BehaviorClass, ConnectOptions, Duration, Instant, NodeCore, PortSpec, Value};
+    use ayllu::{BehaviorClass, ConnectOptions, Duration, Instant, NodeCore, PortSpec, Value};
 
     fn team() -> Vec<NodeReport> {
         let mut cores: Vec<NodeCore> = (1..=2).map(|i| NodeCore::new(NodeId(i))).collect();
@@ -669,9 +669,9 @@ mod tests {
         why.define(class).unwrap();
         why.create("X", "OBS1").unwrap();
         let mut report = why.why_at(Instant::ZERO, "OBS1", "Rot<ate>").unwrap();
-        report.windows.push(ayllu_core::WindowReport {
-            kind: ayllu_core::WindowKind::Inhibit,
-            holder: ayllu_core::Source { node: NodeId(1), conn: g.edges[0].conn },
+        report.windows.push(ayllu::WindowReport {
+            kind: ayllu::WindowKind::Inhibit,
+            holder: ayllu::Source { node: NodeId(1), conn: g.edges[0].conn },
             ends: Instant::from_secs(2),
             remaining: Duration::from_secs(2),
         });

@@ -9,7 +9,7 @@
 //! writes, the kernel receives. [`Hub`] is the switch between them: it learns which port each
 //! source address lives behind, floods broadcast, multicast and unknown destinations (ARP and
 //! the nodes' subnet-broadcast HELLOs), and passes every copy through its output port's
-//! [`FaultLine`] (the schedule [`crate::faults::FaultySocket`] uses too), one line per port
+//! [`FaultLine`] (the schedule [`ayllu::faults::FaultySocket`] uses too), one line per port
 //! with seed `seed + port`, so each robot's link has its own faults. [`run`] is the event loop
 //! (`ppoll` on the TAP descriptors until the next frame is due).
 //!
@@ -27,10 +27,10 @@ use std::os::fd::{AsRawFd, RawFd};
 use std::os::unix::fs::OpenOptionsExt;
 use std::path::{Path, PathBuf};
 
-use ayllu_core::{Duration, Instant};
+use ayllu::{Duration, Instant};
 
-use crate::clock::Clock;
-use crate::faults::{FaultConfig, FaultCounts, FaultLine};
+use ayllu::clock::Clock;
+use ayllu::faults::{FaultConfig, FaultCounts, FaultLine};
 
 /// The largest frame read (a TAP's default MTU is 1500; room for jumbo frames).
 pub const MAX_FRAME: usize = 65_536;
@@ -112,6 +112,7 @@ impl<P: FramePort> Hub<P> {
     }
 
     /// Frames waiting in the lines (delayed or held back).
+    #[cfg(test)]
     pub fn waiting(&self) -> usize {
         self.lines.iter().map(FaultLine::waiting).sum()
     }
@@ -205,7 +206,6 @@ impl<P: FramePort> Hub<P> {
 #[derive(Debug)]
 pub struct Tap {
     file: File,
-    name: String,
 }
 
 /// The directory where `ip netns add` puts named namespaces.
@@ -226,12 +226,7 @@ impl Tap {
                 in_netns(&path, || open_tap(name))?
             }
         };
-        Ok(Tap { file, name: name.to_owned() })
-    }
-
-    /// The interface's name.
-    pub fn name(&self) -> &str {
-        &self.name
+        Ok(Tap { file })
     }
 }
 
