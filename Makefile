@@ -2,7 +2,7 @@
 # CI (.ci/run) runs `make lint` and `make test`.
 CARGO ?= cargo
 
-.PHONY: test-asan demo test lint test-python lint-python bench-python bench bench-c bench-net bench-peers bench-sim zenoh test-zenoh bench-zenoh ros2 test-ros2 bench-ros2 ros2-c ros2-python fuzz fuzz-long soak fmt docs
+.PHONY: test-asan demo test lint test-python test-ray lint-python bench-python bench bench-c bench-net bench-peers bench-sim zenoh test-zenoh bench-zenoh ros2 test-ros2 bench-ros2 ros2-c ros2-python fuzz fuzz-long soak fmt docs
 
 ## Run the main demo: W-CMOMMT in the simulator (the paper's setting, a sweep, a robot killed
 ## halfway) for BLE and every baseline; prints a short summary (BLE against each baseline, whether
@@ -219,6 +219,12 @@ fmt:
 test-python:
 	@PY=$$(PYTHON=$(PYTHON) scripts/python-venv) && cd crates/ayllu-py \
 		&& AYLLU_BIN=$(abspath $(TARGET_DIR))/debug/ayllu $$PY -m pytest -q tests
+
+## The sweep on a Ray cluster (crates/ayllu-py/cluster_tests): installs Ray into the test venv
+## first (a large install, hence not in `make test`; the Dask cluster's twin is).
+test-ray:
+	@PY=$$(PYTHON=$(PYTHON) scripts/python-venv) && $$PY -m pip install --quiet ray \
+		&& cd crates/ayllu-py && $$PY -m pytest -q cluster_tests
 
 ## ruff and mypy (strict) on the Python package, its tests, the Python examples, the book's
 ## tutorials and its picture scripts (one file at a time: every tutorial is a main.py).

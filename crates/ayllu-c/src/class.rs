@@ -3,15 +3,16 @@
 //! triggered by a port, triggered by a monostable). A class is a builder owned by C until
 //! [`crate::node::ay_node_define`] hands it to a node.
 
-use std::collections::HashMap;
 use std::ffi::{c_char, c_void};
 use std::sync::{Arc, OnceLock};
 
 use ayllu_core::{BehaviorClass, Duration, PortKind, PortSpec, Trigger, Value};
 
-use crate::cstr::{put_optional, text};
+use crate::cstr::{put_optional, slice, text};
 use crate::process::{self, ay_mono, ay_port, ay_process_fn, ay_slot};
+use crate::register::{register_name, Registers};
 use crate::registry::{self, Kind};
+use crate::seconds::optional_secs;
 use crate::status::{ay_status, boundary, Fail};
 
 /// Port kind: the last value written (rule S3).
@@ -24,56 +25,6 @@ pub const AY_PORT_MIN: u32 = 2;
 pub const AY_PORT_SUM: u32 = 3;
 /// Port kind: the value of the highest-priority connection.
 pub const AY_PORT_PRIORITY: u32 = 4;
-
-/// What a name in a class stands for.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) enum Register {
-    Port(u16),
-    Slot(u16),
-    Mono(u16),
-}
-
-/// A class's register names, shared by its processes (fixed when the class is defined).
-#[derive(Debug, Default)]
-pub(crate) struct Registers {
-    names: HashMap<String, Register>,
-    pub(crate) ports: usize,
-    pub(crate) slots: usize,
-    pub(crate) monos: usize,
-}
-
-impl Registers {
-    fn of(class: &BehaviorClass) -> Registers {
-        let mut names = HashMap::new();
-        for (i, p) in class.ports().iter().enumerate() {
-            names.insert(p.name.clone(), Register::Port(i as u16));
-        }
-        for (i, s) in class.slots().iter().enumerate() {
-            names.insert(s.name.clone(), Register::Slot(i as u16));
-        }
-        for (i, m) in class.monostables().iter().enumerate() {
-            names.insert(m.clone(), Register::Mono(i as u16));
-        }
-        Registers { names, ports: class.ports().len(), slots: class.slots().len(), monos: class.monostables().len() }
-    }
-
-    /// The register `name` stands for (the paper's `BLE_Local`, `BLE_Inhibit`, `BLE_Best` name
-    /// the implicit ports `Local`, `Inhibit`, `Best`).
-    pub(crate) fn get(&self, name: &str) -> Option<Register> {
-        self.names.get(register_name(name)).copied()
-    }
-}
-
-/// The runtime's name for a register or port named from C: the paper's `BLE_` prefix on the
-/// implicit BLE ports is dropped.
-pub(crate) fn register_name(name: &str) -> &str {
-    match name {
-        "BLE_Local" => ayllu_core::LOCAL,
-        "BLE_Inhibit" => ayllu_core::INHIBIT,
-        "BLE_Best" => ayllu_core::BEST,
-        other => other,
-    }
-}
 
 /// A behavior class under construction (opaque). Made by [`ay_class_new`] (or by the node
 /// for [`crate::node::ay_node_define_with`]); consumed by [`crate::node::ay_node_define`] or
@@ -171,37 +122,6 @@ fn port_kind(kind: u32) -> Result<PortKind, Fail> {
         AY_PORT_PRIORITY => PortKind::Priority,
         other => return Err(Fail::invalid(format!("{other} is not a port kind (AY_PORT_NORMAL .. AY_PORT_PRIORITY)"))),
     })
-}
-
-/// Seconds from C as an optional span: 0 means none; negative, NaN, infinite are refused.
-pub(crate) fn optional_secs(secs: f64, what: &str) -> Result<Option<Duration>, Fail> {
-    if secs == 0.0 {
-        return Ok(None);
-    }
-    let d = Duration::try_from_secs_f64(secs).map_err(|e| Fail::from(e).context(what))?;
-    Ok(Some(d))
-}
-
-/// Seconds from C as a required span: zero, negative, NaN and infinite are refused.
-pub(crate) fn required_secs(secs: f64, what: &str) -> Result<Duration, Fail> {
-    match optional_secs(secs, what)? {
-        Some(d) if !d.is_zero() => Ok(d),
-        _ => Err(Fail::new(
-            ay_status::AY_ERR_PERIOD,
-            format!(
-                "{what} must be above zero, from 1 ns to {} s (about 584 years), got {} s",
-                Duration::MAX_SECS,
-                ayllu_core::Compact(secs)
-            ),
-        )),
-    }
-}
-
-impl Fail {
-    pub(crate) fn context(mut self, what: &str) -> Fail {
-        self.message = format!("{what}: {}", self.message);
-        self
-    }
 }
 
 fn declare_port(
@@ -341,7 +261,7 @@ pub unsafe extern "C" fn ay_class_port_vector(
 ) -> ay_status {
     boundary("ay_class_port_vector", || {
         // SAFETY: forwarded promise on `initial`/`length`.
-        let v = unsafe { process::slice(initial, length, "initial") }?;
+        let v = unsafe { slice(initial, length, "initial") }?;
         declare_port(cls, name, Value::vector(v), kind, lifespan, window, out)
     })
 }
@@ -367,7 +287,7 @@ pub unsafe extern "C" fn ay_class_port_bytes(
 ) -> ay_status {
     boundary("ay_class_port_bytes", || {
         // SAFETY: forwarded promise on `initial`/`length`.
-        let v = unsafe { process::slice(initial, length, "initial") }?;
+        let v = unsafe { slice(initial, length, "initial") }?;
         declare_port(cls, name, Value::bytes(v), kind, lifespan, window, out)
     })
 }

@@ -4,9 +4,9 @@
 use ayllu::{Clock, ManualClock};
 use ayllu_core::Instant;
 
-use crate::class::required_secs;
 use crate::cstr::put;
 use crate::registry::{self, Kind};
+use crate::seconds::required_secs;
 use crate::status::{ay_status, boundary, Fail};
 
 /// A manual clock (opaque). Nodes opened with it share its time.

@@ -7,9 +7,9 @@ use std::ffi::c_char;
 
 use ayllu_core::{ConnectOptions, ConnectionId, ConnectionKind, Endpoint, NodeId, RequestId, RequestStatus};
 
-use crate::class::required_secs;
 use crate::cstr::{put, put_optional};
 use crate::node::{ay_node, names, with_node};
+use crate::seconds::required_secs;
 use crate::status::{ay_status, boundary, Fail};
 
 /// Endpoint scope: a port on this node.

@@ -1,6 +1,6 @@
-//! C strings and output parameters across the boundary: names in (NUL-terminated UTF-8),
-//! text out (into the caller's buffer, or as a library-owned string freed by
-//! [`ay_string_free`]).
+//! C strings, arrays and output parameters across the boundary: names in (NUL-terminated
+//! UTF-8), arrays in (borrowed for the call), text out (into the caller's buffer, or as a
+//! library-owned string freed by [`ay_string_free`]).
 
 use std::ffi::{c_char, CStr, CString};
 
@@ -18,6 +18,21 @@ pub(crate) unsafe fn text<'a>(p: *const c_char, what: &str) -> Result<&'a str, F
     // SAFETY: non-null, and the caller promises a NUL-terminated string that outlives 'a.
     let s = unsafe { CStr::from_ptr(p) };
     s.to_str().map_err(|_| Fail::invalid(format!("{what} is not UTF-8")))
+}
+
+/// Borrow `length` items from C (NULL is allowed only with length 0).
+///
+/// # Safety
+/// `p` is NULL or valid for `length` reads that outlive `'a`.
+pub(crate) unsafe fn slice<'a, T>(p: *const T, length: usize, what: &str) -> Result<&'a [T], Fail> {
+    if length == 0 {
+        return Ok(&[]);
+    }
+    if p.is_null() {
+        return Err(Fail::null(what));
+    }
+    // SAFETY: non-null and valid for `length` reads (caller's promise).
+    Ok(unsafe { std::slice::from_raw_parts(p, length) })
 }
 
 /// Store `value` through an output pointer; NULL is `AY_ERR_NULL`.

@@ -28,9 +28,11 @@ pub mod node;
 pub mod process;
 pub mod reconfiguration;
 pub mod recording;
+mod register;
 mod registry;
 pub mod report;
 pub mod ros2;
+mod seconds;
 pub mod status;
 pub mod stdlib;
 

@@ -7,8 +7,9 @@ use std::ffi::{c_char, c_void};
 
 use ayllu_core::{Ctx, DropCause, Duration, Mono, Port, Slot, Value};
 
-use crate::class::{required_secs, Register, Registers};
-use crate::cstr::{copy_out, put, text};
+use crate::cstr::{copy_out, put, slice, text};
+use crate::register::{Register, Registers};
+use crate::seconds::required_secs;
 use crate::status::{ay_status, boundary, Fail};
 
 /// A port of the running behavior, as its processes name it (index in its class: the
@@ -123,21 +124,6 @@ fn mono_of(registers: &Registers, mono: ay_mono) -> Result<Mono, Fail> {
             format!("monostable handle {} is not one of this behavior's", mono.index),
         ))
     }
-}
-
-/// Borrow `length` items from C (NULL is allowed only with length 0).
-///
-/// # Safety
-/// `p` is NULL or valid for `length` reads that outlive `'a`.
-pub(crate) unsafe fn slice<'a, T>(p: *const T, length: usize, what: &str) -> Result<&'a [T], Fail> {
-    if length == 0 {
-        return Ok(&[]);
-    }
-    if p.is_null() {
-        return Err(Fail::null(what));
-    }
-    // SAFETY: non-null and valid for `length` reads (caller's promise).
-    Ok(unsafe { std::slice::from_raw_parts(p, length) })
 }
 
 fn lookup(registers: &Registers, name: *const c_char) -> Result<(Register, &str), Fail> {

@@ -64,6 +64,10 @@ impl Fail {
     pub(crate) fn invalid(message: impl Into<String>) -> Fail {
         Fail::new(ay_status::AY_ERR_INVALID, message)
     }
+    pub(crate) fn context(mut self, what: &str) -> Fail {
+        self.message = format!("{what}: {}", self.message);
+        self
+    }
 }
 
 /// The code for each refusal of the core: its [`ayllu_core::ErrorKind`], the classification

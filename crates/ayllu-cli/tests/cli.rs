@@ -359,11 +359,11 @@ fn arguments_out_of_range_say_the_range_compactly() {
         // The core's words (Duration::try_from_positive_secs), as C and Python say it.
         let run = ayllu(args, LIMIT).fails(
             2,
-            "1e300 s is not a usable duration; durations are finite, from 0 to 18446744073 s (about 584 years)",
+            "1e300 s is too long: a span of time is from 0 to 18446744073 s (about 584 years)",
         );
         assert!(!run.stderr.contains("0000000000"), "{run:?}");
     }
-    ayllu(&["list", "1", "--timeout", "0"], LIMIT).fails(2, "0 s is not allowed here: give a span above zero");
+    ayllu(&["list", "1", "--timeout", "0"], LIMIT).fails(2, "0 s is not allowed here: a span above zero is from 1 ns");
     ayllu(&["write", "1", "A.B", "1", "--repeat-hz", "1e-300"], LIMIT).fails(
         2,
         "rate of 1e-300 Hz is invalid; rates must be finite and above zero, with a period from 1 ns to 584 years",

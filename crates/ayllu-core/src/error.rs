@@ -306,18 +306,26 @@ impl fmt::Display for Error {
             ),
             Error::ZeroDuration => write!(
                 f,
-                "0 s is not allowed here: give a span above zero, from 1 ns (1e-9 s) to {} s (about 584 years)",
+                "0 s is not allowed here: a span above zero is from 1 ns (1e-9 s) to {} s (about 584 years)",
                 Duration::MAX_SECS
             ),
+            // These three speak of "a span of time", not of periods: the same words serve a
+            // period, a lifespan, a timeout and a clock's step, in the CLI, C and Python alike.
             Error::NegativePeriod { seconds } => write!(
                 f,
-                "{} s is negative; durations are from 0 to {} s (about 584 years), periods from 1 ns",
+                "{} s is negative: a span of time is from 0 to {} s (about 584 years)",
+                Compact(*seconds),
+                Duration::MAX_SECS
+            ),
+            Error::InvalidDuration { seconds } if !seconds.is_finite() => write!(
+                f,
+                "{} is not a number of seconds: a span of time is finite, from 0 to {} s (about 584 years)",
                 Compact(*seconds),
                 Duration::MAX_SECS
             ),
             Error::InvalidDuration { seconds } => write!(
                 f,
-                "{} s is not a usable duration; durations are finite, from 0 to {} s (about 584 years)",
+                "{} s is too long: a span of time is from 0 to {} s (about 584 years)",
                 Compact(*seconds),
                 Duration::MAX_SECS
             ),

@@ -22,9 +22,9 @@ use pyo3::exceptions::PyRuntimeError;
 use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 
+use crate::connection;
 use crate::errors::{self, ValueTypeError};
 use crate::value::{duration, secs, to_py, to_value};
-use crate::wiring;
 
 const UNASSIGNED: u32 = u32::MAX;
 
@@ -602,10 +602,10 @@ impl Context {
         kind: Option<&Bound<'_, PyAny>>,
         priority: i32,
     ) -> PyResult<usize> {
-        let (s, d, k) = wiring::connect_args(source, destination, kind)?;
+        let (s, d, k) = connection::connect_args(source, destination, kind)?;
         self.ask(Change::Connect {
-            source: wiring::endpoint(&s)?,
-            destination: wiring::endpoint(&d)?,
+            source: connection::endpoint(&s)?,
+            destination: connection::endpoint(&d)?,
             kind: k,
             priority,
         })
@@ -616,8 +616,11 @@ impl Context {
     }
     /// Ask to remove every connection from `source` to `destination` when the process returns.
     fn disconnect_between(&self, source: &Bound<'_, PyAny>, destination: &Bound<'_, PyAny>) -> PyResult<usize> {
-        let (s, d) = (wiring::endpoint_arg(source)?, wiring::endpoint_arg(destination)?);
-        self.ask(Change::DisconnectBetween { source: wiring::endpoint(&s)?, destination: wiring::endpoint(&d)? })
+        let (s, d) = (connection::endpoint_arg(source)?, connection::endpoint_arg(destination)?);
+        self.ask(Change::DisconnectBetween {
+            source: connection::endpoint(&s)?,
+            destination: connection::endpoint(&d)?,
+        })
     }
     /// Ask to join broadcast group `group` when the process returns.
     fn join(&self, group: &str) -> PyResult<usize> {
@@ -655,8 +658,8 @@ impl Context {
         kind: Option<&Bound<'_, PyAny>>,
         priority: i32,
     ) -> PyResult<u64> {
-        let (s, d, k) = wiring::connect_args(source, destination, kind)?;
-        let (s, d) = (wiring::endpoint(&s)?, wiring::endpoint(&d)?);
+        let (s, d, k) = connection::connect_args(source, destination, kind)?;
+        let (s, d) = (connection::endpoint(&s)?, connection::endpoint(&d)?);
         self.with(|c| c.request_connect(&s, &d, k, ConnectOptions { priority }))?.map(|r| r.0).map_err(errors::core)
     }
 }

@@ -10,11 +10,13 @@
 //! a Python exception inside a process is counted and reported, never fatal to the node.
 
 pub mod behavior;
+pub mod connection;
 pub mod errors;
 pub mod node;
 pub mod recording;
 pub mod ros2;
 pub mod sim;
+pub mod stdlib;
 pub mod value;
 pub mod wiring;
 

@@ -25,8 +25,9 @@ use pyo3::sync::MutexExt;
 use pyo3::types::{PyDict, PyList};
 
 use crate::behavior::Processes;
+use crate::connection;
 use crate::errors::{self, NodeBusyError};
-use crate::sim::StdlibOptions;
+use crate::stdlib::StdlibOptions;
 use crate::value::{duration, instant, secs, to_py, to_value};
 use crate::wiring;
 
@@ -324,7 +325,7 @@ impl Node {
         kind: Option<&Bound<'_, PyAny>>,
         priority: i32,
     ) -> PyResult<u64> {
-        let args = wiring::connect_args(source, destination, kind)?;
+        let args = connection::connect_args(source, destination, kind)?;
         self.shared.with(py, |n| wiring::connect(n.core_mut(), &args, priority))
     }
 
@@ -346,7 +347,7 @@ impl Node {
         kind: Option<&Bound<'_, PyAny>>,
         priority: i32,
     ) -> PyResult<u64> {
-        let args = wiring::connect_args(source, destination, kind)?;
+        let args = connection::connect_args(source, destination, kind)?;
         self.shared.with(py, |n| wiring::request_connect(n.core_mut(), &args, priority))
     }
 

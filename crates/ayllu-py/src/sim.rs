@@ -13,7 +13,6 @@
 use std::sync::atomic::{AtomicPtr, Ordering};
 use std::sync::Arc;
 
-use ayllu::stdlib;
 use ayllu_core::{Error as CoreError, NodeCore};
 use ayllu_sim::bounds::show;
 use ayllu_sim::controller::{Brain, Controller, ControllerConfig};
@@ -23,7 +22,9 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 
 use crate::behavior::Processes;
+use crate::connection;
 use crate::errors;
+use crate::stdlib::StdlibOptions;
 use crate::wiring;
 
 /// Register the simulator's functions and classes on the module.
@@ -138,7 +139,7 @@ impl RobotBuilder {
         kind: Option<&Bound<'_, PyAny>>,
         priority: i32,
     ) -> PyResult<u64> {
-        let args = wiring::connect_args(source, destination, kind)?;
+        let args = connection::connect_args(source, destination, kind)?;
         self.with(|c| wiring::connect(c, &args, priority))
     }
     /// Join broadcast group `group`.
@@ -370,40 +371,4 @@ fn run_scenario<'py>(
         .flat_map(|(id, p)| p.errors().into_iter().map(move |e| (*id, e.behavior, e.process, e.time, e.traceback)))
         .collect();
     Ok((json, trace, errs))
-}
-
-/// The keyword arguments of `ayllu.Node.define_stdlib`: what each standard class takes.
-pub struct StdlibOptions {
-    /// `RandomWander`'s and `Wander`'s rate.
-    pub hz: f64,
-    /// `RandomWander`'s seed.
-    pub seed: u64,
-    /// `Vision`'s number of targets.
-    pub targets: u32,
-    /// `Sonar`'s number of beams.
-    pub beams: usize,
-    /// `Sonar`'s range.
-    pub max_range: f64,
-}
-
-/// The standard library's classes a Python controller may reuse (like the paper's
-/// `ayllustd.h`); see `ayllu.Node.define_stdlib`.
-pub fn define_stdlib_class(
-    name: &str,
-    &StdlibOptions { hz, seed, targets, beams, max_range }: &StdlibOptions,
-) -> Result<ayllu_core::BehaviorClass, CoreError> {
-    match name {
-        "SafeVelocity" => stdlib::safe_velocity_class(stdlib::SafeVelocity::default()),
-        "RandomWander" => stdlib::random_wander_class(hz, seed),
-        "Wander" => stdlib::wander_class(hz),
-        "Observer" => stdlib::observer_class(),
-        "Vision" => stdlib::vision_class(targets),
-        "Base" => stdlib::base_class(),
-        "Sonar" => stdlib::sonar_class(beams, max_range),
-        other => Err(CoreError::UnknownClass {
-            class: format!(
-                "{other} (the standard library has SafeVelocity, RandomWander, Wander, Observer, Vision, Base, Sonar)"
-            ),
-        }),
-    }
 }

@@ -69,25 +69,11 @@ pub fn to_py(py: Python<'_>, v: &Value) -> Py<PyAny> {
 const LONGEST_SECS: u64 = Duration::MAX_SECS;
 
 /// `seconds`, given as the argument `what` (`seconds`, `tick`, `period`, `window`...), as a
-/// duration. NaN, infinite, negative seconds and more than the clock holds are refused with
-/// `InvalidError` (a `ValueError`) naming `what` and the range: the core's own messages speak
-/// of periods, which `advance(-1)` never mentioned. Zero passes (where zero is refused, as for
-/// a period, the caller's next check says so).
+/// duration: the core's check (`Duration::try_from_secs_f64`, the one the CLI and C use too),
+/// its refusal in its words after the argument's name (`seconds = -1 s is negative: a span of
+/// time is from 0 to 18446744073 s (about 584 years)`), as `InvalidError` (a `ValueError`).
+/// Zero passes (where zero is refused, as for a period, the caller's next check says so).
 pub fn duration(what: &str, seconds: f64) -> PyResult<Duration> {
-    let range = format!("from 0 to {LONGEST_SECS} s (about 584 years)");
-    let shown = Compact(seconds);
-    if seconds.is_nan() || seconds.is_infinite() {
-        return Err(errors::InvalidError::new_err(format!(
-            "{what} = {shown} is not a number of seconds: {what} must be finite, {range}"
-        )));
-    }
-    if seconds < 0.0 {
-        return Err(errors::InvalidError::new_err(format!("{what} = {shown} s is negative: {what} must be {range}")));
-    }
-    if seconds > LONGEST_SECS as f64 {
-        return Err(errors::InvalidError::new_err(format!("{what} = {shown} s is too long: {what} must be {range}")));
-    }
-    // What is left to refuse is a span under the clock's 1 ns (D6.8), named by its argument.
     Duration::try_from_secs_f64(seconds).map_err(|e| errors::InvalidError::new_err(format!("{what} = {e}")))
 }
 

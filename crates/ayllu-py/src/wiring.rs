@@ -8,78 +8,17 @@
 use std::sync::Arc;
 
 use ayllu_core::{
-    Allow, BleConfig, ConnectOptions, ConnectionId, ConnectionKind, ControlBody, Endpoint, Limits, NodeCore, NodeId,
-    ReplyBody, RequestId, RequestStatus,
+    Allow, BleConfig, ConnectOptions, ConnectionId, ControlBody, Limits, NodeCore, NodeId, ReplyBody, RequestId,
+    RequestStatus,
 };
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use crate::behavior::{self, Processes};
+use crate::connection::{endpoint, ConnectArgs};
 use crate::errors;
+use crate::stdlib::{define_stdlib_class, StdlibOptions};
 use crate::value::duration;
-
-/// An endpoint as Python passes it: `(behavior, port, node, group)`, node and group optional.
-pub type EndpointArg = (String, String, Option<u32>, Option<String>);
-
-/// The endpoint of a Python endpoint tuple.
-pub fn endpoint(e: &EndpointArg) -> PyResult<Endpoint> {
-    Ok(match (&e.2, &e.3) {
-        (None, None) => Endpoint::local(&e.0, &e.1),
-        (Some(n), None) => Endpoint::node(NodeId(*n), &e.0, &e.1),
-        (None, Some(g)) => Endpoint::group(g, &e.0, &e.1),
-        (Some(_), Some(_)) => return Err(errors::value_error("an endpoint is on one node or one group, not both")),
-    })
-}
-
-/// The connection kind named `name` (`normal`, `suppress`, `inhibit`, `override-in`,
-/// `override-out`, `write-inhibit`) with `period` seconds (required for every kind but normal).
-pub fn kind(name: &str, period: Option<f64>) -> PyResult<ConnectionKind> {
-    if name != "normal" && period.is_none() && ConnectionKind::from_name(name, ayllu_core::Duration::ZERO).is_some() {
-        return Err(errors::value_error(format!("a {name} connection needs a period (seconds)")));
-    }
-    let period = period.map(|p| duration("period", p)).transpose()?;
-    ConnectionKind::from_parts(name, period).map_err(errors::core)
-}
-
-/// An endpoint argument: an `ayllu.Endpoint` (a named tuple `(behavior, port, node, group)`)
-/// or a plain `(behavior, port)` tuple for a local port.
-pub fn endpoint_arg(obj: &Bound<'_, PyAny>) -> PyResult<EndpointArg> {
-    if let Ok(e) = obj.extract::<EndpointArg>() {
-        return Ok(e);
-    }
-    if let Ok((b, p)) = obj.extract::<(String, String)>() {
-        return Ok((b, p, None, None));
-    }
-    Err(errors::type_error(format!(
-        "an endpoint is ayllu.local(b, p), ayllu.remote(node, b, p), ayllu.broadcast(group, b, p) or (b, p); got {obj}"
-    )))
-}
-
-/// A connection-kind argument: an `ayllu.Kind` (a named tuple `(name, period)`); None is Normal.
-pub fn kind_arg(obj: Option<&Bound<'_, PyAny>>) -> PyResult<ConnectionKind> {
-    let Some(obj) = obj else { return Ok(ConnectionKind::Normal) };
-    if obj.is_none() {
-        return Ok(ConnectionKind::Normal);
-    }
-    let (name, period): (String, Option<f64>) = obj.extract().map_err(|_| {
-        errors::type_error(format!(
-            "a connection kind is ayllu.NORMAL or ayllu.suppress(s), inhibit(s), override_in(s), override_out(s), write_inhibit(s); got {obj}"
-        ))
-    })?;
-    kind(&name, period)
-}
-
-/// A `connect` call's `(source, destination, kind)` arguments, checked.
-pub type ConnectArgs = (EndpointArg, EndpointArg, ConnectionKind);
-
-/// Check a `connect` call's `source`, `destination` and `kind` (before the node is touched).
-pub fn connect_args(
-    source: &Bound<'_, PyAny>,
-    destination: &Bound<'_, PyAny>,
-    kind: Option<&Bound<'_, PyAny>>,
-) -> PyResult<ConnectArgs> {
-    Ok((endpoint_arg(source)?, endpoint_arg(destination)?, kind_arg(kind)?))
-}
 
 /// `core.connect` with Python arguments; the connection's id.
 pub fn connect(core: &mut NodeCore, (source, destination, kind): &ConnectArgs, priority: i32) -> PyResult<u64> {
@@ -161,9 +100,9 @@ pub fn json<T: serde::Serialize>(v: &T) -> PyResult<String> {
     serde_json::to_string(v).map_err(|e| errors::value_error(e.to_string()))
 }
 
-/// Define one of the standard library's classes on `core` (see [`crate::sim::define_stdlib_class`]).
-pub fn define_stdlib(core: &mut NodeCore, name: &str, options: &crate::sim::StdlibOptions) -> PyResult<()> {
-    let class = crate::sim::define_stdlib_class(name, options).map_err(errors::core)?;
+/// Define one of the standard library's classes on `core` (see [`define_stdlib_class`]).
+pub fn define_stdlib(core: &mut NodeCore, name: &str, options: &StdlibOptions) -> PyResult<()> {
+    let class = define_stdlib_class(name, options).map_err(errors::core)?;
     core.define(class).map_err(errors::core)
 }
 

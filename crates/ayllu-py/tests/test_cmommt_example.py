@@ -93,8 +93,7 @@ MARGIN_OVER_RANDOM, MARGIN_UNDER_RUST = 0.2, 0.12
 
 def test_as_processes_against_sim_serve_it_covers_like_the_rust_controller() -> None:
     ayllu = ayllu_bin()
-    if ayllu is None:
-        pytest.skip("the ayllu tool is not built (make test builds it first; or set AYLLU_BIN)")
+    assert ayllu is not None, "the ayllu tool is not built (make test builds it first; or set AYLLU_BIN)"
     ble = sim.run(sim.Scenario.sized("BLE", 3, 4, SEED).with_(duration=DURATION)).metrics["a_w"]
     random = max(
         sim.run(sim.Scenario.sized("Random", 3, 4, SEED).with_(duration=DURATION, controllers__wander_seed=w)).metrics[

@@ -86,7 +86,7 @@ def test_a_closed_node_cannot_start() -> None:
 
 def test_times_and_spans_out_of_range_are_refused_in_their_own_words() -> None:
     node = ayllu.Node(2, manual=True)
-    too_long = r"^seconds = 1e300 s is too long: seconds must be from 0 to 18446744073 s"
+    too_long = r"^seconds = 1e300 s is too long: a span of time is from 0 to 18446744073 s"
     with pytest.raises(ayllu.InvalidError, match=too_long):
         node.advance(1e300)
     with pytest.raises(ValueError, match=r"^tick must be at least 1 ns \(1e-9 s\), not 1e-12 s"):
@@ -107,7 +107,7 @@ def test_times_and_spans_out_of_range_are_refused_in_their_own_words() -> None:
 
 def test_advance_refuses_bad_seconds_naming_its_argument_not_a_period() -> None:
     # advance(-1) used to say "period of -1 s is negative; periods must be above zero".
-    range_ = r"seconds must be (finite, )?from 0 to 18446744073 s \(about 584 years\)"
+    range_ = r"a span of time is (finite, )?from 0 to 18446744073 s \(about 584 years\)"
     for advance in (ayllu.Node(5, manual=True).advance, ayllu.Team().advance):
         for bad, says in ((-1.0, "-1 s is negative"), (float("nan"), "NaN is not a number of seconds")):
             with pytest.raises(ayllu.InvalidError, match=rf"^seconds = {says}: {range_}$") as e:
@@ -115,9 +115,9 @@ def test_advance_refuses_bad_seconds_naming_its_argument_not_a_period() -> None:
             assert "period" not in str(e.value)
     # Other spans name theirs too, compactly.
     node = ayllu.Node(6, manual=True)
-    with pytest.raises(ayllu.InvalidError, match=r"^period = 1e300 s is too long: period must be from 0"):
+    with pytest.raises(ayllu.InvalidError, match=r"^period = 1e300 s is too long: a span of time is from 0"):
         node.connect(ayllu.local("A", "x"), ayllu.local("B", "y"), ayllu.suppress(1e300))
-    with pytest.raises(ayllu.InvalidError, match=r"^tick = inf is not a number of seconds: tick must be finite"):
+    with pytest.raises(ayllu.InvalidError, match=r"^tick = inf is not a number of seconds: a span of time is finite"):
         node.advance(1.0, tick=float("inf"))
 
 

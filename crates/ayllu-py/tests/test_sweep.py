@@ -3,10 +3,6 @@ those of a serial run."""
 
 from __future__ import annotations
 
-import importlib.util
-
-import pytest
-
 from ayllu import sim
 from test_sim import spinner
 
@@ -32,7 +28,6 @@ def test_a_python_controller_sweeps_too() -> None:
     assert hashes(sim.sweep(scen, spinner, workers=2)) == hashes(sim.sweep(scen, spinner, executor="serial"))
 
 
-@pytest.mark.skipif(importlib.util.find_spec("distributed") is None, reason="dask.distributed not installed")
 def test_a_dask_cluster_gives_the_serial_outcomes() -> None:
     from distributed import Client, LocalCluster
 
@@ -42,15 +37,3 @@ def test_a_dask_cluster_gives_the_serial_outcomes() -> None:
         Client(cluster) as client,
     ):
         assert hashes(sim.sweep(grid(), executor=client)) == hashes(serial)
-
-
-@pytest.mark.skipif(importlib.util.find_spec("ray") is None, reason="ray not installed (too heavy for the test venv)")
-def test_a_ray_cluster_gives_the_serial_outcomes() -> None:
-    import ray
-
-    serial = sim.sweep(grid(), executor="serial")
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
-    try:
-        assert hashes(sim.sweep(grid(), executor=ray)) == hashes(serial)
-    finally:
-        ray.shutdown()
