@@ -46,7 +46,7 @@ use zenoh::pubsub::Subscriber;
 use zenoh::sample::Locality;
 use zenoh::{Session, Wait};
 
-use crate::zenoh_socket::{key_for, nonce_of, sender, zenoh_config, Publishers, BROADCAST};
+use crate::zenoh_socket::{key_for, locators_of, nonce_of, sender, zenoh_config, Publishers, BROADCAST};
 use crate::zenoh_url::ZenohUrl;
 
 /// Node ids kept per side; beyond it new ones are dropped and counted (`table_full`).
@@ -306,6 +306,13 @@ impl Bridge {
         self.main.addr
     }
 
+    /// Where the bridge listens on the Zenoh side, as bound (give them to the Zenoh nodes as
+    /// `connect=`): its session's locators, `listen=tcp/127.0.0.1:0` resolved to the port the
+    /// system chose ([`crate::zenoh_socket::locators_of`]); empty without `listen=`.
+    pub fn zenoh_locators(&self) -> Vec<String> {
+        locators_of(&self.session)
+    }
+
     /// The Zenoh session (its id, for diagnostics).
     pub fn session(&self) -> &Session {
         &self.session
@@ -537,7 +544,8 @@ pub const USAGE: &str = "usage: ayllu-zenoh bridge --udp URL --zenoh URL [--for 
                          --zenoh 'zenoh://?mode=client&connect=tcp/203.0.113.5:7447&team=7'";
 
 /// `ayllu-zenoh bridge ARGS`: start a bridge, print one JSON line
-/// `{"bridge":ZID,"udp":"ADDR:PORT","team":N}` (the UDP address as bound: port 0 resolved),
+/// `{"bridge":ZID,"udp":"ADDR:PORT","zenoh":[LOCATOR,..],"team":N}` (the UDP address and the
+/// Zenoh side's listening locators as bound: port 0 resolved),
 /// then a status line every `--status-ms` (`{"t":..,"udp_nodes":[..],"zenoh_nodes":[..],
 /// "counts":{..}}`), until killed or `--for` seconds have passed. Returns the exit status (2:
 /// usage, 1: the bridge failed).
@@ -580,7 +588,7 @@ pub fn bridge_main(args: &[String]) -> std::process::ExitCode {
     println!(
         "{}",
         serde_json::json!({"bridge": bridge.session().zid().to_string(), "udp": bridge.udp_address().to_string(),
-                           "team": bridge.team})
+                           "zenoh": bridge.zenoh_locators(), "team": bridge.team})
     );
     let end = run_for.map(|d| started + d);
     let period = Duration::from_millis(status_ms);

@@ -206,6 +206,11 @@ impl ZenohSocket {
         &self.session
     }
 
+    /// Where the session listens, as bound ([`locators_of`]).
+    pub fn locators(&self) -> Vec<String> {
+        locators_of(&self.session)
+    }
+
     /// Datagrams dropped because the inbox was full.
     pub fn overflowed(&self) -> u64 {
         self.overflowed.load(Ordering::Relaxed)
@@ -215,6 +220,14 @@ impl ZenohSocket {
     pub fn unattributed(&self) -> u64 {
         self.unattributed.load(Ordering::Relaxed)
     }
+}
+
+/// Where `session` listens, as bound: its Zenoh locators (`tcp/127.0.0.1:45125`), port 0
+/// resolved to the port the system chose and an unspecified address (`0.0.0.0`) expanded to the
+/// host's non-loopback addresses. Empty for a session that listens nowhere (a client without
+/// `listen=`). A listener Zenoh is still retrying in the background appears once it is bound.
+pub fn locators_of(session: &Session) -> Vec<String> {
+    session.info().locators().wait().iter().map(|l| l.as_str().to_owned()).collect()
 }
 
 /// A session's address nonce (1 to 65535), from its random Zenoh id.

@@ -1,19 +1,28 @@
 //! [`ZenohTransport`]: the `udp://` transport's protocol engine on a [`ZenohSocket`], with the
 //! socket's own drops in its counters.
 //!
-//! Promises: every [`Transport`] method is the UDP transport's, unchanged, except the counters,
-//! which add what the Zenoh socket dropped before the engine saw it (N4: nothing is dropped
-//! uncounted), so `ayllu list` shows them beside the engine's:
+//! Promises: every [`Transport`] method is the UDP transport's, unchanged, except the address
+//! (below) and the counters, which add what the Zenoh socket dropped before the engine saw it
+//! (N4: nothing is dropped uncounted), so `ayllu list` shows them beside the engine's:
 //! * `zenoh_overflowed`: datagrams dropped because the socket's inbox was full
 //!   ([`ZenohSocket::overflowed`]);
 //! * `zenoh_unattributed`: samples without a valid sender attachment, so not from an Ayllu
 //!   node ([`ZenohSocket::unattributed`]).
 //!
 //! Like the engine's causes, each appears once it is not zero.
+//!
+//! [`Transport::address`] is where peers reach the node, as a peer's `connect=` names it: the
+//! session's listening locators, as bound ([`ZenohSocket::locators`]), comma-separated
+//! (`tcp/127.0.0.1:45125`; `listen=tcp/127.0.0.1:0` comes back with the port the system
+//! chose), or `None` for a node that listens nowhere (a client without `listen=`). The engine's
+//! own address (`NODE_ID_AS_IPV4:NONCE`, the node's name on the team's key expressions) stays
+//! [`ZenohTransport::zenoh_name`].
 
 use std::collections::VecDeque;
 
 use ayllu::transport::TransportWrapper;
+use std::net::SocketAddr;
+
 use ayllu::{Message, NodeId, Outgoing, SendTally, Transport, UdpTransport};
 
 use crate::zenoh_socket::ZenohSocket;
@@ -40,6 +49,13 @@ impl ZenohTransport {
     /// The Zenoh socket under the engine.
     pub fn socket(&self) -> &ZenohSocket {
         self.inner.socket()
+    }
+
+    /// The node's name on Zenoh: `NODE_ID_AS_IPV4:NONCE`, whose key expression
+    /// (`ayllu/<team>/n/<node>/<nonce>`) is its inbox (spec/zenoh.md); what the engine calls its
+    /// local address and puts in every sample's attachment.
+    pub fn zenoh_name(&self) -> Option<SocketAddr> {
+        self.inner.local_addr()
     }
 
     fn socket_counts(&self) -> [u64; 2] {
@@ -84,6 +100,10 @@ impl TransportWrapper for ZenohTransport {
                 out.push(((*name).to_owned(), n));
             }
         }
+    }
+    fn address(&self) -> Option<String> {
+        let locators = self.socket().locators();
+        (!locators.is_empty()).then(|| locators.join(","))
     }
     fn counters_generation(&self) -> u64 {
         // Every part only grows, so the sum changes whenever any of them does.

@@ -66,11 +66,12 @@ fn pair(kind: Kind) -> (Node, Node, Option<ayllu_zenoh::Router>) {
             (a, b, None)
         }
         Kind::ZenohPeer => {
-            let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
-            let a = Node::open(NodeId(1), &format!("zenoh://?scouting=0&listen=tcp/127.0.0.1:{port}&hello_ms=200"))
-                .expect("zenoh node");
-            let b = Node::open(NodeId(2), &format!("zenoh://?scouting=0&connect=tcp/127.0.0.1:{port}&hello_ms=200"))
-                .expect("zenoh node");
+            let a =
+                Node::open(NodeId(1), "zenoh://?scouting=0&listen=tcp/127.0.0.1:0&hello_ms=200").expect("zenoh node");
+            // Where a listens, as bound: the port the system chose.
+            let at = a.address().expect("a listens");
+            let b =
+                Node::open(NodeId(2), &format!("zenoh://?scouting=0&connect={at}&hello_ms=200")).expect("zenoh node");
             (a, b, None)
         }
         Kind::ZenohRouter => {

@@ -13,8 +13,9 @@
 //!   `why` from the UDP side see the Zenoh node, and the survivor takes a killed node's target
 //!   over.
 //!
-//! Ports: the UDP sockets bind port 0 (the bridge and nodes say what they got); Zenoh peers
-//! listen on loopback ports the system chose a moment before. Every wait is bounded and only
+//! Ports: every socket binds port 0 and its owner says what it got: the UDP sockets (the
+//! bridge's `udp`, `Node::address`) and the Zenoh listeners (`Bridge::zenoh_locators`, the
+//! bridge command's `zenoh` field, `Node::address`). Every wait is bounded and only
 //! ends early; timing never decides a verdict.
 
 mod common;
@@ -24,7 +25,7 @@ use std::time::{Duration, Instant};
 
 use ayllu::{ConnectOptions, ConnectionKind, ControlBody, Endpoint, Node, NodeId, ReplyBody, Value, WindowKind};
 use ayllu_zenoh::Bridge;
-use common::{count, free_port, ints, read, strings, Proc, BIN};
+use common::{count, ints, listening, read, strings, Proc, BIN};
 
 const TEAM: u32 = 12;
 const KEY: [u8; 32] = [0x5a; 32];
@@ -41,27 +42,30 @@ fn relay_node(id: u32, url: &str) -> Node {
 /// Nodes 1, 2 (udp://), 3, 4 (zenoh://) and the bridge between them.
 fn mixed_team() -> (Vec<Node>, Bridge) {
     ayllu_zenoh::register();
-    let zenoh_port = free_port();
     let bridge = Bridge::open(
         &format!("udp://127.0.0.1:0?team={TEAM}"),
-        &format!("zenoh://?scouting=0&listen=tcp/127.0.0.1:{zenoh_port}&team={TEAM}"),
+        &format!("zenoh://?scouting=0&listen=tcp/127.0.0.1:0&team={TEAM}"),
     )
     .expect("open the bridge");
+    let zenoh_at = bridge_locator(&bridge);
     let at = bridge.udp_address();
     let udp = |extra: &str| format!("udp://127.0.0.1:0?team={TEAM}&key={}&hello_ms=200&peer={at}{extra}", key_hex());
     let n1 = relay_node(1, &udp(""));
     let n1_at = n1.address().expect("node 1's address");
     let n2 = relay_node(2, &udp(&format!("&peer={n1_at}")));
-    let p3 = free_port();
     let zenoh = |extra: String| {
-        format!(
-            "zenoh://?scouting=0&connect=tcp/127.0.0.1:{zenoh_port}{extra}&team={TEAM}&key={}&hello_ms=200",
-            key_hex()
-        )
+        format!("zenoh://?scouting=0&connect={zenoh_at}{extra}&team={TEAM}&key={}&hello_ms=200", key_hex())
     };
-    let n3 = relay_node(3, &zenoh(format!("&listen=tcp/127.0.0.1:{p3}")));
-    let n4 = relay_node(4, &zenoh(format!("&connect=tcp/127.0.0.1:{p3}")));
+    let n3 = relay_node(3, &zenoh("&listen=tcp/127.0.0.1:0".into()));
+    let n4 = relay_node(4, &zenoh(format!("&connect={}", listening(&n3))));
     (vec![n1, n2, n3, n4], bridge)
+}
+
+/// Where a bridge opened with `listen=tcp/127.0.0.1:0` listens on Zenoh, as bound.
+fn bridge_locator(bridge: &Bridge) -> String {
+    let at = bridge.zenoh_locators();
+    assert!(at.len() == 1 && !at[0].ends_with(":0"), "the bridge's Zenoh locators: {at:?}");
+    at[0].clone()
 }
 
 /// Step every node and the bridge until `done` holds or [`PATIENCE`] passes; whether it held.
@@ -196,21 +200,22 @@ fn a_bridge_on_the_discovery_address_joins_zero_configuration_nodes() {
     ayllu_zenoh::register();
     let team = 40_000 + std::process::id() % 20_000;
     let discovery = "discovery=239.255.65.89:7400&ttl=0";
-    let zenoh_port = free_port();
     let mut bridge = Bridge::open(
         &format!("udp://0.0.0.0:0?{discovery}&team={team}"),
-        &format!("zenoh://?scouting=0&listen=tcp/127.0.0.1:{zenoh_port}&team={team}"),
+        &format!("zenoh://?scouting=0&listen=tcp/127.0.0.1:0&team={team}"),
     )
     .expect("open the bridge");
+    let zenoh_at = bridge_locator(&bridge);
     let key = key_hex();
     let n1 = relay_node(1, &format!("udp://0.0.0.0:0?{discovery}&team={team}&key={key}&hello_ms=200"));
-    let n2 = relay_node(
-        2,
-        &format!("zenoh://?scouting=0&connect=tcp/127.0.0.1:{zenoh_port}&team={team}&key={key}&hello_ms=200"),
-    );
+    let n2 = relay_node(2, &format!("zenoh://?scouting=0&connect={zenoh_at}&team={team}&key={key}&hello_ms=200"));
     let mut nodes = vec![n1, n2];
+    // Heard, and (the team is keyed) proven fresh: until a keyed round trip a sender's port
+    // messages are dropped as `not_fresh` (D-N5.4), so the single write below could be lost.
     let greeted = |n: &mut [Node]| {
-        n[0].peers().iter().any(|p| p.node == NodeId(2)) && n[1].peers().iter().any(|p| p.node == NodeId(1))
+        n[0].peers().iter().any(|p| p.node == NodeId(2))
+            && n[1].peers().iter().any(|p| p.node == NodeId(1))
+            && n.iter().all(|node| count(node, "senders_fresh") >= 1)
     };
     assert!(run_until(&mut nodes, &mut bridge, greeted), "HELLOs cross between discovery and Zenoh");
     for (from, v) in [(0usize, 21i64), (1, 22)] {
@@ -232,11 +237,10 @@ fn a_bridge_on_the_discovery_address_joins_zero_configuration_nodes() {
 
 #[test]
 fn a_keyed_bridge_relays_only_the_teams_datagrams() {
-    let zenoh_port = free_port();
     let key = key_hex();
     let mut bridge = Bridge::open(
         &format!("udp://127.0.0.1:0?team={TEAM}&key={key}"),
-        &format!("zenoh://?scouting=0&listen=tcp/127.0.0.1:{zenoh_port}&team={TEAM}"),
+        &format!("zenoh://?scouting=0&listen=tcp/127.0.0.1:0&team={TEAM}"),
     )
     .expect("open the bridge");
     let socket = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
@@ -262,7 +266,6 @@ fn a_keyed_bridge_relays_only_the_teams_datagrams() {
 #[test]
 fn the_papers_team_runs_across_the_bridge_command() {
     let key = key_hex();
-    let zenoh_port = free_port();
     let bridge = Proc::start(
         "bridge",
         &strings(&[
@@ -270,7 +273,7 @@ fn the_papers_team_runs_across_the_bridge_command() {
             "--udp",
             &format!("udp://127.0.0.1:0?team={TEAM}"),
             "--zenoh",
-            &format!("zenoh://?scouting=0&listen=tcp/127.0.0.1:{zenoh_port}&team={TEAM}"),
+            &format!("zenoh://?scouting=0&listen=tcp/127.0.0.1:0&team={TEAM}"),
             "--status-ms",
             "500",
             "--for",
@@ -279,9 +282,12 @@ fn the_papers_team_runs_across_the_bridge_command() {
     );
     let first = bridge.wait_line(PATIENCE, |j| j.get("udp").is_some()).expect("the bridge's first line");
     let at = first["udp"].as_str().unwrap().to_owned();
+    // The Zenoh side's listener, as bound (port 0 resolved).
+    let zenoh_at: Vec<&str> = first["zenoh"].as_array().into_iter().flatten().filter_map(|l| l.as_str()).collect();
+    assert!(zenoh_at.len() == 1 && !zenoh_at[0].ends_with(":0"), "the bridge's Zenoh locators: {first}");
+    let zenoh_at = zenoh_at[0].to_owned();
     let udp_url = format!("udp://127.0.0.1:0?team={TEAM}&key={key}&hello_ms=200&peer={at}");
-    let zenoh_url =
-        format!("zenoh://?scouting=0&connect=tcp/127.0.0.1:{zenoh_port}&team={TEAM}&key={key}&hello_ms=200");
+    let zenoh_url = format!("zenoh://?scouting=0&connect={zenoh_at}&team={TEAM}&key={key}&hello_ms=200");
     let node = |id: &str, url: &str, sight: &str| {
         Proc::start(
             &format!("n{id}"),

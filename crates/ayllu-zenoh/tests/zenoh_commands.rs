@@ -8,8 +8,9 @@
 //!   over the team's group key) and drive their bodies;
 //! * the Zenoh socket's drops reach the node's transport counters (`zenoh_unattributed`).
 //!
-//! Ports: peer-mode nodes listen on loopback ports the system chose a moment before (as in
-//! zenoh_team.rs); the router listens on port 0 and says which port it got. Multicast scouting
+//! Ports: peer-mode nodes listen on loopback port 0 and say which port they got (the
+//! `listening` line of `ayllu-zenoh node`, `Node::address` in this process); the router too
+//! (its locators). Multicast scouting
 //! is off, so nothing leaves the machine. Every wait is bounded and only ends early; timing
 //! never decides a verdict.
 
@@ -19,7 +20,7 @@ use std::process::Output;
 use std::time::{Duration, Instant};
 
 use ayllu::{Node, NodeId};
-use common::{free_port, strings, Proc};
+use common::{listening_line, strings, Proc};
 use serde_json::Value as Json;
 use zenoh::Wait;
 
@@ -48,17 +49,17 @@ fn peers(j: &Json) -> Vec<u64> {
 #[test]
 fn node_processes_over_zenoh_are_listed_explained_echoed_and_take_over() {
     let base = format!("zenoh://?scouting=0&team={TEAM}&key={}&hello_ms=200", key_hex());
-    let (p1, p2) = (free_port(), free_port());
     let node = |id: &str, url: String, sight: &str| {
         strings(&["node", "--id", id, "--udp", &url, "--sight", sight, "--status-ms", "300", "--for", "120"])
     };
-    let n1 = Proc::start("n1", &node("1", format!("{base}&listen=tcp/127.0.0.1:{p1}"), "1:0.9,2:0.5"));
+    let n1 = Proc::start("n1", &node("1", format!("{base}&listen=tcp/127.0.0.1:0"), "1:0.9,2:0.5"));
     let first = n1.wait_line(PATIENCE, |j| j.get("listening").is_some()).unwrap_or_else(|| panic!("{}", n1.report()));
     assert_eq!(first["node"], 1);
-    let n2 = Proc::start(
-        "n2",
-        &node("2", format!("{base}&listen=tcp/127.0.0.1:{p2}&connect=tcp/127.0.0.1:{p1}"), "1:0.6,2:0.8"),
-    );
+    // Where n1 listens, as bound: `tcp/127.0.0.1:PORT`, the port the system chose.
+    let at1 = listening_line(&first);
+    let n2 = Proc::start("n2", &node("2", format!("{base}&listen=tcp/127.0.0.1:0&connect={at1}"), "1:0.6,2:0.8"));
+    let second = n2.wait_line(PATIENCE, |j| j.get("listening").is_some()).unwrap_or_else(|| panic!("{}", n2.report()));
+    let at2 = listening_line(&second);
 
     // HELLOs both ways, then one claimer per target: n1 sees target 1 best, n2 target 2.
     let give_up = Instant::now() + PATIENCE;
@@ -71,7 +72,7 @@ fn node_processes_over_zenoh_are_listed_explained_echoed_and_take_over() {
     }
     assert!(settled, "the two nodes never settled on one claimer per target\n{}\n{}", n1.report(), n2.report());
 
-    let tool_url = format!("{base}&connect=tcp/127.0.0.1:{p1}&connect=tcp/127.0.0.1:{p2}");
+    let tool_url = format!("{base}&connect={at1}&connect={at2}");
     // `list`: both nodes heard, under the names the command gave them.
     let out = tool(&["list", "--json"], &tool_url);
     assert!(out.status.success(), "list failed");
@@ -209,16 +210,15 @@ fn the_distributed_simulator_runs_over_a_zenoh_router() {
 #[test]
 fn the_sockets_drops_are_in_the_transport_counters() {
     ayllu_zenoh::register();
-    let port = free_port();
     let mut node = Node::open(
         NodeId(1),
-        &format!("zenoh://?scouting=0&listen=tcp/127.0.0.1:{port}&team={TEAM}&key={}&hello_ms=200", key_hex()),
+        &format!("zenoh://?scouting=0&listen=tcp/127.0.0.1:0&team={TEAM}&key={}&hello_ms=200", key_hex()),
     )
     .expect("open the node");
     let mut config = zenoh::Config::default();
     config.insert_json5("scouting/multicast/enabled", "false").unwrap();
     config.insert_json5("listen/endpoints", "[]").unwrap();
-    config.insert_json5("connect/endpoints", &format!("[\"tcp/127.0.0.1:{port}\"]")).unwrap();
+    config.insert_json5("connect/endpoints", &format!("[\"{}\"]", common::listening(&node))).unwrap();
     let intruder = zenoh::open(config).wait().expect("a session that is not an Ayllu node");
     let count =
         |node: &Node| node.transport_counters().iter().find(|(c, _)| c == "zenoh_unattributed").map_or(0, |(_, n)| *n);

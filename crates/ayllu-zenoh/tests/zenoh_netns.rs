@@ -358,10 +358,29 @@ fn cross_subsumption_through_a_router(tag: &str, subnet: u8, tls: bool) {
         ok.unwrap_or_else(|| panic!("never settled within {:?}: {last}\n{}", bounds.settle, diagnostics(&everyone)));
     let settle_time = settled_at - started;
 
-    // The tool, from B, through the router: n1's claim write-inhibits n2's OBS1.Rotate.
-    let mut why = net.command(B, BIN);
-    why.args(["why", "2", "OBS1.Rotate", "--json", "--timeout", "15", "--udp", &url(B, 2)]);
-    let out = why.output().expect("run ayllu-zenoh why");
+    // The tool, from B, through the router: n1's claim write-inhibits n2's OBS1.Rotate. A Zenoh
+    // client tries its `connect=` once and gives up (Zenoh's default for clients); over TLS
+    // that single attempt failed about one run in five (`Unable to connect to any of
+    // [tls/10.S.2.1:PORT]`) while the nodes, with the same certificate, were connected. So a
+    // tool that could not connect is started again, until START_LIMIT; any other failure is
+    // the verdict.
+    let why_from_b = || {
+        let mut why = net.command(B, BIN);
+        why.args(["why", "2", "OBS1.Rotate", "--json", "--timeout", "15", "--udp", &url(B, 2)]);
+        why.output().expect("run ayllu-zenoh why")
+    };
+    let mut attempts = 0;
+    let out = wait_for(START_LIMIT, Duration::from_millis(200), || {
+        attempts += 1;
+        let out = why_from_b();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        if !out.status.success() && stderr.contains("Unable to connect") {
+            eprintln!("why from B, attempt {attempts}: {}", stderr.trim());
+            return None;
+        }
+        Some(out)
+    })
+    .unwrap_or_else(|| panic!("why: no Zenoh session within {START_LIMIT:?} ({attempts} attempts)"));
     assert!(out.status.success(), "why: {}", String::from_utf8_lossy(&out.stderr));
     let why: Json = serde_json::from_slice(&out.stdout).expect("why --json prints JSON");
     assert_eq!(why["internal_output_blocked"], "WriteInhibited", "{why}");

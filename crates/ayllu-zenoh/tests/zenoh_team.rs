@@ -3,9 +3,9 @@
 //! and their replies, and a forged datagram counted; then the same traffic between Zenoh
 //! clients of a router (a router-mode session in this process). Run by `make test-zenoh`.
 //!
-//! Ports: each node listens on a loopback port the system chose (a TCP socket bound to port 0,
-//! read back and closed just before Zenoh binds it) and connects to the earlier nodes; Zenoh's
-//! multicast scouting is off, so nothing leaves the machine. Every wait is bounded in time and
+//! Ports: each node listens on loopback port 0 and connects to the earlier nodes at the ports
+//! they report (`Node::address`: the session's listening locators, the port the system chose);
+//! the router too. Zenoh's multicast scouting is off, so nothing leaves the machine. Every wait is bounded in time and
 //! timing never decides a verdict: a wait only ends early.
 
 mod common;
@@ -14,7 +14,7 @@ use std::time::{Duration as StdDuration, Instant as StdInstant};
 
 use ayllu::{ConnectOptions, ConnectionKind, ControlBody, Endpoint, Node, NodeId, ReplyBody, Value};
 use ayllu_wire::{encode_datagram, PortMessage, WireMessage};
-use common::{count, free_port, read, relay_node};
+use common::{count, listening, read, relay_node};
 use zenoh::Wait;
 
 const TEAM: u32 = 12;
@@ -28,33 +28,32 @@ fn key_hex() -> String {
 
 /// Nodes 1..=n, node k listening on its own loopback port and connecting to nodes 1..k-1;
 /// each with Relay behaviors SRC and DST (int ports In, Out), joined to group `team`.
-fn team(n: u32) -> (Vec<Node>, Vec<u16>) {
+/// Returns the nodes and where each listens (`tcp/127.0.0.1:PORT`).
+fn team(n: u32) -> (Vec<Node>, Vec<String>) {
     ayllu_zenoh::register();
     let mut nodes = Vec::new();
-    let mut ports: Vec<u16> = Vec::new();
+    let mut endpoints: Vec<String> = Vec::new();
     for id in 1..=n {
-        let port = free_port();
-        let connect: String = ports.iter().map(|p| format!("&connect=tcp/127.0.0.1:{p}")).collect();
+        let connect: String = endpoints.iter().map(|e| format!("&connect={e}")).collect();
         let url = format!(
-            "zenoh://?mode=peer&scouting=0&listen=tcp/127.0.0.1:{port}{connect}&team={TEAM}&key={}&hello_ms=200&name=n{id}",
+            "zenoh://?mode=peer&scouting=0&listen=tcp/127.0.0.1:0{connect}&team={TEAM}&key={}&hello_ms=200&name=n{id}",
             key_hex()
         );
-        nodes.push(relay_node(id, &url, &["team"]));
-        ports.push(port);
+        let node = relay_node(id, &url, &["team"]);
+        endpoints.push(listening(&node));
+        nodes.push(node);
     }
-    (nodes, ports)
+    (nodes, endpoints)
 }
 
 /// Nodes 1..=n in Zenoh client mode, each connected only to `router` (no route between
 /// clients but through it), with the same behaviors as [`team`].
-fn client_team(n: u32, router: u16) -> Vec<Node> {
+fn client_team(n: u32, router: &str) -> Vec<Node> {
     ayllu_zenoh::register();
     (1..=n)
         .map(|id| {
-            let url = format!(
-                "zenoh://?mode=client&scouting=0&connect=tcp/127.0.0.1:{router}&team={TEAM}&key={}&hello_ms=200",
-                key_hex()
-            );
+            let url =
+                format!("zenoh://?mode=client&scouting=0&connect={router}&team={TEAM}&key={}&hello_ms=200", key_hex());
             relay_node(id, &url, &["team"])
         })
         .collect()
@@ -148,7 +147,7 @@ fn port_messages_groups_and_control_requests_cross_zenoh() {
 
 #[test]
 fn a_forged_datagram_is_counted_not_applied() {
-    let (mut nodes, ports) = team(2);
+    let (mut nodes, endpoints) = team(2);
     assert!(run_until(&mut nodes, everyone_greeted));
     nodes[0]
         .connect(&Endpoint::local("SRC", "Out"), &Endpoint::group("team", "DST", "In"), ConnectionKind::Normal)
@@ -162,7 +161,7 @@ fn a_forged_datagram_is_counted_not_applied() {
     config.insert_json5("mode", "\"peer\"").unwrap();
     config.insert_json5("scouting/multicast/enabled", "false").unwrap();
     config.insert_json5("listen/endpoints", "[]").unwrap();
-    config.insert_json5("connect/endpoints", &format!("[\"tcp/127.0.0.1:{}\"]", ports[1])).unwrap();
+    config.insert_json5("connect/endpoints", &format!("[\"{}\"]", endpoints[1])).unwrap();
     let intruder = zenoh::open(config).wait().expect("intruder session");
     let forged = encode_datagram(
         TEAM,
@@ -180,7 +179,8 @@ fn a_forged_datagram_is_counted_not_applied() {
         })],
     )
     .unwrap();
-    let from_node_1 = nodes[0].address().expect("node 1 has an address");
+    // Node 1's Zenoh name (`0.0.0.1:NONCE`), where node 2 heard it from.
+    let from_node_1 = nodes[1].peers().into_iter().find(|p| p.node == NodeId(1)).expect("node 2 heard node 1").addr;
     let from: std::net::SocketAddrV4 = from_node_1.parse().expect("an IPv4 address");
     let mut attachment = from.ip().octets().to_vec();
     attachment.extend(from.port().to_be_bytes());
@@ -243,9 +243,8 @@ fn round_trip_figures() {
         );
     }
     ayllu_zenoh::register();
-    let port = free_port();
-    let (a, b) = echo_pair(&format!("zenoh://?scouting=0&listen=tcp/127.0.0.1:{port}&hello_ms=200"), |_| {
-        format!("zenoh://?scouting=0&connect=tcp/127.0.0.1:{port}&listen=tcp/127.0.0.1:{}&hello_ms=200", free_port())
+    let (a, b) = echo_pair("zenoh://?scouting=0&listen=tcp/127.0.0.1:0&hello_ms=200", |a| {
+        format!("zenoh://?scouting=0&connect={}&listen=tcp/127.0.0.1:0&hello_ms=200", listening(a))
     });
     measure("zenoh:// (tcp link)", a, b);
     let (a, b) = echo_pair("udp://127.0.0.1:0?hello_ms=200", |a| {
@@ -258,13 +257,15 @@ fn round_trip_figures() {
 /// through it: the team key's MAC verifies end to end, and port, group and LIST traffic cross.
 #[test]
 fn clients_talk_through_a_router() {
-    let port = free_port();
     let mut config = zenoh::Config::default();
     config.insert_json5("mode", "\"router\"").unwrap();
     config.insert_json5("scouting/multicast/enabled", "false").unwrap();
-    config.insert_json5("listen/endpoints", &format!("[\"tcp/127.0.0.1:{port}\"]")).unwrap();
+    config.insert_json5("listen/endpoints", "[\"tcp/127.0.0.1:0\"]").unwrap();
     let router = zenoh::open(config).wait().expect("router session");
-    let mut nodes = client_team(3, port);
+    // Where the router listens, as bound (port 0 resolved).
+    let at = ayllu_zenoh::zenoh_socket::locators_of(&router);
+    assert!(at.len() == 1 && !at[0].ends_with(":0"), "the router's locators: {at:?}");
+    let mut nodes = client_team(3, &at[0]);
     assert!(run_until(&mut nodes, everyone_greeted), "N6: HELLOs cross the router");
     nodes[0]
         .connect(&Endpoint::local("SRC", "Out"), &Endpoint::node(NodeId(2), "DST", "In"), ConnectionKind::Normal)

@@ -1,5 +1,5 @@
 //! The `ayllu-zenoh` tool against a node of this process over `zenoh://` (Zenoh peer mode on
-//! a loopback port the system chose): `list NODE`, `write` then `why` answer as the `ayllu`
+//! loopback port 0, the port the system chose read back from the node): `list NODE`, `write` then `why` answer as the `ayllu`
 //! tool does over `udp://`. Every wait is bounded (the tool's own `--timeout`, and a deadline
 //! here); timing never decides a verdict.
 
@@ -20,18 +20,17 @@ fn tool(node: &mut Node, args: &[&str], url: &str) -> Output {
 #[test]
 fn the_tool_lists_writes_and_explains_over_zenoh() {
     ayllu_zenoh::register();
-    let port = common::free_port();
     let key: String = "5a".repeat(32);
     let mut node = Node::open(
         NodeId(1),
-        &format!("zenoh://?scouting=0&listen=tcp/127.0.0.1:{port}&team={TEAM}&key={key}&hello_ms=200&name=robot"),
+        &format!("zenoh://?scouting=0&listen=tcp/127.0.0.1:0&team={TEAM}&key={key}&hello_ms=200&name=robot"),
     )
     .expect("open the node");
     let mut relay = BehaviorClass::new("Relay");
     relay.port(PortSpec::new("In", 0i64)).unwrap();
     node.define(relay).unwrap();
     node.create("Relay", "MOTOR").unwrap();
-    let url = format!("zenoh://?scouting=0&connect=tcp/127.0.0.1:{port}&team={TEAM}&key={key}");
+    let url = format!("zenoh://?scouting=0&connect={}&team={TEAM}&key={key}", common::listening(&node));
 
     let out = tool(&mut node, &["list", "1"], &url);
     let text = String::from_utf8_lossy(&out.stdout);

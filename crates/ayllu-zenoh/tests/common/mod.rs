@@ -25,10 +25,21 @@ pub fn key_hex(key: &[u8; 32]) -> String {
     key.iter().map(|b| format!("{b:02x}")).collect()
 }
 
-/// A loopback port free a moment ago (the system chose it).
-pub fn free_port() -> u16 {
-    let l = std::net::TcpListener::bind("127.0.0.1:0").expect("bind port 0");
-    l.local_addr().expect("local address").port()
+/// Where a node opened with `listen=tcp/127.0.0.1:0` listens, as its `connect=` takes it
+/// (`tcp/127.0.0.1:45125`): the port the system chose, read back from the node's Zenoh session
+/// (`Transport::address`), so a test never picks a port it does not hold.
+pub fn listening(node: &Node) -> String {
+    let at = node.address().unwrap_or_else(|| panic!("node {} listens nowhere", node.id().0));
+    assert!(!at.contains(',') && !at.ends_with(":0"), "one listener, its port resolved: {at}");
+    at
+}
+
+/// The endpoint of a `{"listening":...}` line of an `ayllu-zenoh node` (or `sim robot`)
+/// started with `listen=tcp/127.0.0.1:0`, as `connect=` takes it.
+pub fn listening_line(j: &Json) -> String {
+    let at = j["listening"].as_str().unwrap_or_else(|| panic!("no endpoint in {j}")).to_owned();
+    assert!(!at.contains(',') && !at.ends_with(":0"), "one listener, its port resolved: {at}");
+    at
 }
 
 /// Owned arguments for [`Proc::start`].
