@@ -31,7 +31,7 @@ STEP = scripts/test-step
 # which the integration tests run) and the C library (target/debug/libayllu_c.a).
 WORKSPACE_TESTS = $(CARGO) test --workspace --exclude ayllu-ros2
 C_TEST_BUILDS = DEBUG_LIB_BUILD="$(WORKSPACE_TESTS) --no-run --quiet" TOOL_BUILD="$(WORKSPACE_TESTS) --no-run --quiet" \
-	TEAM_TEST="$(WORKSPACE_TESTS) --test cmommt_team"
+	TEAM_TEST="$(abspath scripts/workspace-test) cmommt_team"
 test:
 	@$(STEP) start
 	$(STEP) "install test tools" env PYTHON=$(PYTHON) scripts/install-test-tools

@@ -105,6 +105,9 @@ typedef struct ay_ctx ay_ctx;
 // A running node (opaque): the runtime's `Node` with its clock and transport.
 typedef struct ay_node ay_node;
 
+// A world served to robots whose controllers run elsewhere (opaque; module docs).
+typedef struct ay_served_world ay_served_world;
+
 // A port of the running behavior, as its processes name it (index in its class: the
 // implicit BLE ports `Local`, `Inhibit`, `Best` are 0, 1, 2).
 typedef struct {
@@ -154,6 +157,33 @@ typedef struct {
   // Index in the node's table of handles.
   uint32_t index;
 } ay_port_ref;
+
+// What to serve (`ay_served_world_open`). Zero-initialize it and set what you need.
+typedef struct {
+  // A scenario file (TOML, docs/cmommt.md, "Studies as files"): its world, team, seed,
+  // duration, kills and radio. NULL: a sized world of `robots` robots and `targets` targets
+  // from `seed` (`ayllu sim serve --robots --targets --seed`).
+  const char *scenario;
+  // Robots of a sized world (1 to 999); 0 with a scenario file.
+  uint32_t robots;
+  // Targets of a sized world (1 to 64); 0 with a scenario file.
+  uint32_t targets;
+  // The sized world's seed.
+  uint64_t seed;
+  // World seconds to serve; 0: the scenario's (300 for a sized world).
+  double duration;
+  // Serve until `ay_served_world_stop` rather than for the duration.
+  bool until_stopped;
+  // The bodies' URLs: `urls_len` of them, one per robot, or one for all in which `{i}` stands
+  // for the robot's number (one URL without `{i}` for several bodies must bind port 0).
+  const char *const *urls;
+  // How many URLs `urls` holds.
+  size_t urls_len;
+  // Seconds `ay_served_world_start` waits for every body to hear its controller; 0: 10.
+  double wait;
+  // World seconds between status lines; 0: 1.
+  double status_every;
+} ay_serve_config;
 
 // What `ayllu.h`'s macros call when a call they make fails: the status (an `ay_status`
 // value), what was being done (`ayIntPort(TargetX)`), and where (`file`, `line`); the
@@ -1436,6 +1466,95 @@ ay_status ay_node_report_json(ay_node *node, char **out);
 // `node` is NULL or a pointer from this library; `mapping_file` is NULL or NUL-terminated.
 ay_status ay_ros2_body(ay_node *node, const char *mapping_file);
 
+// Open the bodies (their sockets are bound now) and build the world that `config` describes.
+// Nothing runs until `ay_served_world_poll`, `_start` or `_run`.
+//
+// Ownership: borrows `config` and its strings for the call; `*out` belongs to the caller:
+// free it with `ay_served_world_free`. Thread-safety: any thread. Errors: `AY_ERR_NULL`
+// (config, out, urls, a URL), `AY_ERR_INVALID` (a scenario file that cannot be read or is out
+// of bounds, a sized world out of bounds, more than 999 robots, URLs that do not fit the team,
+// a library built without `sim`), `AY_ERR_PERIOD` (duration, wait or status_every negative or
+// not finite), `AY_ERR_TRANSPORT` (a URL that does not parse, a socket the system refused).
+//
+// # Safety
+// `config` is NULL or valid, its strings NULL or NUL-terminated, `urls` NULL or valid for
+// `urls_len` pointers; `out` is NULL or valid for a write.
+ay_status ay_served_world_open(const ay_serve_config *config, ay_served_world **out);
+
+// Before the start: step every body's node once (greetings go out, replies come in) and store
+// in `*linked` (if not NULL) whether every body hears its controller now. Lets a program that
+// also steps its robots' nodes on this thread wait for them (`ay_served_world_start` waits
+// without stepping anything else).
+//
+// Thread-safety: module docs. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`.
+//
+// # Safety
+// `world` is NULL or a pointer from this library; `linked` is NULL or valid for a write.
+ay_status ay_served_world_poll(ay_served_world *world, bool *linked);
+
+// Wait until every body hears its controller, `wait` seconds have passed since the first poll,
+// or the world is stopped; then start its clock. `*start` (if not NULL) gets the start line's
+// JSON (`{"start":true,"waited":..,"missing":[..],...}`). Called again, gives the same line.
+//
+// Ownership: `*start` belongs to the caller: free it with `ay_string_free`. Thread-safety:
+// module docs. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`.
+//
+// # Safety
+// `world` is NULL or a pointer from this library; `start` is NULL or valid for a write.
+ay_status ay_served_world_start(ay_served_world *world, char **start);
+
+// Serve `seconds` of world time (at least one 50 ms tick), or to the end if `seconds` is 0,
+// paced on the real clock (the call sleeps between ticks); starts the world first if
+// `ay_served_world_start` was not called. `*events` (if not NULL) gets a JSON array of the
+// kill and status lines of that stretch. Once the run is done, serves nothing (`[]`).
+//
+// Ownership: `*events` belongs to the caller: free it with `ay_string_free`. Thread-safety:
+// module docs. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_PERIOD` (seconds negative or not
+// finite), `AY_ERR_TRANSPORT` or another code for a port a body could not write (the run is
+// then stopped where it was).
+//
+// # Safety
+// `world` is NULL or a pointer from this library; `events` is NULL or valid for a write.
+ay_status ay_served_world_run(ay_served_world *world, double seconds, char **events);
+
+// Whether the run is over (its duration served, or stopped) into `*done`.
+//
+// Thread-safety: module docs. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`.
+//
+// # Safety
+// `world` is NULL or a pointer from this library; `done` is NULL or valid for a write.
+ay_status ay_served_world_done(ay_served_world *world, bool *done);
+
+// Ask the world to stop: a wait ends, no further tick runs, the done line says `"stopped":true`.
+//
+// Thread-safety: any thread, any time, also while another thread is in `ay_served_world_run`
+// (not while the world is being freed). Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`.
+//
+// # Safety
+// `world` is NULL or a pointer from this library.
+ay_status ay_served_world_stop(ay_served_world *world);
+
+// End the run (stopping it if it is not done) and compute its metrics: `*done` (if not NULL)
+// gets the done line's JSON (`{"done":true,"t":..,"stopped":..,"resyncs":..,"metrics":{..},
+// "radio":{..}}`). Called again, gives the same line.
+//
+// Ownership: `*done` belongs to the caller: free it with `ay_string_free`. Thread-safety:
+// module docs. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`.
+//
+// # Safety
+// `world` is NULL or a pointer from this library; `done` is NULL or valid for a write.
+ay_status ay_served_world_finish(ay_served_world *world, char **done);
+
+// Close a served world: its bodies' sockets go (their robots see their bodies go silent).
+//
+// Ownership: takes the world; the handle is invalid afterwards, and later calls with it return
+// `AY_ERR_HANDLE`. Thread-safety: not while another thread uses it. Errors: `AY_ERR_NULL`,
+// `AY_ERR_HANDLE` (freed already).
+//
+// # Safety
+// `world` is NULL or a pointer from this library (checked against the live handles).
+ay_status ay_served_world_free(ay_served_world *world);
+
 // The message of the last failed call on this thread ("" if none failed yet): which function,
 // and what to fix.
 //
@@ -1522,6 +1641,15 @@ ay_status ay_std_observer(ay_node *node,
 // for n = 1..`targets`), SONAR (`Ranges`) and BASE (`Rotate`, `Translate`), and send BASE to
 // the body the server `ayllu sim serve` runs for robot K (node 1000+K). The server feeds
 // VISION and SONAR once its body hears this node (its `--udp` URL names this node's address).
+//
+// It also creates `LINK` and attaches its driver (`ayllu_sim::served_robot::attach`), so the
+// robot reports to the server what its metrics need with no code of the program's: every
+// turn of the node, `LINK.Drive` (the target driving it, read from the observer layers
+// `OBS1`..`OBS{targets}` by name, as `MakeObserver` names them) when it changes, and four
+// times a second `LINK.Sent` and `LINK.Bytes` (the messages the node sent to anyone but its
+// body during its turns, and their encoded size). The server's word is the program's to
+// act on: `LINK.Alive` (int) turns 0 when the scenario kills the robot
+// (`ay_node_read_int(node, "LINK", "Alive", &alive)`).
 //
 // Thread-safety: the node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`,
 // `AY_ERR_INVALID` (a node id that is no robot number, `targets` 0 or above 64, a body

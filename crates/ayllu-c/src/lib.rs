@@ -33,6 +33,7 @@ mod registry;
 pub mod report;
 pub mod ros2;
 mod seconds;
+pub mod served_world;
 pub mod status;
 pub mod stdlib;
 

@@ -16,6 +16,7 @@ pub(crate) enum Kind {
     Node,
     Clock,
     Class,
+    ServedWorld,
 }
 
 impl Kind {
@@ -24,6 +25,7 @@ impl Kind {
             Kind::Node => "node",
             Kind::Clock => "clock",
             Kind::Class => "behavior class",
+            Kind::ServedWorld => "served world",
         }
     }
 }

@@ -153,6 +153,15 @@ pub unsafe extern "C" fn ay_std_observer(
 /// the body the server `ayllu sim serve` runs for robot K (node 1000+K). The server feeds
 /// VISION and SONAR once its body hears this node (its `--udp` URL names this node's address).
 ///
+/// It also creates `LINK` and attaches its driver (`ayllu_sim::served_robot::attach`), so the
+/// robot reports to the server what its metrics need with no code of the program's: every
+/// turn of the node, `LINK.Drive` (the target driving it, read from the observer layers
+/// `OBS1`..`OBS{targets}` by name, as `MakeObserver` names them) when it changes, and four
+/// times a second `LINK.Sent` and `LINK.Bytes` (the messages the node sent to anyone but its
+/// body during its turns, and their encoded size). The server's word is the program's to
+/// act on: `LINK.Alive` (int) turns 0 when the scenario kills the robot
+/// (`ay_node_read_int(node, "LINK", "Alive", &alive)`).
+///
 /// Thread-safety: the node's thread. Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_BUSY`,
 /// `AY_ERR_INVALID` (a node id that is no robot number, `targets` 0 or above 64, a body
 /// already installed).
@@ -167,19 +176,19 @@ pub unsafe extern "C" fn ay_sim_body(node: *mut ay_node, targets: u32) -> ay_sta
         if targets == 0 || targets > 64 {
             return Err(Fail::invalid(format!("targets must be 1 to 64, got {targets}")));
         }
-        with_node(node, |s| install_sim_body(s.node.core_mut(), targets as usize))
+        with_node(node, |s| install_sim_body(&mut s.node, targets as usize))
     })
 }
 
 #[cfg(feature = "sim")]
-fn install_sim_body(core: &mut ayllu::NodeCore, targets: usize) -> Result<(), Fail> {
-    Ok(ayllu_sim::served_robot::install(core, targets)?)
+fn install_sim_body(node: &mut ayllu::Node, targets: usize) -> Result<(), Fail> {
+    Ok(ayllu_sim::served_robot::attach(node, targets)?)
 }
 
 /// Without the simulator the call exists (the header and a program are the same in both
 /// builds) and says how to get it.
 #[cfg(not(feature = "sim"))]
-fn install_sim_body(_core: &mut ayllu::NodeCore, _targets: usize) -> Result<(), Fail> {
+fn install_sim_body(_node: &mut ayllu::Node, _targets: usize) -> Result<(), Fail> {
     Err(Fail::invalid(
         "libayllu was built without the simulator's robot body: build it with the `sim` feature (the default)",
     ))

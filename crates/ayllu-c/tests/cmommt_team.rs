@@ -3,7 +3,9 @@
 //! loopback UDP, for 45 s of world time. The verdict is the coverage the server measures
 //! (A_w, on the world's ground truth), against references computed here in-process for the
 //! same world, seed and duration: the Rust BLE controller (the same Fig. 2) and Random (the
-//! best of wander seeds 1..=10).
+//! best of wander seeds 1..=10). The robots' reports over LINK (written by the driver
+//! `ay_sim_body` attaches, no code of the program's) must give the server switches, and
+//! messages and bytes per robot per second within a factor two of the Rust controller's.
 //!
 //! Run by `make -C crates/ayllu-c test` (which builds the C robots first and passes their path
 //! in `AYLLU_C_CMOMMT` and the `ayllu` binary's in `AYLLU_BIN`); ignored by a plain
@@ -120,8 +122,9 @@ fn env_path(name: &str) -> String {
         .unwrap_or_else(|_| panic!("{name} is not set: run this test with `make -C crates/ayllu-c test`"))
 }
 
-/// In-process references in the same world: the best Random over wander seeds 1..=10, and BLE.
-fn references() -> (f64, f64) {
+/// In-process references in the same world: the best Random over wander seeds 1..=10, and BLE
+/// (its A_w and its radio emissions per robot per second).
+fn references() -> (f64, f64, f64) {
     let random = (1..=10)
         .map(|w| {
             let mut s = Scenario::sized(Controller::Random, ROBOTS, TARGETS, SEED).duration(DURATION);
@@ -131,9 +134,8 @@ fn references() -> (f64, f64) {
         .fold(0.0, f64::max);
     let ble = run(&Scenario::sized(Controller::Ble, ROBOTS, TARGETS, SEED).duration(DURATION))
         .expect("in-process BLE run")
-        .metrics
-        .a_w;
-    (random, ble)
+        .metrics;
+    (random, ble.a_w, ble.msgs_per_robot_s)
 }
 
 #[test]
@@ -141,7 +143,7 @@ fn references() -> (f64, f64) {
 fn three_c_robots_against_a_served_world_cover_like_the_rust_controller() {
     let (cmommt, ayllu) = (env_path("AYLLU_C_CMOMMT"), env_path("AYLLU_BIN"));
     // First, so that they do not compete with the real-time processes for the CPU.
-    let (random, ble) = references();
+    let (random, ble, ble_msgs) = references();
     // The robots first, each on a port of its own choosing, each told the earlier ones'
     // addresses (the BLE group by unicast); then the server, each body greeting its robot.
     let mut robots: Vec<Proc> = Vec::new();
@@ -179,6 +181,19 @@ fn three_c_robots_against_a_served_world_cover_like_the_rust_controller() {
         done["resyncs"],
         started.elapsed().as_secs_f64()
     );
+    eprintln!("server's final metrics: {} radio: {}", done["metrics"], done["radio"]);
+    // What the C robots report over LINK with no code of their own (ay_sim_body attaches the
+    // driver): the drive, for switches; their radio emissions and bytes, near the Rust
+    // controller's in-process.
+    let metric = |k: &str| done["metrics"][k].as_f64().unwrap_or_else(|| panic!("metrics.{k} in {done}"));
+    let (msgs, bytes, switches) = (metric("msgs_per_robot_s"), metric("bytes_per_robot_s"), metric("switches_per_min"));
+    assert!(switches > 0.0, "no switch reported by the C robots (LINK.Drive): {done}");
+    assert!(
+        msgs >= ble_msgs / 2.0 && msgs <= ble_msgs * 2.0,
+        "the C robots reported {msgs:.1} messages per robot per second, in-process BLE sends {ble_msgs:.1}: {done}"
+    );
+    assert!(bytes > 10.0 * msgs, "{bytes:.0} bytes per robot per second for {msgs:.1} messages: {done}");
+    assert!(done["radio"]["sent"].as_u64().is_some_and(|n| n > 0), "{done}");
     let diagnostics =
         || robots.iter().map(|r| format!("--- {}: {}", r.name, r.stderr())).collect::<Vec<_>>().join("\n");
     assert!(

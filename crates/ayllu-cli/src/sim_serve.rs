@@ -1,60 +1,43 @@
-//! The simulator's distributed mode: `ayllu sim serve` hosts the world, `ayllu sim robot` runs
-//! one robot's controller as its own OS process. They talk real UDP, as a team of real robots
-//! and their drivers would; the controllers talk to each other (BLE group `Peers`) by the
-//! udp:// transport's group delivery (subnet broadcast, or unicast to the peers that announced
-//! the group). Over `zenoh://` (the `ayllu-zenoh` tool, docs/zenoh.md) the same run crosses
-//! Zenoh instead: the URLs are the only difference.
+//! The simulator's distributed mode from the command line: `ayllu sim serve` hosts the world,
+//! `ayllu sim robot` runs one robot's controller as its own OS process. They talk real UDP, as a
+//! team of real robots and their drivers would; the controllers talk to each other (BLE group
+//! `Peers`) by the udp:// transport's group delivery (subnet broadcast, or unicast to the peers
+//! that announced the group). Over `zenoh://` (the `ayllu-zenoh` tool, docs/zenoh.md) the same
+//! run crosses Zenoh instead: the URLs are the only difference.
+//!
+//! `sim serve` is [`ayllu_sim::served_world::ServedWorld`] (what the world, its bodies, kills,
+//! radio and metrics promise is said there, and docs/cmommt.md, "The distributed mode") plus
+//! argument parsing, printing its events as JSON lines, and Ctrl-C / SIGTERM wired to its stop
+//! (the final metrics line is still printed). The one thing it adds is the ROS 2 fleet (`--ros2`):
+//! a [`BodyHost`] that puts every body behind ROS 2 topics, here because `ayllu_ros2` depends on
+//! `ayllu_sim`. `sim robot` is the robot's side ([`ayllu_sim::served_robot`], the robot's
+//! [`ayllu_sim::served_radio::RadioLink`] applying the scenario's radio), its controller built by
+//! [`ayllu_sim::controller::build`] unchanged.
 //!
 //! Node ids (docs/cli.md): controller of robot K = node K (1..=N, as in the in-process
-//! simulator); its body on the server = node [`BODY_BASE`] + K. The server connects each body's
-//! `VISION.Target{n}Angle/Bottom` and `SONAR.Ranges` to the same ports of node K; the robot
-//! connects its `BASE.Rotate/Translate` to the same ports of node `BODY_BASE + K`. Neither side
-//! is told the other's address: a body greets the addresses its URL names (`peer=`,
-//! `broadcast=`) and its controller greets back, and from then on each routes by node id.
+//! simulator); its body on the server = node [`BODY_BASE`] + K.
 //!
-//! With `--scenario FILE` (the same file for `sim serve` and every `sim robot`) the run is that
-//! scenario's: its world, team, seed and duration; its kills, carried out by the server at their
-//! instants (the world marks the robot dead, its body stops, and its process is told to stop
-//! through `LINK.Alive` and exits); and its radio, applied to the controllers' real traffic by
-//! each robot's [`ayllu_sim::served_radio::RadioLink`] (loss, delay and jitter drawn at the
-//! receiver; range and partitions from the reachability the server computes on the world's true
-//! positions and sends each robot every sensing tick). docs/cmommt.md, "The distributed mode".
-//!
-//! Promises:
-//! * the world is the in-process one: the scenario's (`Scenario::sized(.., robots, targets,
-//!   seed)` without a file), the same seed, a 50 ms tick (camera and sonar at 10 Hz) paced on the
-//!   real clock; coverage is measured on the world's ground truth with the same [`Meter`];
-//! * the controllers are built by [`ayllu_sim::controller::build`] unchanged, on a node whose
-//!   VISION/SONAR/BASE are local behaviors of the same classes, fed and read over the network;
-//! * a body whose motor commands stop arriving stops the robot ([`WATCHDOG`]), as a Pioneer's
-//!   firmware does;
-//! * stdout carries only JSON lines (a robot's first says where it listens, then one per
-//!   `--status-ms`); both commands stop cleanly on
-//!   Ctrl-C / SIGTERM (the server still prints its final metrics line).
-//!
-//! * the metrics are the in-process ones: switches from the drive each robot reports
-//!   (`LINK.Drive`), messages and bytes per robot per second from the radio emissions each robot
-//!   counts (`LINK.Sent`, `LINK.Bytes`: what it last reported, at most 250 ms old), kills judged
-//!   together as in-process ([`ayllu_sim::scenario::apply_due_kills`]).
-//!
-//! `centralized` and `planner` are refused: the first needs the world's truth, the second a base
-//! station, which only exist in-process.
+//! Promises: stdout carries only JSON lines (a robot's first says where it listens, then one per
+//! `--status-ms`; the server's are [`ayllu_sim::served_world::Event`]s, serialized); both
+//! commands stop cleanly on Ctrl-C / SIGTERM. `centralized` and `planner` are refused: the first
+//! needs the world's truth, the second a base station, which only exist in-process.
 
 use std::io::Write as _;
 use std::path::PathBuf;
 use std::time::{Duration as StdDuration, Instant as StdInstant};
 
-use ayllu::stdlib::{BASE, SONAR, VISION};
-use ayllu::{ConnectionKind, Endpoint, MonotonicClock, Node, NodeId, PortRef, UdpConfig};
-use ayllu_sim::body::Body;
+use ayllu::stdlib::{SONAR, VISION};
+use ayllu::{MonotonicClock, Node, NodeId, PortRef};
 use ayllu_sim::controller::{build, Brain, Controller, ControllerConfig};
-use ayllu_sim::metrics::Meter;
-use ayllu_sim::radio::{RadioConfig, Station};
-use ayllu_sim::scenario::{apply_due_kills, node_id, priorities, Scenario};
+use ayllu_sim::radio::RadioConfig;
+use ayllu_sim::scenario::{priorities, Scenario};
 use ayllu_sim::scenario_file;
-use ayllu_sim::served_radio::{reach_row, LinkHandle, RadioLink};
-use ayllu_sim::served_robot::LINK;
-use ayllu_sim::world::{Command, World, WorldConfig};
+use ayllu_sim::served_radio::{LinkHandle, RadioLink};
+use ayllu_sim::served_robot::{LinkDriver, LINK};
+use ayllu_sim::served_world::{self, BodyHost, BodyLink, Event, ServeConfig, ServeError, ServedWorld};
+use ayllu_sim::world::WorldConfig;
+#[cfg(feature = "ros2")]
+use ayllu_sim::world::{Command, Pose};
 use clap::Args;
 use serde_json::{json, Value as Json};
 
@@ -66,15 +49,9 @@ use crate::{parse_node, positive_secs, signals};
 pub use ayllu_sim::served_robot::BODY_BASE;
 /// Robots are numbered 1..=N below the bodies' ids.
 const MAX_ROBOTS: u64 = BODY_BASE as u64 - 1;
-/// The world's tick and its camera/sonar divider (the in-process defaults).
-/// A body whose `BASE` has not been written for this long stops (the controller is gone).
-const WATCHDOG: ayllu::Duration = ayllu::Duration::from_secs(1);
-/// How often a robot reports its radio counts to the server (`LINK.Sent`, `LINK.Bytes`).
-const REPORT_PERIOD: StdDuration = StdDuration::from_millis(250);
-/// The world's tick: a robot looks at its drive and the server's word this often.
+/// The world's tick: a robot looks at the server's word this often (its drive: its
+/// `LinkDriver`, every `ayllu_sim::served_robot::DRIVE_PERIOD`, the same).
 const TICK: StdDuration = StdDuration::from_millis(50);
-/// If the server falls this far behind the real clock, it stops trying to catch up.
-const MAX_LAG: StdDuration = StdDuration::from_millis(500);
 /// How long a ROS 2 body's sonar must stay stale before its robot takes the server for gone: a
 /// scan or two lost on a lossy network (best-effort, 10 Hz) must not stop the robot. (A UDP
 /// body's peer entry already outlives three silent HELLO periods.)
@@ -199,50 +176,32 @@ fn open_transport(url: &str, id: NodeId, name: &str) -> Result<Box<dyn ayllu::Tr
     Ok(ayllu::transport::open_named(url, id, name)?)
 }
 
-/// The URL of robot `k`'s body (1-based) from the `--udp` list (see [`ServeArgs::udp`]).
-fn body_url(urls: &[String], robots: usize, k: usize) -> Result<String, Fail> {
-    match urls {
-        [one] => {
-            if robots > 1 && !one.contains("{i}") {
-                // zenoh:// (and other registered schemes) bind what `listen=` names.
-                let fixed = match UdpConfig::parse(one) {
-                    Ok(c) => c.bind.port() != 0,
-                    Err(_) => ayllu::transport::url_setting(one, "listen").is_some_and(|l| !l.ends_with(":0")),
-                };
-                if fixed {
-                    return Err(Fail::usage(format!(
-                        "one --udp URL for {robots} bodies must use `{{i}}` or bind port 0 (got `{one}`)"
-                    )));
-                }
+/// World seconds served when neither --duration nor a scenario says (the UDP mode).
+const DEFAULT_DURATION: f64 = 300.0;
+
+/// A served world's refusal as the tool says it: in `--udp`'s words, exit code 2 for the
+/// arguments' shape; the library's message otherwise.
+impl From<ServeError> for Fail {
+    fn from(e: ServeError) -> Fail {
+        match e {
+            ServeError::TooManyRobots { robots } => {
+                Fail::usage(format!("{robots} robots: distributed mode takes at most {MAX_ROBOTS}"))
             }
-            Ok(one.replace("{i}", &k.to_string()))
+            ServeError::UrlCount { urls, robots } => {
+                Fail::usage(format!("{urls} --udp URLs for {robots} robots: give one per robot, or one"))
+            }
+            ServeError::SharedFixedPort { url, robots } => {
+                Fail::usage(format!("one --udp URL for {robots} bodies must use `{{i}}` or bind port 0 (got `{url}`)"))
+            }
+            other => Fail::error(other.to_string()),
         }
-        many if many.len() == robots => Ok(many[k - 1].clone()),
-        many => Err(Fail::usage(format!("{} --udp URLs for {robots} robots: give one per robot, or one", many.len()))),
     }
 }
 
-/// One robot's body on the server: a node of its own, the body's ports, the controller it
-/// feeds.
-struct BodyNode {
-    node: Node,
-    body: Body,
-    rotate: PortRef,
-    translate: PortRef,
-    controller: NodeId,
-    /// `LINK.Reach`, `Alive`, `Drive`, `Sent`, `Bytes` (ayllu_sim::served_robot).
-    link: [PortRef; 5],
-    /// With --ros2: `ODOM.X`, `Y`, `Yaw`, `Translate`, `Rotate`, and the counter that says
-    /// whether the controller's `cmd_vel` samples arrive.
-    ros2: Option<([PortRef; 5], String)>,
-}
-
-/// World seconds served when neither --duration nor a scenario says (the UDP mode).
-const DEFAULT_DURATION: f64 = 300.0;
-/// "Until stopped": a world time no run reaches (about 31 years).
-const UNTIL_STOPPED: f64 = 1e9;
-
-/// The DDS participant every ROS 2 body of the fleet shares.
+/// The DDS participant every ROS 2 body of the fleet shares: the [`BodyHost`] of `sim serve
+/// --ros2`, which puts each body on an in-process node (it talks to nobody over Ayllu) behind a
+/// ROS 2 body (`ayllu_ros2::fleet`). It lives here, not in `ayllu_sim`, because `ayllu_ros2`
+/// depends on `ayllu_sim`.
 #[cfg(feature = "ros2")]
 struct Fleet(ayllu_ros2::Context);
 
@@ -265,66 +224,21 @@ impl Fleet {
     }
 }
 
-#[cfg(not(feature = "ros2"))]
-struct Fleet;
-
-#[cfg(not(feature = "ros2"))]
-impl Fleet {
-    fn open(_domain: Option<u16>) -> Result<Fleet, Fail> {
-        Err(Fail::error(crate::controllers::ROS2_MISSING))
-    }
-}
-
-impl BodyNode {
-    fn open(k: u32, url: &str, targets: usize, world: &WorldConfig) -> Result<BodyNode, Fail> {
-        let id = body_id(k);
-        let mut node = Node::new(MonotonicClock::new(), open_transport(url, id, &format!("body-{k}"))?);
-        let body = Body::install(node.core_mut(), targets, world)?;
-        let controller = NodeId(k);
-        let mut sensors: Vec<(&str, String)> = (1..=targets)
-            .flat_map(|n| [(VISION, format!("Target{n}Angle")), (VISION, format!("Target{n}Bottom"))])
-            .collect();
-        sensors.push((SONAR, "Ranges".to_owned()));
-        for (behavior, port) in &sensors {
-            node.connect(
-                &Endpoint::local(behavior, port),
-                &Endpoint::node(controller, behavior, port),
-                ConnectionKind::Normal,
-            )?;
-        }
-        ayllu_sim::served_robot::install_body_link(node.core_mut(), k)?;
-        BodyNode::assemble(node, body, controller, None)
+#[cfg(feature = "ros2")]
+impl BodyHost for Fleet {
+    fn url(&self, _robot: u32) -> Result<String, ServeError> {
+        Ok(format!("mem://ayllu-sim-ros2-{}", std::process::id()))
     }
 
-    /// The handles every served body keeps: BASE's motor ports and LINK's five.
-    fn assemble(
-        node: Node,
-        body: Body,
-        controller: NodeId,
-        ros2: Option<([PortRef; 5], String)>,
-    ) -> Result<BodyNode, Fail> {
-        let core = node.core();
-        let rotate = core.port(BASE, "Rotate")?;
-        let translate = core.port(BASE, "Translate")?;
-        let link = [
-            core.port(LINK, "Reach")?,
-            core.port(LINK, "Alive")?,
-            core.port(LINK, "Drive")?,
-            core.port(LINK, "Sent")?,
-            core.port(LINK, "Bytes")?,
-        ];
-        Ok(BodyNode { node, body, rotate, translate, controller, link, ros2 })
-    }
-
-    /// Robot `k`'s body as ROS 2 topics (`ayllu_ros2::fleet`): a node of its own on an
-    /// in-process transport (it talks to nobody over Ayllu), its body behind a ROS 2 body.
-    #[cfg(feature = "ros2")]
-    fn open_ros2(k: u32, fleet: &Fleet, targets: usize, world: &WorldConfig) -> Result<BodyNode, Fail> {
-        let id = body_id(k);
-        let mut node = Node::open(id, &format!("mem://ayllu-sim-ros2-{}", std::process::id()))?;
-        let body = Body::install(node.core_mut(), targets, world)?;
-        let driver = ayllu_ros2::fleet::install_served(node.core_mut(), k, targets, world, &fleet.0)
-            .map_err(|e| Fail::error(e.to_string()))?;
+    fn install(
+        &mut self,
+        k: u32,
+        node: &mut Node,
+        targets: usize,
+        world: &WorldConfig,
+    ) -> Result<Box<dyn BodyLink>, ServeError> {
+        let driver = ayllu_ros2::fleet::install_served(node.core_mut(), k, targets, world, &self.0)
+            .map_err(|e| ServeError::Host(e.to_string()))?;
         node.attach(driver);
         let core = node.core();
         let odom = ayllu_ros2::fleet::ODOM;
@@ -339,235 +253,106 @@ impl BodyNode {
         // once counted from the ROS 2 node's match events, which the fleet's bodies, sharing one
         // participant, drain from one channel: a body could miss its controller's.)
         let heard = format!("/robot{k}/cmd_vel taken");
-        BodyNode::assemble(node, body, NodeId(k), Some((odom, heard)))
+        Ok(Box::new(Ros2Link { odom, heard }))
+    }
+}
+
+/// A ROS 2 body of the fleet: `ODOM.X`, `Y`, `Yaw`, `Translate`, `Rotate` (published as
+/// `/robotK/odom`), and the counter that says whether the controller's `cmd_vel` samples arrive.
+#[cfg(feature = "ros2")]
+struct Ros2Link {
+    odom: [PortRef; 5],
+    heard: String,
+}
+
+#[cfg(feature = "ros2")]
+impl BodyLink for Ros2Link {
+    fn linked(&self, node: &Node) -> bool {
+        node.core().body_counters().iter().any(|(k, n)| *k == self.heard && *n > 0)
     }
 
-    #[cfg(not(feature = "ros2"))]
-    fn open_ros2(_k: u32, _fleet: &Fleet, _targets: usize, _world: &WorldConfig) -> Result<BodyNode, Fail> {
-        Err(Fail::error(crate::controllers::ROS2_MISSING))
-    }
-
-    /// With --ros2: the pose and the command now, for `/robotK/odom`.
-    fn odometry(&mut self, pose: &ayllu_sim::world::Pose, command: &Command) -> Result<(), Fail> {
-        let Some((odom, _)) = &self.ros2 else { return Ok(()) };
-        let odom = *odom;
-        let now = self.node.now();
-        let core = self.node.core_mut();
-        for (port, x) in odom.iter().zip([pose.x, pose.y, pose.theta, command.translate, command.rotate]) {
+    /// The pose and the command now, for `/robotK/odom`.
+    fn tick(&mut self, node: &mut Node, pose: &Pose, command: &Command) -> Result<(), ServeError> {
+        let now = node.now();
+        let core = node.core_mut();
+        for (port, x) in self.odom.iter().zip([pose.x, pose.y, pose.theta, command.translate, command.rotate]) {
             core.write(now, *port, x)?;
         }
         Ok(())
     }
+}
 
-    /// An int the robot reports on `LINK` (0 until it has).
-    fn reported(&self, port: usize) -> u64 {
-        self.node.core().read(self.link[port]).ok().and_then(|v| v.as_int()).unwrap_or(0).max(0) as u64
-    }
+#[cfg(not(feature = "ros2"))]
+struct Fleet;
 
-    /// Tell the robot who it hears now and whether it is alive.
-    fn tell(&mut self, reach: &[f64], alive: bool) -> Result<(), Fail> {
-        let now = self.node.now();
-        let core = self.node.core_mut();
-        core.write(now, self.link[0], ayllu::Value::vector(reach))?;
-        core.write(now, self.link[1], i64::from(alive))?;
-        Ok(())
-    }
-
-    /// Whether the body has heard its controller (it can send it the sensors); with --ros2,
-    /// whether its controller's `cmd_vel` samples have arrived.
-    fn linked(&self) -> bool {
-        match &self.ros2 {
-            Some((_, heard)) => self.node.core().body_counters().iter().any(|(k, n)| k == heard && *n > 0),
-            None => self.node.peers().iter().any(|p| p.node == self.controller),
-        }
-    }
-
-    /// The motor command, or a stop if the controller has been silent for [`WATCHDOG`].
-    fn command(&self) -> Command {
-        let core = self.node.core();
-        let now = self.node.now();
-        let recent = |p| core.last_accepted(p).ok().flatten().is_some_and(|t| now < t + WATCHDOG);
-        if recent(self.rotate) || recent(self.translate) {
-            self.body.command(core)
-        } else {
-            Command::default()
-        }
+#[cfg(not(feature = "ros2"))]
+impl Fleet {
+    fn open(_domain: Option<u16>) -> Result<Fleet, Fail> {
+        Err(Fail::error(crate::controllers::ROS2_MISSING))
     }
 }
 
-/// `ayllu sim serve`.
+/// Never made ([`Fleet::open`] refuses without ROS 2): the call site is the same in both builds.
+#[cfg(not(feature = "ros2"))]
+impl BodyHost for Fleet {
+    fn url(&self, _robot: u32) -> Result<String, ServeError> {
+        Err(ServeError::Host(crate::controllers::ROS2_MISSING.to_owned()))
+    }
+
+    fn install(&mut self, _: u32, _: &mut Node, _: usize, _: &WorldConfig) -> Result<Box<dyn BodyLink>, ServeError> {
+        Err(ServeError::Host(crate::controllers::ROS2_MISSING.to_owned()))
+    }
+}
+
+/// `ayllu sim serve`: the arguments made into a [`ServeConfig`], the [`ServedWorld`]'s events
+/// printed as JSON lines, Ctrl-C and SIGTERM wired to its stop.
 pub fn serve(args: &ServeArgs) -> Result<(), Fail> {
-    // The in-process world, targets numbered by decreasing priority (OBSn follows TargetN),
-    // with the in-process tick and sensing rate, as `scenario::Sim` runs it.
-    let scenario = match &args.scenario {
-        Some(path) => read_scenario(path)?,
+    let (scenario, until_stopped) = match &args.scenario {
+        Some(path) => (read_scenario(path)?, false),
         // With --ros2 and no duration the world runs until stopped, as a robot's driver does.
-        None => Scenario::sized(Controller::Random, args.robots as usize, args.targets as usize, args.seed)
-            .duration(args.duration.unwrap_or(if args.ros2 { UNTIL_STOPPED } else { DEFAULT_DURATION })),
+        None => (
+            Scenario::sized(Controller::Random, args.robots as usize, args.targets as usize, args.seed)
+                .duration(args.duration.unwrap_or(DEFAULT_DURATION)),
+            args.ros2 && args.duration.is_none(),
+        ),
     };
     let robots = scenario.robots;
-    let targets = scenario.world.targets.len();
-    if robots as u64 > MAX_ROBOTS {
-        return Err(Fail::usage(format!("{robots} robots: distributed mode takes at most {MAX_ROBOTS}")));
+    if robots > served_world::MAX_ROBOTS {
+        return Err(ServeError::TooManyRobots { robots }.into());
     }
-    let (dt, sense_every) = (scenario.dt, u64::from(scenario.sense_every.max(1)));
-    let config = scenario.world.by_priority();
-    let prios: Vec<f64> = config.targets.iter().map(|t| t.priority).collect();
-    let mut bodies = Vec::with_capacity(robots);
-    if args.ros2 {
-        let fleet = Fleet::open(args.domain)?;
-        for k in 1..=robots {
-            bodies.push(BodyNode::open_ros2(k as u32, &fleet, targets, &config)?);
-        }
+    let mut config = ServeConfig::new(scenario, Vec::new());
+    config.until_stopped = until_stopped;
+    config.wait = StdDuration::from_secs_f64(args.wait);
+    config.status_every = StdDuration::from_millis(args.status_ms);
+    let mut world = if args.ros2 {
+        ServedWorld::open_with(config, &mut Fleet::open(args.domain)?)?
     } else {
-        for k in 1..=robots {
-            bodies.push(BodyNode::open(k as u32, &body_url(&args.udp, robots, k)?, targets, &config)?);
+        // The URLs' shape, then their scheme (`udp://`, or one the tool registered).
+        config.urls = served_world::body_urls(&args.udp, robots)?;
+        for url in &config.urls {
+            crate::client::network_url(url)?;
         }
-    }
-    let mut world = World::new(config.clone(), robots, scenario.seed);
+        ServedWorld::open(config)?
+    };
+    world.stop_when(signals::stopped);
     signals::install();
     let mut out = std::io::stdout().lock();
-
-    // Let every body find its controller before the clock starts, so that the run measures
-    // the team, not the time its processes took to start.
-    let waited = StdInstant::now();
-    let limit = StdDuration::from_secs_f64(args.wait);
-    while !bodies.iter().all(BodyNode::linked) && waited.elapsed() < limit && !signals::stopped() {
-        for b in &mut bodies {
-            b.node.step();
-        }
-        std::thread::sleep(StdDuration::from_millis(20));
-    }
-    let missing: Vec<u32> = bodies.iter().filter(|b| !b.linked()).map(|b| b.controller.0).collect();
-    if !missing.is_empty() {
-        eprintln!(
-            "ayllu: warning: no controller heard for robots {missing:?} after {:.1}s; starting anyway",
-            args.wait
-        );
-    }
-    let start_line = json!({
-        "start": true,
-        "waited": round3(waited.elapsed().as_secs_f64()),
-        "missing": missing,
-        "arena": config.arena,
-        "robots": robots,
-        "targets": targets,
-        "seed": scenario.seed,
-        "duration": scenario.duration,
-        "kills": scenario.kills.len(),
-        "loss": scenario.radio.loss,
-    });
-    writeln!(out, "{start_line}")?;
-    out.flush()?;
-
-    let mut meter = Meter::new(&prios, robots);
-    // The brains are in the robot processes: each reports the target driving it.
-    let mut drives = vec![0u32; robots];
-    let mut commands = vec![Command::default(); robots];
-    let mut kills_done = vec![false; scenario.kills.len()];
-    let mut reach = vec![0.0; robots];
-    let ticks = (scenario.duration / dt).round().max(1.0) as u64;
-    let status_every = ((args.status_ms as f64 / 1000.0 / dt).round() as u64).max(1);
-    let (mut weighted_time, mut resyncs) = (0.0, 0u64);
-    let mut anchor = StdInstant::now();
-    let mut anchor_tick = 0u64;
-    let mut tick = 0u64;
-    while tick < ticks && !signals::stopped() {
-        let due = anchor + StdDuration::from_secs_f64((tick + 1 - anchor_tick) as f64 * dt);
-        let now = StdInstant::now();
-        if due > now {
-            std::thread::sleep(due - now);
-        } else if now - due > MAX_LAG {
-            // Stalled (machine overloaded): keep world time, restart the pacing from here.
-            anchor = now;
-            anchor_tick = tick;
-            resyncs += 1;
-        }
-        tick += 1;
-        let t = tick as f64 * dt;
-        let killed = apply_due_kills(&scenario.kills, &mut kills_done, t, &mut world);
-        if !killed.is_empty() {
-            meter.killed_together(t, &world, &killed);
-            for &i in &killed {
-                writeln!(out, "{}", json!({"t": round3(t), "kill": node_id(i).0}))?;
+    world.run(|event| -> Result<(), Fail> {
+        if let Event::Start(start) = event {
+            if !start.missing.is_empty() {
+                eprintln!(
+                    "ayllu: warning: no controller heard for robots {:?} after {:.1}s; starting anyway",
+                    start.missing, args.wait
+                );
             }
-            out.flush()?;
         }
-        let sense = tick.is_multiple_of(sense_every) || !killed.is_empty();
-        if sense {
-            world.index();
-        }
-        let stations: Vec<Station> = world
-            .robots
-            .iter()
-            .enumerate()
-            .map(|(i, r)| Station { node: node_id(i), x: r.pose.x, y: r.pose.y, alive: r.alive })
-            .collect();
-        for (i, b) in bodies.iter_mut().enumerate() {
-            let alive = world.robots[i].alive;
-            b.odometry(&world.robots[i].pose, &commands[i])?;
-            if sense {
-                // Who robot i hears now: alive, in range, on its side of every partition.
-                reach_row(&scenario.radio, t, &stations, i, &mut reach);
-                b.tell(&reach, alive)?;
-                if alive {
-                    let now = b.node.now();
-                    b.body.sense(b.node.core_mut(), now, &mut world, i)?;
-                }
-            }
-            // Sends this frame, then takes in what the controller wrote since the last tick.
-            b.node.step();
-            commands[i] = b.command();
-            drives[i] = b.reported(2) as u32;
-        }
-        world.step(dt, &commands);
-        let (observed, weighted) = meter.observe(t, dt, &world, &drives);
-        weighted_time += dt * weighted;
-        if tick.is_multiple_of(status_every) {
-            let robots: Vec<Json> = world
-                .robots
-                .iter()
-                .zip(&bodies)
-                .zip(&commands)
-                .map(|((r, b), c)| {
-                    json!({
-                        "id": b.controller.0,
-                        "x": round3(r.pose.x),
-                        "y": round3(r.pose.y),
-                        "theta": round3(r.pose.theta),
-                        "translate": round3(c.translate),
-                        "rotate": round3(c.rotate),
-                        "linked": b.linked(),
-                        "alive": r.alive,
-                        "drive": b.reported(2),
-                    })
-                })
-                .collect();
-            let line = json!({
-                "t": round3(t),
-                "observed": observed,
-                "weighted": round3(weighted),
-                "a_w": round3(weighted_time / t),
-                "robots": robots,
-            });
-            writeln!(out, "{line}")?;
-            out.flush()?;
-        }
-    }
-    let t = tick as f64 * dt;
-    let sent: u64 = bodies.iter().map(|b| b.reported(3)).sum();
-    let bytes: u64 = bodies.iter().map(|b| b.reported(4)).sum();
-    let metrics = meter.finish(t, robots, sent, bytes);
-    let done = json!({
-        "done": true,
-        "t": round3(t),
-        "stopped": tick < ticks,
-        "resyncs": resyncs,
-        "metrics": serde_json::to_value(&metrics).map_err(|e| Fail::error(format!("metrics as JSON: {e}")))?,
-        "radio": {"sent": sent, "bytes": bytes},
-    });
-    writeln!(out, "{done}")?;
-    out.flush()?;
+        // An event is plain data (numbers, strings, lists): writing it fails only as its
+        // output does, so that is the error it returns.
+        serde_json::to_writer(&mut out, event).map_err(std::io::Error::from)?;
+        writeln!(out)?;
+        out.flush()?;
+        Ok(())
+    })?;
     Ok(())
 }
 
@@ -607,6 +392,10 @@ pub fn robot(args: &RobotArgs) -> Result<(), Fail> {
         None => ayllu_sim::served_robot::install(node.core_mut(), targets)?,
     }
     let brain = build(node.core_mut(), controller, &prios, &cfg)?;
+    // Our word to the server, for the metrics (the drive when it changes, the radio counts four
+    // times a second), and its word on whom this robot hears: written and read by the node's
+    // own loop, as for a C or Python robot (ayllu_sim::served_robot, "What a robot reports").
+    node.attach(LinkDriver::new(targets).with_brain(brain.clone()).with_radio(link.clone()));
     let body = body_id(k);
     let vision: Vec<PortRef> =
         (1..=targets).map(|n| node.core().port(VISION, &format!("Target{n}Angle"))).collect::<Result<_, _>>()?;
@@ -616,14 +405,12 @@ pub fn robot(args: &RobotArgs) -> Result<(), Fail> {
     let end = args.duration.map(|s| start + StdDuration::from_secs_f64(s));
     let period = StdDuration::from_millis(args.status_ms);
     let mut next_status = start + period;
-    let mut next_report = start;
     let mut out = std::io::stdout().lock();
     writeln!(out, "{}", listening_json(&node))?;
     out.flush()?;
     let mut was_linked = false;
     let ros2 = args.ros2.is_some();
     let mut heard_at = start;
-    let mut last_drive = None;
     loop {
         let now = StdInstant::now();
         if signals::stopped() || end.is_some_and(|e| now >= e) {
@@ -632,10 +419,7 @@ pub fn robot(args: &RobotArgs) -> Result<(), Fail> {
         if ros2 && body_linked(&node, body, true) {
             heard_at = now;
         }
-        // The server's word: whom this robot hears, and whether it is still alive.
-        if let Ok(ayllu::Value::Vector(reach)) = node.read(LINK, "Reach") {
-            link.set_reach(&reach);
-        }
+        // The server's word: whether this robot is still alive (whom it hears: the driver).
         if node.read(LINK, "Alive").ok().and_then(|v| v.as_int()) == Some(0) {
             let mut status = robot_status(&node, &brain, &vision, body_linked(&node, body, args.ros2.is_some()), &link);
             status["killed"] = json!(true);
@@ -643,19 +427,6 @@ pub fn robot(args: &RobotArgs) -> Result<(), Fail> {
             out.flush()?;
             eprintln!("ayllu: sim robot {k}: killed by the scenario; stopping");
             return Ok(());
-        }
-        // Our word to the server, for the metrics: the drive when it changes, the radio counts
-        // four times a second.
-        let drive = brain.drive(node.core());
-        if last_drive != Some(drive) {
-            node.write(LINK, "Drive", i64::from(drive))?;
-            last_drive = Some(drive);
-        }
-        if now >= next_report {
-            let c = link.counts();
-            node.write(LINK, "Sent", c.sent as i64)?;
-            node.write(LINK, "Bytes", c.bytes as i64)?;
-            next_report = (next_report + REPORT_PERIOD).max(now);
         }
         if now >= next_status {
             // A robot whose server went away stops too (its body is forgotten after three
@@ -676,7 +447,7 @@ pub fn robot(args: &RobotArgs) -> Result<(), Fail> {
             out.flush()?;
             next_status = (next_status + period).max(now);
         }
-        // Wake at least every tick of the world, to follow the drive and the server's word.
+        // Wake at least every tick of the world, to follow the server's word.
         let mut until = next_status.min(now + TICK);
         if let Some(e) = end {
             until = until.min(e);
@@ -744,24 +515,6 @@ fn robot_status(node: &Node, brain: &Brain, vision: &[PortRef], linked: bool, li
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn body_urls_come_one_per_robot_or_from_a_template() {
-        let one = ["udp://127.0.0.1:0?peer=10.0.0.{i}:7400".to_owned()];
-        assert_eq!(body_url(&one, 3, 2).unwrap(), "udp://127.0.0.1:0?peer=10.0.0.2:7400");
-        let shared = ["udp://0.0.0.0:0?broadcast=10.0.0.255:7400".to_owned()];
-        assert_eq!(body_url(&shared, 3, 3).unwrap(), shared[0]);
-        let fixed = ["udp://127.0.0.1:7500".to_owned()];
-        assert!(body_url(&fixed, 3, 1).is_err(), "three bodies cannot share one fixed port");
-        assert!(body_url(&fixed, 1, 1).is_ok());
-        let many: Vec<String> = (1..=3).map(|k| format!("udp://127.0.0.1:{}", 7500 + k)).collect();
-        assert_eq!(body_url(&many, 3, 3).unwrap(), "udp://127.0.0.1:7503");
-        assert!(body_url(&many[..2], 3, 1).is_err());
-        let zenoh = ["zenoh://?listen=tcp/127.0.0.1:7447&team=1".to_owned()];
-        assert!(body_url(&zenoh, 2, 1).is_err(), "two bodies cannot listen on one fixed port");
-        let zenoh = ["zenoh://?listen=tcp/127.0.0.1:0&connect=tcp/127.0.0.1:7447".to_owned()];
-        assert!(body_url(&zenoh, 2, 1).is_ok());
-    }
 
     #[test]
     fn centralized_and_planner_are_refused_in_distributed_mode() {

@@ -210,7 +210,11 @@ fn wild_seconds_and_rates_print_compactly_with_the_accepted_range() {
     let cases = [
         (Duration::try_from_secs_f64(1e300).unwrap_err(), "1e300 s", "from 0 to 18446744073 s (about 584 years)"),
         (Duration::try_from_secs_f64(-1e300).unwrap_err(), "-1e300 s", "from 0 to 18446744073 s (about 584 years)"),
-        (Duration::try_from_secs_f64(f64::NAN).unwrap_err(), "NaN s", "from 0 to 18446744073 s (about 584 years)"),
+        (
+            Duration::try_from_secs_f64(f64::NAN).unwrap_err(),
+            "NaN is not a number of seconds",
+            "from 0 to 18446744073 s (about 584 years)",
+        ),
         (Duration::try_from_secs_f64(-0.5).unwrap_err(), "-0.5 s", "from 0 to 18446744073 s (about 584 years)"),
         (Duration::try_from_hz(1e-300).unwrap_err(), "1e-300 Hz", "a period from 1 ns to 584 years"),
         (Duration::try_from_hz(1e300).unwrap_err(), "1e300 Hz", "a period from 1 ns to 584 years"),

@@ -15,6 +15,7 @@ pub mod errors;
 pub mod node;
 pub mod recording;
 pub mod ros2;
+pub mod served;
 pub mod sim;
 pub mod stdlib;
 pub mod value;
@@ -36,6 +37,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(node::stop_all, m)?)?;
     m.add_function(wrap_pyfunction!(recording::check_recording, m)?)?;
     sim::register(m)?;
+    served::register(m)?;
     m.add("DROP_CAUSES", ayllu_core::DropCause::ALL.iter().map(|c| c.name()).collect::<Vec<_>>())?;
     Ok(())
 }

@@ -268,9 +268,17 @@ impl Node {
     /// Make this node robot `id`'s controller node for a world served by `ayllu sim serve`:
     /// its body (VISION, SONAR, BASE) as local behaviors the server writes and reads
     /// (`ayllu_sim::served_robot`). Then build the controller on it as in the simulator.
+    ///
+    /// It also creates `LINK` and attaches its driver, so the robot reports to the server what
+    /// its metrics need with no code of the program's: every turn of the node, `LINK.Drive`
+    /// (the target driving it, read from the observer layers `OBS1`..`OBS{targets}` by name)
+    /// when it changes, and four times a second `LINK.Sent` and `LINK.Bytes` (the messages the
+    /// node sent to anyone but its body during its turns, and their encoded size). The
+    /// server's word is the program's to act on: `node.read("LINK", "Alive")` turns 0 when the
+    /// scenario kills the robot.
     #[pyo3(signature = (targets = 4))]
     fn install_served_body(&self, py: Python<'_>, targets: usize) -> PyResult<()> {
-        self.shared.with(py, |n| ayllu_sim::served_robot::install(n.core_mut(), targets).map_err(errors::core))
+        self.shared.with(py, |n| ayllu_sim::served_robot::attach(n, targets).map_err(errors::core))
     }
 
     /// Make this node's body a ROS 2 robot's: the behaviors the mapping file at `path` names

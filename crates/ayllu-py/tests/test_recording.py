@@ -11,13 +11,11 @@ import json
 import random
 from pathlib import Path
 
+# The independent reader (scripts/python-venv installs it): without it this fails, not skips.
+import mcap.reader as mcap_reader
 import pytest
 
 import ayllu
-
-# The independent reader (scripts/python-venv installs it): without it this fails, not skips.
-import mcap.reader as mcap_reader  # noqa: E402
-
 
 RNG = random.Random(42)
 

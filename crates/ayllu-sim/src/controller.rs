@@ -132,6 +132,7 @@ impl Default for ControllerConfig {
 }
 
 /// How the harness reads a robot's controller.
+#[derive(Clone, Debug)]
 pub enum Brain {
     /// Observer chain: `OBS{n}.Rotate` for n = 1..=m; the highest layer that wrote within the
     /// override period drives.
@@ -247,6 +248,25 @@ fn chain_drive(core: &NodeCore, layers: &[PortRef]) -> u32 {
     let now = core.now();
     for (n, p) in layers.iter().enumerate() {
         if let Ok(Some(t)) = core.last_accepted(*p) {
+            if now < t + OVERRIDE_PERIOD {
+                return n as u32 + 1;
+            }
+        }
+    }
+    0
+}
+
+/// [`Brain::drive`] of a Fig. 2 controller built by anyone (a C or Python program), read from
+/// its observer layers by name: `layers[n - 1]` names layer n, the behavior watching target n
+/// (`OBS1`..`OBSm`, as [`build`], examples/cmommt/c/cmommt.c and examples/cmommt/python/fig2.py
+/// name them), whose `Rotate` drives while it wrote within the override period. The highest
+/// such layer drives (its target's number); a layer missing, or without `Rotate`, never
+/// drives; 0: none does. The same answer as [`Brain::Chain`] on the same node.
+pub fn named_chain_drive(core: &NodeCore, layers: &[String]) -> u32 {
+    let now = core.now();
+    for (n, name) in layers.iter().enumerate() {
+        let Ok(p) = core.port(name, "Rotate") else { continue };
+        if let Ok(Some(t)) = core.last_accepted(p) {
             if now < t + OVERRIDE_PERIOD {
                 return n as u32 + 1;
             }

@@ -27,6 +27,7 @@ pub mod scenario_file;
 mod scenario_spec;
 pub mod served_radio;
 pub mod served_robot;
+pub mod served_world;
 pub mod study;
 pub mod sweep;
 pub mod trace;

@@ -9,7 +9,8 @@
 //! * cut when the server says the sender is out of reach: dead, out of range or across a
 //!   partition. The server knows the world's true positions and time, so it computes every
 //!   robot's row of reachability each sensing tick and sends it over the body link
-//!   ([`crate::served_robot`]'s `LINK.Reach`); the robot's loop hands it to [`LinkHandle::set_reach`];
+//!   ([`crate::served_robot`]'s `LINK.Reach`); the robot's [`crate::served_robot::LinkDriver`]
+//!   hands it to [`LinkHandle::set_reach`] each turn;
 //! * lost with the scenario's probability, drawn per receiver from a stream seeded by the
 //!   scenario's seed and the robot's id (as a broadcast over a lossy channel loses per receiver);
 //! * held for `delay + jitter·U(0,1)` on the node's clock, drawn per received message (in-process

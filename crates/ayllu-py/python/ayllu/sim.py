@@ -32,10 +32,12 @@ __all__ = [
     "Outcome",
     "RobotBuilder",
     "Scenario",
+    "ServedWorld",
     "Trace",
     "chain",
     "drive",
     "run",
+    "serve",
     "sweep",
 ]
 
@@ -335,3 +337,106 @@ def sweep(
         remote = engine.remote(_run_one)
         return list(engine.get([remote.remote(j) for j in jobs]))
     raise TypeError(f"executor must be None, 'serial', an Executor, a dask Client or the ray module; got {executor!r}")
+
+
+class ServedWorld:
+    """A world served to robots whose controllers run elsewhere: the simulator's distributed
+    mode, what ``ayllu sim serve`` runs (``ayllu_sim::served_world``; docs/python.md, "Serving a
+    world"). The world is the in-process one for ``scenario`` (its world, team, seed, duration
+    and kills), paced on the real clock; each robot K's body is a node (id 1000 + K) on its URL
+    that feeds the sensors of node K and takes its motor commands, wherever node K runs: an
+    ``ayllu sim robot`` process, or an ``ayllu.Node`` with ``install_served_body``.
+
+    ``urls``: one per robot, or one for all in which ``{i}`` stands for the robot's number (one
+    URL without ``{i}`` for several bodies must bind port 0); a body greets the addresses its URL
+    names (``peer=``, ``broadcast=``). ``until_stopped``: serve until :meth:`stop` rather than for
+    the scenario's duration. ``wait``: seconds :meth:`start` waits for every body to hear its
+    controller. ``status_every``: world seconds between status events.
+
+    Events are the dicts of ``ayllu sim serve``'s JSON lines: ``{"start": True, ...}``,
+    ``{"t": .., "kill": K}``, status ``{"t": .., "observed": .., "weighted": .., "a_w": ..,
+    "robots": [...]}`` and ``{"done": True, ..., "metrics": {...}}``. ``ayllu.InvalidError`` (a
+    ``ValueError``) for a scenario out of bounds or URLs that do not fit the team,
+    ``ayllu.NetworkError`` for a socket the system refuses.
+    """
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        urls: Union[str, Sequence[str]],
+        *,
+        until_stopped: bool = False,
+        wait: float = 10.0,
+        status_every: float = 1.0,
+    ) -> None:
+        if not isinstance(scenario, Scenario):
+            raise TypeError(f"ServedWorld takes a sim.Scenario, got {type(scenario).__name__}")
+        urls = [urls] if isinstance(urls, str) else list(urls)
+        self._world = _native.ServedWorld(
+            scenario.to_json(), urls, until_stopped=until_stopped, wait=wait, status_every=status_every
+        )
+
+    def body_addresses(self) -> list[Optional[str]]:
+        """Where each body's node listens (``ip:port``), robot 1 first."""
+        return self._world.body_addresses()
+
+    def linked(self) -> list[bool]:
+        """Whether each body hears its controller now."""
+        return self._world.linked()
+
+    def start(self) -> dict[str, Any]:
+        """Wait for the robots (at most ``wait`` seconds), start the clock: the start event."""
+        return dict(json.loads(self._world.start()))
+
+    def step(self) -> list[dict[str, Any]]:
+        """One tick (50 ms of world time, paced on the real clock): its kill and status events."""
+        return [json.loads(e) for e in self._world.step()]
+
+    @property
+    def done(self) -> bool:
+        """Whether the run is over: its duration served, or stopped."""
+        return self._world.done
+
+    @property
+    def now(self) -> float:
+        """World seconds served so far."""
+        return self._world.now
+
+    def finish(self) -> dict[str, Any]:
+        """End the run (stopping it if needed): the done event, with ``metrics``."""
+        return dict(json.loads(self._world.finish()))
+
+    def stop(self) -> None:
+        """Ask the world to stop; callable from any thread."""
+        self._world.stop()
+
+    def run(self, on_event: Optional[Callable[[dict[str, Any]], None]] = None) -> dict[str, Any]:
+        """Start, step to the end, finish, handing every event to ``on_event`` as it comes;
+        return the done event. Ctrl-C (``KeyboardInterrupt``) stops the run, which still
+        finishes with its metrics (``"stopped": True``)."""
+        emit = on_event or (lambda _e: None)
+        try:
+            emit(self.start())
+            while not self.done:
+                for e in self.step():
+                    emit(e)
+        except KeyboardInterrupt:
+            self.stop()
+        done = self.finish()
+        emit(done)
+        return done
+
+
+def serve(
+    scenario: Scenario,
+    urls: Union[str, Sequence[str]],
+    *,
+    on_event: Optional[Callable[[dict[str, Any]], None]] = None,
+    until_stopped: bool = False,
+    wait: float = 10.0,
+    status_every: float = 1.0,
+) -> dict[str, Any]:
+    """Serve ``scenario``'s world to robots on ``urls`` to its end (:class:`ServedWorld`):
+    ``ayllu sim serve`` from Python. Returns the done event (``metrics``: the in-process ones)."""
+    world = ServedWorld(scenario, urls, until_stopped=until_stopped, wait=wait, status_every=status_every)
+    return world.run(on_event)
