@@ -30,7 +30,12 @@ STEP = scripts/test-step
 # workspace's: see crates/ayllu-c/Makefile). It builds the tests, the tool (target/debug/ayllu,
 # which the integration tests run) and the C library (target/debug/libayllu_c.a).
 WORKSPACE_TESTS = $(CARGO) test --workspace --exclude ayllu-ros2
-C_TEST_BUILDS = DEBUG_LIB_BUILD="$(WORKSPACE_TESTS) --no-run --quiet" TOOL_BUILD="$(WORKSPACE_TESTS) --no-run --quiet" \
+# The test build leaves the C library in target/debug/deps (cargo copies a library up to
+# target/debug only when it is built for itself); `cp -p` puts it where the C Makefile and an
+# install look, keeping its time so the C programs are relinked only when it changed.
+C_LIB_FROM_TESTS = $(WORKSPACE_TESTS) --no-run --quiet && cp -p $(abspath $(TARGET_DIR))/debug/deps/libayllu_c.a \
+	$(abspath $(TARGET_DIR))/debug/deps/libayllu_c.so $(abspath $(TARGET_DIR))/debug/
+C_TEST_BUILDS = DEBUG_LIB_BUILD="$(C_LIB_FROM_TESTS)" TOOL_BUILD="$(WORKSPACE_TESTS) --no-run --quiet" \
 	TEAM_TEST="$(abspath scripts/workspace-test) cmommt_team"
 test:
 	@$(STEP) start
