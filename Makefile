@@ -28,20 +28,27 @@ STEP = scripts/test-step
 # Every cargo build of `make test` after the first is this same command, so that nothing is
 # compiled twice with different features (cargo's features for one package differ from the
 # workspace's: see crates/ayllu-c/Makefile). It builds the tests, the tool (target/debug/ayllu,
-# which the integration tests run) and the C library (target/debug/libayllu_c.a).
-WORKSPACE_TESTS = $(CARGO) test --workspace --exclude ayllu-ros2
+# which the integration tests run) and the C library (target/debug/libayllu_c.a). Examples are
+# left out (`--lib --bins --tests`): the tests compile and run each of them from its file
+# (`#[path]`), and `make lint`'s clippy checks them all; scripts/workspace-test asks for the same.
+WORKSPACE_TESTS = $(CARGO) test --workspace --exclude ayllu-ros2 --lib --bins --tests
+# Four test threads, not one per core: the tool's tests wait on real clocks (a served world
+# for 45 s, robots as processes), and while they wait the others run. Verdicts never depend on
+# timing, so more threads only change how long it takes.
+TEST_THREADS ?= 4
 # The test build leaves the C library in target/debug/deps (cargo copies a library up to
 # target/debug only when it is built for itself); `cp -p` puts it where the C Makefile and an
 # install look, keeping its time so the C programs are relinked only when it changed.
 C_LIB_FROM_TESTS = $(WORKSPACE_TESTS) --no-run --quiet && cp -p $(abspath $(TARGET_DIR))/debug/deps/libayllu_c.a \
 	$(abspath $(TARGET_DIR))/debug/deps/libayllu_c.so $(abspath $(TARGET_DIR))/debug/
 C_TEST_BUILDS = DEBUG_LIB_BUILD="$(C_LIB_FROM_TESTS)" TOOL_BUILD="$(WORKSPACE_TESTS) --no-run --quiet" \
-	TEAM_TEST="$(abspath scripts/workspace-test) cmommt_team"
+	TEAM_TEST="$(abspath scripts/workspace-test) library --"
 test:
 	@$(STEP) start
 	$(STEP) "install test tools" env PYTHON=$(PYTHON) scripts/install-test-tools
 	$(STEP) "rust: build the tests and the tool" $(WORKSPACE_TESTS) --no-run
-	$(STEP) "rust: run the tests" $(WORKSPACE_TESTS)
+	$(STEP) "rust: run the tests" $(WORKSPACE_TESTS) -- --test-threads=$(TEST_THREADS)
+	$(STEP) "rust: doc tests (build and run)" $(CARGO) test --workspace --exclude ayllu-ros2 --doc
 	$(STEP) "AylluLite C (build and run)" $(MAKE) -C lite/c test
 	$(STEP) "libayllu C (build and run, ASan)" $(MAKE) -C crates/ayllu-c test $(C_TEST_BUILDS)
 	$(STEP) "AylluLite Python" env AYLLU_BIN=$(TARGET_DIR)/debug/ayllu $(PYTHON) -m pytest lite/python/tests -q
@@ -63,8 +70,8 @@ test-asan:
 		rustup toolchain install nightly --profile minimal || { echo "test-asan: no nightly toolchain and it could not be installed (rustup toolchain install nightly); AYLLU_SKIP=asan skips this on purpose" >&2; exit 1; }; \
 	fi; \
 	RUSTFLAGS="-Zsanitizer=address" CARGO_TARGET_DIR=$(abspath $(TARGET_DIR))/asan $(CARGO) +nightly test \
-		-p ayllu-core --target x86_64-unknown-linux-gnu --test receive_cache --test remote \
-		--test structure --test structure_from_process --test process_periodic --test process_triggered
+		-p ayllu-core --target x86_64-unknown-linux-gnu --test rules -- receive_cache:: remote:: \
+		structure:: structure_from_process:: process_periodic:: process_triggered::
 
 ## The book (docs/, mkdocs.yml): concepts, tutorials, troubleshooting and the references, built
 ## into target/book (open target/book/index.html) with the API references under api/ (rustdoc,
@@ -148,7 +155,7 @@ test-ros2:
 	$(ROS2_CARGO) clippy -p ayllu-ros2 -p ayllu-cli -p ayllu-c --features ayllu-cli/ros2,ayllu-c/ros2 --all-targets -- -D warnings
 	RUSTDOCFLAGS=-Dwarnings $(ROS2_CARGO) doc -p ayllu-ros2 --no-deps --quiet
 	$(ROS2_CARGO) test -p ayllu-ros2
-	$(ROS2_CARGO) test -p ayllu-cli --features ros2 --test ros2_robot --test ros2_bad_input --test ros2_cmommt
+	$(ROS2_CARGO) test -p ayllu-cli --features ros2 --test tool -- ros2_robot:: ros2_bad_input:: ros2_cmommt::
 	cd crates/ayllu-ros2/tests/ros2_peer && $(PYTHON) -m ruff check . && $(PYTHON) -m ruff format --check . \
 		&& $(PYTHON) -m pytest -q
 	$(MAKE) ros2-c
@@ -190,7 +197,7 @@ bench-sim:
 MINUTES ?= 60
 soak:
 	scripts/install-test-tools
-	SOAK_MINUTES=$(MINUTES) $(CARGO) test --release -p ayllu-cli --test cross_subsumption_processes soak -- --ignored --nocapture
+	SOAK_MINUTES=$(MINUTES) $(CARGO) test --release -p ayllu-cli --test tool cross_subsumption_processes::soak -- --ignored --nocapture
 
 ## Fuzz every target (decoder, node, recordings, udp:// URLs, command lines) for SECONDS each (needs a
 ## nightly toolchain; installs cargo-fuzz), then AylluLite C's decoders (a datagram, a datagram

@@ -6,7 +6,7 @@
 //! Every node function keeps one path, `crate::node::…`, whichever file below holds it. The
 //! files are declared in the order `include/ayllu_sys.h` lists their functions: cbindgen
 //! writes a module's functions in file order, module by module in declaration order, so
-//! reordering the `mod` lines reorders the committed header (and fails `tests/header.rs`).
+//! reordering the `mod` lines reorders the committed header (and fails `tests/library/header.rs`).
 //! The blank lines between them keep rustfmt from sorting them.
 
 mod handle;

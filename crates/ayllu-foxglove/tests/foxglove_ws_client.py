@@ -1,5 +1,5 @@
 """A Foxglove WebSocket client, written from the protocol (foxglove.websocket.v1), for the live
-test of `ayllu foxglove` (crates/ayllu-cli/tests/foxglove.rs).
+test of `ayllu foxglove` (crates/ayllu-cli/tests/tool/foxglove.rs).
 
 It connects offering the protocol's subprotocols: `foxglove.sdk.v1`, the name the Foxglove SDK
 0.30 gives the v1 protocol (the only one it accepts of the two), and `foxglove.websocket.v1`,

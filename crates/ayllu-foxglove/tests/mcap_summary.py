@@ -3,7 +3,7 @@ own code) and prints one JSON object: the header's profile, and per topic the sc
 schema and message encodings, the message count and the first JSON message (for JSON
 channels), with the log times in order.
 
-Usage: mcap_summary.py FILE. Used by crates/ayllu-cli/tests/foxglove.rs.
+Usage: mcap_summary.py FILE. Used by crates/ayllu-cli/tests/tool/foxglove.rs.
 """
 
 import json

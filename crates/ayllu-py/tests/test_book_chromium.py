@@ -1,5 +1,5 @@
 """The book in a real browser: the pages are built with MkDocs (strict) into a scratch folder and
-Debian's headless Chromium opens them, as `crates/ayllu-sim/tests/report_chromium.rs` does for
+Debian's headless Chromium opens them, as `crates/ayllu-sim/tests/simulator/report_chromium.rs` does for
 the report page (same browser, same flags, same `AYLLU_SKIP_BROWSER=1` loud skip; install with
 `scripts/install-chromium`).
 

@@ -84,7 +84,7 @@ class Proc:
         return self.p.returncode, err
 
 
-# The world of the C and Rust process tests (crates/ayllu-c/tests/cmommt_team.rs): the team
+# The world of the C and Rust process tests (crates/ayllu-c/tests/library/cmommt_team.rs): the team
 # finds targets early, so 45 s show the task being done.
 SEED, DURATION = 7, 45.0
 MARGIN_OVER_RANDOM, MARGIN_UNDER_RUST = 0.2, 0.12

@@ -3,7 +3,7 @@ changes through its ctx, applied when it returns; its next activation reads thei
 a behavior hands its task to a successor and removes itself; a behavior of a Python class
 created by a process runs its Python processes; a plan applied from one node to another over
 loopback UDP switches it, and a bad port name aborts it. Mirrors
-crates/ayllu-core/tests/structure_from_process.rs and crates/ayllu/tests/transaction_*.rs."""
+crates/ayllu-core/tests/rules/structure_from_process.rs and crates/ayllu/tests/runtime/transaction_*.rs."""
 
 from __future__ import annotations
 

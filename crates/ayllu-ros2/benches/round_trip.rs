@@ -414,7 +414,7 @@ fn run_ayllu(domain: u16, poll: Duration) -> Result<Figures, String> {
 // ----- the run ------------------------------------------------------------------------------
 
 /// Move this process (one thread so far) into a network namespace of its own with loopback up,
-/// multicast on and a multicast route (crates/ayllu-cli/tests/common/ros2.rs `own_network`).
+/// multicast on and a multicast route (crates/ayllu-cli/tests/tool/common/ros2.rs `own_network`).
 fn own_network() -> Result<(), String> {
     // SAFETY: geteuid takes nothing and cannot fail.
     if unsafe { libc::geteuid() } != 0 {

@@ -5,7 +5,7 @@
 //! topic's lifespan; a port holding the raw scan cannot be connected across the network
 //! (D-S10.7) while the resampled one can.
 
-#[path = "../../ayllu-cli/tests/common/ros2.rs"]
+#[path = "../../ayllu-cli/tests/tool/common/ros2.rs"]
 mod ros2_env;
 
 use std::f64::consts::TAU;

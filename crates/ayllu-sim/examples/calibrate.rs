@@ -1,5 +1,5 @@
 //! Prints each controller's metrics in the paper's setting over seeds: how the test
-//! thresholds in tests/cmommt.rs were chosen. `cargo run --release -p ayllu-sim --example calibrate [SEEDS]`
+//! thresholds in tests/simulator/cmommt.rs were chosen. `cargo run --release -p ayllu-sim --example calibrate [SEEDS]`
 use ayllu_sim::controller::Controller;
 use ayllu_sim::scenario::{run, Scenario};
 

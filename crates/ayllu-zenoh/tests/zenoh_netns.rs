@@ -29,7 +29,7 @@
 
 mod common;
 #[allow(dead_code)]
-#[path = "../../ayllu-cli/tests/common/netns.rs"]
+#[path = "../../ayllu-cli/tests/tool/common/netns.rs"]
 mod netns;
 
 use std::path::{Path, PathBuf};

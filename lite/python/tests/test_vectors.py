@@ -20,7 +20,7 @@ VECTORS = Path(__file__).resolve().parents[3] / "spec" / "vectors" / "vectors.js
 
 
 def _load() -> dict[str, Any] | None:
-    # The vectors are committed (crates/ayllu-wire/tests/vectors.rs writes and checks them): a
+    # The vectors are committed (crates/ayllu-wire/tests/wire/vectors.rs writes and checks them): a
     # missing file is a broken checkout, which fails here naming it rather than skipping.
     doc: dict[str, Any] = json.loads(VECTORS.read_text(encoding="utf-8"))
     return doc

@@ -80,7 +80,7 @@ pub fn compare(paper: &[Row]) -> Vec<Comparison> {
         .collect()
 }
 
-/// The paper's claim (section 4, tested in `tests/cmommt.rs`): with BLE the team covers the
+/// The paper's claim (section 4, tested in `tests/simulator/cmommt.rs`): with BLE the team covers the
 /// priority-weighted targets better than robots that wander (Random) and than robots that
 /// follow what they see without talking (Local). `Some(true)` when BLE is better than both
 /// beyond noise, `Some(false)` when not, `None` when the study lacks one of the three.

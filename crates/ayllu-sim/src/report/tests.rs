@@ -1,7 +1,7 @@
 //! Tests of the report folder on the synthetic report of `tests/fixture.rs`: the files, the
 //! page's self-containment and escaping, the JSON round trips, the replays' compact code, the
 //! summary's verdicts, and the tables' shape. What the page looks like in a browser is
-//! `tests/report_chromium.rs`'s job.
+//! `tests/simulator/report_chromium.rs`'s job.
 
 mod fixture;
 

@@ -4,7 +4,7 @@
 //! walls and corners, where labels have no room on their usual side), coverage for 5
 //! controllers, made-up rows for the paper setting, the robustness scenario and a small sweep.
 //!
-//! Shared by the unit tests (`report/tests.rs`) and `tests/report_chromium.rs`, which includes
+//! Shared by the unit tests (`report/tests.rs`) and `tests/simulator/report_chromium.rs`, which includes
 //! this file with `#[path]`; so it names its types through `super::` and each includer brings
 //! them into scope. Every number is rounded to 3 decimals so a JSON round trip is exact with
 //! serde_json's default float parser. Made-up numbers: they exercise the page, not the task.
