@@ -43,26 +43,49 @@ C_LIB_FROM_TESTS = $(WORKSPACE_TESTS) --no-run --quiet && cp -p $(abspath $(TARG
 	$(abspath $(TARGET_DIR))/debug/deps/libayllu_c.so $(abspath $(TARGET_DIR))/debug/
 C_TEST_BUILDS = DEBUG_LIB_BUILD="$(C_LIB_FROM_TESTS)" TOOL_BUILD="$(WORKSPACE_TESTS) --no-run --quiet" \
 	TEAM_TEST="$(abspath scripts/workspace-test) library --"
+# Two phases. The builds, one after another (each already uses both cores). Then every suite at
+# once: most of their time is waiting (robot processes on real clocks, a browser, sockets), so
+# they overlap; each suite's output is printed whole when it ends (-O). The table at the end
+# gives each suite's own wall and CPU seconds under the phase's.
 test:
 	@$(STEP) start
 	$(STEP) "install test tools" env PYTHON=$(PYTHON) scripts/install-test-tools
-	$(STEP) "rust: build the tests and the tool" $(WORKSPACE_TESTS) --no-run
-	$(STEP) "rust: run the tests" $(WORKSPACE_TESTS) -- --test-threads=$(TEST_THREADS)
-	$(STEP) "rust: doc tests (build and run)" $(CARGO) test --workspace --exclude ayllu-ros2 --doc
-	$(STEP) "AylluLite C (build and run)" $(MAKE) -C lite/c test
-	$(STEP) "libayllu C (build and run, ASan)" $(MAKE) -C crates/ayllu-c test $(C_TEST_BUILDS)
-	$(STEP) "AylluLite Python" env AYLLU_BIN=$(TARGET_DIR)/debug/ayllu $(PYTHON) -m pytest lite/python/tests -q
-	$(STEP) "conformance (spec/conformance)" $(PYTHON) spec/conformance --ayllu $(TARGET_DIR)/debug/ayllu
-	$(STEP) "Python: venv and wheel (release build)" env PYTHON=$(PYTHON) scripts/python-venv
-	$(STEP) "Python: run the tests" $(MAKE) --no-print-directory test-python
-	$(STEP) "ASan: the core's pointer paths (nightly)" $(MAKE) --no-print-directory test-asan
+	$(STEP) "build: Rust tests and the tool" $(WORKSPACE_TESTS) --no-run
+	$(STEP) "build: Python venv and package" env PYTHON=$(PYTHON) scripts/python-venv
+	$(STEP) "build: C (AylluLite, libayllu's tests, ASan)" $(MAKE) --no-print-directory build-c-tests
+	$(STEP) "build: the core under ASan (nightly)" $(MAKE) --no-print-directory test-asan ASAN_BUILD_ONLY=1
+	@echo "make test: running every suite at once; each one's output is printed when it ends"
+	$(STEP) group "run: every suite at once" $(MAKE) --no-print-directory -j -O $(TEST_SUITES)
 	@$(STEP) report
+
+TEST_SUITES = suite-rust suite-rust-doc suite-c suite-lite-c suite-lite-python suite-conformance suite-python suite-asan
+.PHONY: build-c-tests $(TEST_SUITES)
+build-c-tests:
+	$(MAKE) -C lite/c all
+	$(MAKE) -C crates/ayllu-c all $(C_TEST_BUILDS)
+suite-rust:
+	@$(STEP) "Rust: unit, rule, property, processes" $(WORKSPACE_TESTS) -- --test-threads=$(TEST_THREADS)
+suite-rust-doc:
+	@$(STEP) "Rust: doc tests (build and run)" $(CARGO) test --workspace --exclude ayllu-ros2 --doc
+suite-c:
+	@$(STEP) "libayllu C (ASan), the C team" $(MAKE) -C crates/ayllu-c test $(C_TEST_BUILDS)
+suite-lite-c:
+	@$(STEP) "AylluLite C" $(MAKE) -C lite/c test
+suite-lite-python:
+	@$(STEP) "AylluLite Python" env AYLLU_BIN=$(TARGET_DIR)/debug/ayllu $(PYTHON) -m pytest lite/python/tests -q
+suite-conformance:
+	@$(STEP) "conformance (spec/conformance)" $(PYTHON) spec/conformance --ayllu $(TARGET_DIR)/debug/ayllu
+suite-python:
+	@$(STEP) "Python package" $(MAKE) --no-print-directory test-python
+suite-asan:
+	@$(STEP) "the core under ASan" $(MAKE) --no-print-directory test-asan
 
 ## The core's tests that reach ports through remembered addresses (crates/ayllu-core/src/sequence.rs,
 ## NodeCore::deliver_to) and run process bodies through borrowed pointers, under AddressSanitizer:
 ## a stale address is a use after free there. Needs rustup's nightly toolchain (the sanitizer flag
 ## is unstable): installs it (minimal profile) if missing, and fails naming it if that cannot be
 ## done; AYLLU_SKIP=asan skips it on purpose, loudly. About a minute; its own target directory.
+## ASAN_BUILD_ONLY=1 only builds (make test builds first and runs with the other suites).
 test-asan:
 	@if ! $(CARGO) +nightly --version >/dev/null 2>&1; then \
 		case ",$$AYLLU_SKIP," in *,asan,*) echo "*** SKIPPED: test-asan (AYLLU_SKIP=asan): the core's pointer paths were NOT run under ASan ***"; exit 0;; esac; \
@@ -70,8 +93,8 @@ test-asan:
 		rustup toolchain install nightly --profile minimal || { echo "test-asan: no nightly toolchain and it could not be installed (rustup toolchain install nightly); AYLLU_SKIP=asan skips this on purpose" >&2; exit 1; }; \
 	fi; \
 	RUSTFLAGS="-Zsanitizer=address" CARGO_TARGET_DIR=$(abspath $(TARGET_DIR))/asan $(CARGO) +nightly test \
-		-p ayllu-core --target x86_64-unknown-linux-gnu --test rules -- receive_cache:: remote:: \
-		structure:: structure_from_process:: process_periodic:: process_triggered::
+		-p ayllu-core --target x86_64-unknown-linux-gnu --test rules $(if $(ASAN_BUILD_ONLY),--no-run,-- receive_cache:: remote:: \
+		structure:: structure_from_process:: process_periodic:: process_triggered::)
 
 ## The book (docs/, mkdocs.yml): concepts, tutorials, troubleshooting and the references, built
 ## into target/book (open target/book/index.html) with the API references under api/ (rustdoc,
@@ -227,10 +250,12 @@ fmt:
 
 ## The Python package (crates/ayllu-py): `pip install ./crates/ayllu-py` into a venv under the
 ## target dir (reused while up to date: scripts/python-venv), then its pytest suite (the rule
-## tests from Python, the simulator, sweeps, the examples and the guide's code).
+## tests from Python, the simulator, sweeps, the examples and the guide's code) in two worker
+## processes (pytest-xdist; the longest first, see tests/conftest.py: one process waits on the
+## team of robot processes for 45 s while the other runs the rest, and steals from it).
 test-python:
 	@PY=$$(PYTHON=$(PYTHON) scripts/python-venv) && cd crates/ayllu-py \
-		&& AYLLU_BIN=$(abspath $(TARGET_DIR))/debug/ayllu $$PY -m pytest -q tests
+		&& AYLLU_BIN=$(abspath $(TARGET_DIR))/debug/ayllu $$PY -m pytest -q -n 2 --dist worksteal tests
 
 ## The sweep on a Ray cluster (crates/ayllu-py/cluster_tests): installs Ray into the test venv
 ## first (a large install, hence not in `make test`; the Dask cluster's twin is).
@@ -241,14 +266,15 @@ test-ray:
 ## ruff and mypy (strict) on the Python package, its tests, the Python examples, the book's
 ## tutorials and its picture scripts (one file at a time: every tutorial is a main.py).
 lint-python:
-	@PY=$$(PYTHON=$(PYTHON) scripts/python-venv) && cd crates/ayllu-py \
+	@PY=$$(PYTHON=$(PYTHON) scripts/python-venv --tools-only) && cd crates/ayllu-py \
 		&& $$PY -m ruff check --config pyproject.toml . ../../examples/cmommt/python ../../examples/tutorial ../../scripts/book \
 		&& $$PY -m ruff format --config pyproject.toml --check . ../../examples/cmommt/python ../../examples/tutorial ../../scripts/book \
 		&& MYPYPATH=../../examples/cmommt/python $$PY -m mypy python/ayllu tests bench ../../examples/cmommt/python \
 		&& for f in ../../examples/tutorial/*/main.py ../../scripts/book/*.py; do \
-			MYPYPATH=../../lite/python $$PY -m mypy --strict --no-error-summary $$f || exit 1; done
+			MYPYPATH=../../lite/python:python $$PY -m mypy --strict --no-error-summary $$f || exit 1; done
 
 ## Python benchmarks (not part of the tests): a port write, a process activation and a
-## simulation step from Python, each beside a plain Python function call timed in the same run.
+## simulation step from Python, each beside a plain Python function call timed in the same run
+## (the package reinstalled from a release build first, as a user's `pip install` makes it).
 bench-python:
-	@PY=$$(PYTHON=$(PYTHON) scripts/python-venv) && $$PY crates/ayllu-py/bench/bench.py
+	@PY=$$(PYTHON=$(PYTHON) AYLLU_PY_PROFILE=release scripts/python-venv) && $$PY crates/ayllu-py/bench/bench.py

@@ -40,6 +40,8 @@ struct Proc {
     child: Child,
     lines: Arc<Mutex<Vec<Json>>>,
     stderr: Arc<Mutex<String>>,
+    /// Reads stderr to its end (the child's exit closes it).
+    stderr_reader: std::thread::JoinHandle<()>,
 }
 
 impl Proc {
@@ -61,12 +63,12 @@ impl Proc {
             }
         });
         let (mut err, sink) = (child.stderr.take().expect("piped"), stderr.clone());
-        std::thread::spawn(move || {
+        let stderr_reader = std::thread::spawn(move || {
             let mut s = String::new();
             let _ = err.read_to_string(&mut s);
             sink.lock().unwrap().push_str(&s);
         });
-        Proc { name: name.to_owned(), child, lines, stderr }
+        Proc { name: name.to_owned(), child, lines, stderr, stderr_reader }
     }
 
     fn find(&self, key: &str) -> Option<Json> {
@@ -100,8 +102,12 @@ impl Proc {
         let end = Instant::now() + limit;
         loop {
             if let Ok(Some(status)) = self.child.try_wait() {
-                // Let the stderr reader take the last lines.
-                std::thread::sleep(Duration::from_millis(200));
+                // The last lines (a sanitizer's report) may still be in the pipe: wait for the
+                // reader to reach its end, bounded in case something else holds the pipe.
+                let end = Instant::now() + Duration::from_secs(10);
+                while !self.stderr_reader.is_finished() && Instant::now() < end {
+                    std::thread::sleep(Duration::from_millis(5));
+                }
                 return status;
             }
             assert!(Instant::now() < end, "{} did not stop within {limit:?} of SIGTERM", self.name);

@@ -2,7 +2,7 @@
 //!
 //! * The paper's cross-subsumption team (three nodes, as `cross_subsumption_processes.rs`
 //!   starts it): `graph` in every format — the JSON has the broadcast write-inhibit edges of
-//!   robot 1's claim and marks them active, Graphviz lays out the DOT (SKIPPED without `dot`),
+//!   robot 1's claim and marks them active, Graphviz lays out the DOT (fails without `dot` unless AYLLU_SKIP=dot),
 //!   headless Chromium draws the HTML page (its self-check: every edge drawn, none outside the
 //!   picture, no script error) and parses the standalone SVG; `record` hears the group traffic
 //!   and a `--copy`, and the Python `mcap` package (an independent reader, installed by
@@ -163,9 +163,7 @@ fn the_papers_team_is_graphed_and_recorded() {
         assert_eq!(laid.code, Some(0), "dot failed: {}", laid.stderr);
         assert!(laid.stderr.trim().is_empty(), "dot warned: {}", laid.stderr);
     } else {
-        eprintln!(
-            "\n*** SKIPPED: Graphviz `dot` not installed (scripts/install-test-tools): the DOT was not laid out ***\n"
-        );
+        common::unavailable("dot", "Graphviz `dot` is not installed, so the DOT was not laid out");
     }
 
     // Mermaid: a flowchart with one arrow per edge.

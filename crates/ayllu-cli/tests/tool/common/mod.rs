@@ -25,8 +25,8 @@ pub const BIN: &str = env!("CARGO_BIN_EXE_ayllu");
 
 /// What a test needs and this machine cannot give it: `need` is one of `netns` (network
 /// namespaces: root and `ip`), `nft` (nftables in them), `tun` (TAP interfaces for the
-/// shaper). The test fails here, naming what is missing, unless the environment asks to skip
-/// exactly that (`AYLLU_SKIP=netns,nft,tun`, a comma-separated list): then it says SKIPPED
+/// shaper), `dot` (Graphviz). The test fails here, naming what is missing, unless the environment asks to skip
+/// exactly that (`AYLLU_SKIP=netns,nft,tun,dot`, a comma-separated list): then it says SKIPPED
 /// loudly and the caller returns. `make test` and CI never ask, so no end-to-end test of real
 /// broadcast and faults passes by skipping (docs/testing.md).
 pub fn unavailable(need: &str, reason: &str) {
@@ -41,6 +41,7 @@ pub fn unavailable(need: &str, reason: &str) {
         "netns" => "run as root with `ip` (iproute2) installed",
         "nft" => "install nftables (scripts/install-test-tools does)",
         "tun" => "give the test /dev/net/tun (the tun driver; in a container, the device and CAP_NET_ADMIN)",
+        "dot" => "install Graphviz (scripts/install-test-tools does)",
         _ => "see docs/testing.md",
     };
     panic!("{test} needs {need}, which is unavailable here: {reason}; {how}, or set AYLLU_SKIP={need} to skip it");
@@ -58,6 +59,8 @@ pub struct Proc {
     /// The address from the `{"listening":ADDR}` line (kept out of `lines`).
     listening: Arc<Mutex<Option<String>>>,
     stderr: Arc<Mutex<String>>,
+    /// The threads reading stdout and stderr: they end when the child's pipes close.
+    readers: Vec<std::thread::JoinHandle<()>>,
     killed: bool,
 }
 
@@ -76,7 +79,7 @@ impl Proc {
         let stderr: Arc<Mutex<String>> = Arc::default();
         let out = child.stdout.take().expect("piped stdout");
         let (sink, addr_sink) = (lines.clone(), listening.clone());
-        std::thread::spawn(move || {
+        let out_reader = std::thread::spawn(move || {
             for line in BufReader::new(out).lines() {
                 let Ok(line) = line else { break };
                 let read_at = Instant::now();
@@ -90,7 +93,7 @@ impl Proc {
         });
         let mut err = child.stderr.take().expect("piped stderr");
         let sink = stderr.clone();
-        std::thread::spawn(move || {
+        let err_reader = std::thread::spawn(move || {
             let mut buf = [0u8; 4096];
             while let Ok(n) = err.read(&mut buf) {
                 if n == 0 {
@@ -99,7 +102,15 @@ impl Proc {
                 lock(&sink).push_str(&String::from_utf8_lossy(&buf[..n]));
             }
         });
-        Proc { name: name.to_owned(), child, lines, listening, stderr, killed: false }
+        Proc {
+            name: name.to_owned(),
+            child,
+            lines,
+            listening,
+            stderr,
+            readers: vec![out_reader, err_reader],
+            killed: false,
+        }
     }
 
     pub fn lines(&self) -> Vec<(Instant, Json)> {
@@ -131,8 +142,17 @@ impl Proc {
     }
 
     /// The child's exit status, if it has exited (reaped here).
+    /// The child's exit status once it has exited, and then everything it wrote is in
+    /// [`Proc::lines`] and [`Proc::stderr`]: a process's last lines can still be in its pipes
+    /// when it is reaped, and a busy machine reads them late.
     pub fn exited(&mut self) -> Option<std::process::ExitStatus> {
-        self.child.try_wait().ok().flatten()
+        let status = self.child.try_wait().ok().flatten()?;
+        // Bounded: a grandchild holding a pipe open must not hang the test.
+        let end = Instant::now() + Duration::from_secs(10);
+        while self.readers.iter().any(|r| !r.is_finished()) && Instant::now() < end {
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        Some(status)
     }
 
     /// The child's process id (for /proc: memory, open descriptors).
