@@ -34,7 +34,9 @@ STEP = scripts/test-step
 WORKSPACE_TESTS = $(CARGO) test --workspace --exclude ayllu-ros2 --lib --bins --tests
 # Four test threads, not one per core: the tool's tests wait on real clocks (a served world
 # for 45 s, robots as processes), and while they wait the others run. Verdicts never depend on
-# timing, so more threads only change how long it takes.
+# timing, so more threads only change how long it takes. For the same reason make test runs
+# the test binaries themselves at once (scripts/workspace-test --all), where `cargo test` runs
+# them one after another.
 TEST_THREADS ?= 4
 # The test build leaves the C library in target/debug/deps (cargo copies a library up to
 # target/debug only when it is built for itself); `cp -p` puts it where the C Makefile and an
@@ -64,7 +66,7 @@ build-c-tests:
 	$(MAKE) -C lite/c all
 	$(MAKE) -C crates/ayllu-c all $(C_TEST_BUILDS)
 suite-rust:
-	@$(STEP) "Rust: unit, rule, property, processes" $(WORKSPACE_TESTS) -- --test-threads=$(TEST_THREADS)
+	@$(STEP) "Rust: unit, rule, property, processes" scripts/workspace-test --all -- --test-threads=$(TEST_THREADS)
 suite-rust-doc:
 	@$(STEP) "Rust: doc tests (build and run)" $(CARGO) test --workspace --exclude ayllu-ros2 --doc
 suite-c:
@@ -250,12 +252,10 @@ fmt:
 
 ## The Python package (crates/ayllu-py): `pip install ./crates/ayllu-py` into a venv under the
 ## target dir (reused while up to date: scripts/python-venv), then its pytest suite (the rule
-## tests from Python, the simulator, sweeps, the examples and the guide's code) in two worker
-## processes (pytest-xdist; the longest first, see tests/conftest.py: one process waits on the
-## team of robot processes for 45 s while the other runs the rest, and steals from it).
+## tests from Python, the simulator, sweeps, the examples and the guide's code).
 test-python:
 	@PY=$$(PYTHON=$(PYTHON) scripts/python-venv) && cd crates/ayllu-py \
-		&& AYLLU_BIN=$(abspath $(TARGET_DIR))/debug/ayllu $$PY -m pytest -q -n 2 --dist worksteal tests
+		&& AYLLU_BIN=$(abspath $(TARGET_DIR))/debug/ayllu $$PY -m pytest -q tests
 
 ## The sweep on a Ray cluster (crates/ayllu-py/cluster_tests): installs Ray into the test venv
 ## first (a large install, hence not in `make test`; the Dask cluster's twin is).

@@ -2,33 +2,13 @@
 
 A node on a manual clock with class ``Relay`` (one int port ``V``, Normal, default 0) and one
 Relay per name; time in milliseconds. Time moves only when a test says so.
-
-Also the order of the tests: ``make test-python`` runs them in two processes (pytest-xdist,
-``--dist worksteal``: each takes half of the list, in order, and an idle one takes from the
-other), and the tests that wait longest on clocks and browsers go first, so that one process
-waits on them while the other runs everything else.
 """
 
 from __future__ import annotations
 
 from typing import Optional
 
-import pytest
-
 import ayllu
-
-# The files that take longest, longest first: a team of robot processes against a served world
-# for 45 s of real time, and the book in headless Chromium.
-LONGEST_FIRST = ["test_cmommt_example.py", "test_book_chromium.py"]
-
-
-def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    def rank(item: pytest.Item) -> int:
-        name = item.path.name
-        return LONGEST_FIRST.index(name) if name in LONGEST_FIRST else len(LONGEST_FIRST)
-
-    items.sort(key=rank)  # stable: within a file, and among the rest, the order is unchanged
-
 
 V = "V"
 

@@ -40,7 +40,8 @@ struct Proc {
     child: Child,
     lines: Arc<Mutex<Vec<Json>>>,
     stderr: Arc<Mutex<String>>,
-    /// Reads stderr to its end (the child's exit closes it).
+    /// Read stdout and stderr to their ends (the child's exit closes them).
+    stdout_reader: std::thread::JoinHandle<()>,
     stderr_reader: std::thread::JoinHandle<()>,
 }
 
@@ -55,7 +56,7 @@ impl Proc {
         let lines: Arc<Mutex<Vec<Json>>> = Arc::default();
         let stderr: Arc<Mutex<String>> = Arc::default();
         let (out, sink) = (child.stdout.take().expect("piped"), lines.clone());
-        std::thread::spawn(move || {
+        let stdout_reader = std::thread::spawn(move || {
             for line in BufReader::new(out).lines().map_while(Result::ok) {
                 if let Ok(j) = serde_json::from_str::<Json>(&line) {
                     sink.lock().unwrap().push(j);
@@ -68,7 +69,7 @@ impl Proc {
             let _ = err.read_to_string(&mut s);
             sink.lock().unwrap().push_str(&s);
         });
-        Proc { name: name.to_owned(), child, lines, stderr, stderr_reader }
+        Proc { name: name.to_owned(), child, lines, stderr, stdout_reader, stderr_reader }
     }
 
     fn find(&self, key: &str) -> Option<Json> {
@@ -83,11 +84,25 @@ impl Proc {
                 return j;
             }
             if let Ok(Some(status)) = self.child.try_wait() {
-                std::thread::sleep(Duration::from_millis(200));
-                panic!("{} exited ({status}) before a `{key}` line: {}", self.name, self.stderr.lock().unwrap());
+                // Its last lines may still be in the pipes: read them to the end (bounded in
+                // case something else holds a pipe open) before judging.
+                self.drain_pipes();
+                if let Some(j) = self.find(key) {
+                    return j;
+                }
+                panic!("{} exited ({status}) before a `{key}` line: {}", self.name, self.stderr());
             }
             assert!(Instant::now() < end, "{}: no `{key}` line within {limit:?}: {}", self.name, self.stderr());
             std::thread::sleep(Duration::from_millis(100));
+        }
+    }
+
+    /// After the child exited: wait until the readers have read its pipes to the end (a busy
+    /// machine reads the last lines late), for at most 10 s.
+    fn drain_pipes(&self) {
+        let end = Instant::now() + Duration::from_secs(10);
+        while !(self.stdout_reader.is_finished() && self.stderr_reader.is_finished()) && Instant::now() < end {
+            std::thread::sleep(Duration::from_millis(5));
         }
     }
 
@@ -102,12 +117,8 @@ impl Proc {
         let end = Instant::now() + limit;
         loop {
             if let Ok(Some(status)) = self.child.try_wait() {
-                // The last lines (a sanitizer's report) may still be in the pipe: wait for the
-                // reader to reach its end, bounded in case something else holds the pipe.
-                let end = Instant::now() + Duration::from_secs(10);
-                while !self.stderr_reader.is_finished() && Instant::now() < end {
-                    std::thread::sleep(Duration::from_millis(5));
-                }
+                // The last lines (a sanitizer's report) may still be in the pipe.
+                self.drain_pipes();
                 return status;
             }
             assert!(Instant::now() < end, "{} did not stop within {limit:?} of SIGTERM", self.name);
