@@ -11,7 +11,7 @@ CARGO ?= cargo
 demo:
 	@echo "make demo: building the ayllu tool (release; the first build takes a minute or two)..."
 	$(CARGO) build --release -p ayllu-cli
-	@echo "make demo: running the study (1400 simulated runs, about 15-40 s; progress on stderr)..."
+	@echo "make demo: running the study (1680 simulated runs, about 15-40 s; progress on stderr)..."
 	@$(TARGET_DIR)/release/ayllu sim cmommt
 
 PYTHON ?= python3

@@ -10,7 +10,6 @@
 //!
 //! Run: `cargo run --release --example two_nodes_udp`
 
-// README:begin
 use std::fmt::Write as _;
 
 use ayllu::*;
@@ -83,7 +82,6 @@ pub fn run(seconds: f64) -> Result<String, Box<dyn std::error::Error>> {
     writeln!(out, "\n{}", r2.why("MOTOR", "Speed")?)?;
     Ok(out)
 }
-// README:end
 
 fn main() {
     match run(3.0) {

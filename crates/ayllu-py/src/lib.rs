@@ -35,6 +35,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<node::Team>()?;
     m.add_class::<node::PortHandle>()?;
     m.add_function(wrap_pyfunction!(node::stop_all, m)?)?;
+    m.add_function(wrap_pyfunction!(node::default_url, m)?)?;
     m.add_function(wrap_pyfunction!(recording::check_recording, m)?)?;
     sim::register(m)?;
     served::register(m)?;

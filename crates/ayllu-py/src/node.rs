@@ -156,6 +156,15 @@ impl Runner {
 /// shuts down (a thread must not run Python code then).
 static RUNNERS: Mutex<Vec<std::sync::Weak<Runner>>> = Mutex::new(Vec::new());
 
+/// The `udp://` URL every Ayllu program uses when told nothing else: `AYLLU_URL` from the
+/// environment, else the machine-local default (multicast discovery with TTL 0; docs/cli.md).
+/// `Node(id, ayllu.default_url())` is how a robot's program joins the team its machine is
+/// configured for.
+#[pyfunction]
+pub fn default_url() -> String {
+    ayllu::default_url()
+}
+
 /// Stop every running node's background thread (called by `atexit`, see `ayllu/__init__.py`).
 #[pyfunction]
 pub fn stop_all(py: Python<'_>) {

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import time
 
+import pytest
+
 import ayllu
 
 
@@ -80,3 +82,14 @@ def test_a_program_may_exit_with_its_nodes_running() -> None:
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert (out.returncode, out.stdout) == (0, "bye\n"), out.stderr
+
+
+def test_default_url_is_ayllu_url_else_the_machine_local_default(monkeypatch: pytest.MonkeyPatch) -> None:
+    # The URL every Ayllu program uses when told nothing else (docs/cli.md), from the runtime.
+    monkeypatch.setenv("AYLLU_URL", "udp://127.0.0.1:0?team=3")
+    assert ayllu.default_url() == "udp://127.0.0.1:0?team=3"
+    node = ayllu.Node(1, ayllu.default_url())
+    assert node.address() is not None and node.address().startswith("127.0.0.1:")  # type: ignore[union-attr]
+    node.close()
+    monkeypatch.delenv("AYLLU_URL")
+    assert ayllu.default_url() == "udp://0.0.0.0:0?discovery=239.255.65.89:7400&ttl=0"

@@ -118,6 +118,10 @@ def test_7_joining_from_a_microcontroller(tmp_path: Path) -> None:
     assert out == quoted("07-ayllu-lite.md"), "the page quotes what the program prints"
 
 
+# Tutorial 8 (two machines) needs two network namespaces: its Python robot runs against the
+# Rust one, and the page's recipe, in crates/ayllu-cli/tests/tool/two_machines.rs.
+
+
 def fenced_blocks(text: str) -> list[tuple[str, str]]:
     """(language, body) of every fenced block, including those indented inside tabs."""
     return [(m.group(2), m.group(3)) for m in re.finditer(r"^( *)```(\w*)[^\n]*\n(.*?)^\1```", text, re.S | re.M)]

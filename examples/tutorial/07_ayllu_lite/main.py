@@ -9,6 +9,8 @@ build of lite/c's example (`make -C lite/c`), standing in for the microcontrolle
 Exits non-zero if what the tutorial says does not happen.
 """
 
+from __future__ import annotations
+
 import subprocess
 import sys
 import time

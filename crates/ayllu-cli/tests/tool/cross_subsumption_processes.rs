@@ -290,11 +290,36 @@ fn partition(net: &Netns, i: usize, cut: bool, loss: u32) -> Result<(), String> 
     }
 }
 
-/// The fraction of status lines (of the live nodes, from `from` on) at which some target is
-/// claimed by two nodes, taking each node's latest line at that instant.
-fn double_claims(nodes: &[&Proc], from: Instant) -> (f64, usize) {
+/// A node that printed no status line for this long (on its own clock, or as the test read
+/// them) was starved of the CPU: its BLE select ran late too.
+const STALL: Duration = Duration::from_millis(300);
+
+/// Whether `node` ran on time through the `lease` before `at`: its status lines (every
+/// [`STATUS`]) came with no gap over [`STALL`], on its clock and as read. A claim is a lease:
+/// a node starved for longer than it (a loaded machine, the test's own reader behind) stops
+/// renewing, and its peers rightly claim its target. Those instants say nothing about the
+/// protocol, only about the machine, so the double-claim share leaves them out.
+fn on_time(lines: &[(Instant, Json)], at: Instant, lease: Duration) -> bool {
+    let first = lines.iter().rposition(|(t, _)| *t + lease <= at).unwrap_or(0);
+    let last = match lines.iter().rposition(|(t, _)| *t <= at) {
+        Some(last) if at.duration_since(lines[last].0) <= STALL => last,
+        _ => return false,
+    };
+    let node_t = |j: &Json| j["t"].as_f64().unwrap_or(f64::NAN);
+    lines[first..=last]
+        .windows(2)
+        .all(|w| w[1].0.duration_since(w[0].0) <= STALL && node_t(&w[1].1) - node_t(&w[0].1) <= STALL.as_secs_f64())
+}
+
+/// Double claims among status lines: of the instants (status lines of the live nodes, from
+/// `from` on) at which every node ran on time through the last `lease` ([`on_time`]), the
+/// fraction at which some target is claimed by two nodes, taking each node's latest line at that
+/// instant; and how many instants were on time, and how many not.
+fn double_claims(nodes: &[&Proc], from: Instant, lease: Duration) -> (f64, usize, usize) {
     let lines: Vec<Vec<(Instant, Json)>> = nodes.iter().map(|p| p.lines()).collect();
-    let instants: Vec<Instant> = lines.iter().flatten().map(|(t, _)| *t).filter(|t| *t >= from).collect();
+    let all: Vec<Instant> = lines.iter().flatten().map(|(t, _)| *t).filter(|t| *t >= from).collect();
+    let instants: Vec<Instant> =
+        all.iter().copied().filter(|&at| lines.iter().all(|l| on_time(l, at, lease))).collect();
     let mut doubled = 0;
     for &at in &instants {
         let mut count = [0u32; 5];
@@ -311,7 +336,22 @@ fn double_claims(nodes: &[&Proc], from: Instant) -> (f64, usize) {
             doubled += 1;
         }
     }
-    (doubled as f64 / instants.len().max(1) as f64, instants.len())
+    (doubled as f64 / instants.len().max(1) as f64, instants.len(), all.len() - instants.len())
+}
+
+/// [`double_claims`] from now on, over at least 5 cycles and until 30 instants were on time
+/// (at most a minute: a machine that starves the nodes that long fails the test, saying so).
+fn sample_double_claims(nodes: &[Proc], bounds: &Bounds) -> (f64, usize, usize) {
+    let from = Instant::now();
+    std::thread::sleep(bounds.cycle * 5);
+    let live: Vec<&Proc> = nodes.iter().collect();
+    loop {
+        let sample = double_claims(&live, from, bounds.takeover);
+        if sample.1 >= 30 || from.elapsed() > Duration::from_secs(60) {
+            return sample;
+        }
+        std::thread::sleep(bounds.cycle);
+    }
 }
 
 #[test]
@@ -350,13 +390,15 @@ fn three_processes_with_loss_a_partition_and_a_kill_keep_the_arbitration_propert
         state_is(&live, &[(1, 1), (2, 2), (3, 3)], &[1, 2, 3, 3]).ok()
     });
     assert!(settled.is_some(), "never settled with {LOSS} % loss\n{}", diagnostics(&nodes));
-    let from = Instant::now();
-    std::thread::sleep(bounds.cycle * 5);
-    let (doubled, samples) = double_claims(&nodes.iter().collect::<Vec<_>>(), from);
-    eprintln!("{LOSS} % loss: a target claimed twice at {:.1} % of {samples} instants", doubled * 100.0);
+    let (doubled, samples, stalled) = sample_double_claims(&nodes, &bounds);
+    eprintln!(
+        "{LOSS} % loss: a target claimed twice at {:.1} % of {samples} instants (and {stalled} left out: a node \
+         starved of the CPU)",
+        doubled * 100.0
+    );
     assert!(
         samples >= 10 && doubled <= 0.2,
-        "double claims at {:.0} % of instants\n{}",
+        "double claims at {:.0} % of {samples} instants at which every node ran on time ({stalled} were not)\n{}",
         doubled * 100.0,
         diagnostics(&nodes)
     );
@@ -478,12 +520,11 @@ fn three_processes_through_the_userspace_shaper_keep_the_arbitration_properties(
         shaper_counts(&shaper)
     );
     let settle_time = started.elapsed();
-    let from = Instant::now();
-    std::thread::sleep(bounds.cycle * 5);
-    let (doubled, samples) = double_claims(&nodes.iter().collect::<Vec<_>>(), from);
+    let (doubled, samples, stalled) = sample_double_claims(&nodes, &bounds);
     assert!(
         samples >= 10 && doubled == 0.0,
-        "a target claimed twice at {:.1} % of {samples} instants\n{}",
+        "a target claimed twice at {:.1} % of {samples} instants at which every node ran on time ({stalled} were \
+         not)\n{}",
         doubled * 100.0,
         diagnostics(&nodes)
     );
@@ -621,7 +662,7 @@ fn soak() {
         );
     }
     let (rss1, fds1) = nodes[1].resources().expect("/proc");
-    let (doubled, samples) = double_claims(&nodes.iter().collect::<Vec<_>>(), began);
+    let (doubled, samples, _) = double_claims(&nodes.iter().collect::<Vec<_>>(), began, bounds.takeover);
     eprintln!(
         "soak: {minutes} min, {rounds} rounds; n2 RSS {rss0} -> {rss1} KiB, descriptors {fds0} -> {fds1}; worst take-over \
          after a cut-off {:.2}s, after a kill {:.2}s (bound {:?} + margin {:?}); double claims at {:.1} % of {samples} instants",

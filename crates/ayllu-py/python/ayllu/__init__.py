@@ -40,6 +40,7 @@ from ayllu._native import (
     Team,
     ValueTypeError,
     check_recording,
+    default_url,
 )
 from ayllu._native import MonoDecl as Monostable
 from ayllu._native import PortDecl as Port
@@ -74,6 +75,7 @@ __all__ = [
     "ValueTypeError",
     "broadcast",
     "check_recording",
+    "default_url",
     "every",
     "inhibit",
     "local",
