@@ -643,7 +643,7 @@ int ayl_node_send_hello(ayl_node *node, uint64_t now_ns);
  * getenv("AYLLU_URL") (or AYL_URL_DEFAULT when it is unset or empty), resolves host names
  * itself, reads the operator secret's file itself, and sizes cfg.tx to the URL's mtu. */
 
-#define AYL_URL_DEFAULT "udp://0.0.0.0:0?discovery=239.255.65.89:7400&ttl=0"
+#define AYL_URL_DEFAULT "udp://0.0.0.0:0?discovery=239.255.65.89:7390&ttl=0"
 #define AYL_URL_ENV "AYLLU_URL"
 #ifndef AYL_URL_MAX_PEERS
 #define AYL_URL_MAX_PEERS 16 /* peer= options kept; more are refused */

@@ -1853,7 +1853,7 @@ URL_ENV = "AYLLU_URL"
 #: The URL when ``AYLLU_URL`` is not set: any address, a port the system chooses, team 0, no
 #: key, discovery by multicast with TTL 0 (this machine only) -- the same default as the Rust
 #: runtime and the ``ayllu`` tool.
-DEFAULT_URL = "udp://0.0.0.0:0?discovery=239.255.65.89:7400&ttl=0"
+DEFAULT_URL = "udp://0.0.0.0:0?discovery=239.255.65.89:7390&ttl=0"
 
 
 def default_url() -> str:

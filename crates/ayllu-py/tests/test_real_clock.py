@@ -92,4 +92,4 @@ def test_default_url_is_ayllu_url_else_the_machine_local_default(monkeypatch: py
     assert node.address() is not None and node.address().startswith("127.0.0.1:")  # type: ignore[union-attr]
     node.close()
     monkeypatch.delenv("AYLLU_URL")
-    assert ayllu.default_url() == "udp://0.0.0.0:0?discovery=239.255.65.89:7400&ttl=0"
+    assert ayllu.default_url() == "udp://0.0.0.0:0?discovery=239.255.65.89:7390&ttl=0"

@@ -199,7 +199,7 @@ fn a_bridge_on_the_discovery_address_joins_zero_configuration_nodes() {
     // the shared multicast address is another team's.
     ayllu_zenoh::register();
     let team = 40_000 + std::process::id() % 20_000;
-    let discovery = "discovery=239.255.65.89:7400&ttl=0";
+    let discovery = "discovery=239.255.65.89:7390&ttl=0";
     let mut bridge = Bridge::open(
         &format!("udp://0.0.0.0:0?{discovery}&team={team}"),
         &format!("zenoh://?scouting=0&listen=tcp/127.0.0.1:0&team={team}"),

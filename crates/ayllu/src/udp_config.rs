@@ -10,7 +10,7 @@
 //! takes its URL from the environment variable `AYLLU_URL`, else uses [`DEFAULT_URL`]:
 //! discovery by multicast with a TTL of 0, so nodes on one machine find each other with no
 //! configuration and nothing leaves the machine. For a team on one subnet, set
-//! `AYLLU_URL='udp://0.0.0.0:7400?discovery=239.255.65.89:7400&ttl=1'` on every robot.
+//! `AYLLU_URL='udp://0.0.0.0:0?discovery=239.255.65.89:7390&ttl=1'` on every robot.
 //!
 //! * `team` (default 0): the team id; datagrams of other teams are ignored.
 //! * `key`: 64 hex digits, the 32-byte team key. Without it the team is open (N5).
@@ -62,7 +62,7 @@ pub const MAX_SPIN_US: u64 = 1000;
 pub const URL_ENV: &str = "AYLLU_URL";
 /// The URL used when `AYLLU_URL` is not set: any address, a port the system chooses, team 0,
 /// no key, discovery on this machine only (multicast TTL 0).
-pub const DEFAULT_URL: &str = "udp://0.0.0.0:0?discovery=239.255.65.89:7400&ttl=0";
+pub const DEFAULT_URL: &str = "udp://0.0.0.0:0?discovery=239.255.65.89:7390&ttl=0";
 
 /// The URL this program should use: `AYLLU_URL` if set (and not empty), else [`DEFAULT_URL`].
 pub fn default_url() -> String {
@@ -284,9 +284,9 @@ mod tests {
     fn the_default_url_discovers_on_this_machine_only() {
         let c = UdpConfig::parse(DEFAULT_URL).unwrap();
         assert_eq!(c.bind, "0.0.0.0:0".parse().unwrap(), "any address, a port the system chooses");
-        assert_eq!(c.discovery, Some("239.255.65.89:7400".parse().unwrap()));
+        assert_eq!(c.discovery, Some("239.255.65.89:7390".parse().unwrap()));
         assert_eq!((c.ttl, c.team, c.key), (0, 0, None), "TTL 0: nothing leaves the machine; team 0, open");
-        let c = UdpConfig::parse("udp://0.0.0.0:7400?discovery=239.255.65.89:7400&ttl=1").unwrap();
+        let c = UdpConfig::parse("udp://0.0.0.0:0?discovery=239.255.65.89:7390&ttl=1").unwrap();
         assert_eq!(c.ttl, 1);
         assert_eq!(UdpConfig::parse("udp://0.0.0.0:0").unwrap().ttl, 1, "ttl defaults to 1 when not given");
     }

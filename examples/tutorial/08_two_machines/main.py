@@ -6,9 +6,9 @@ on robots; with it unset, the machine-local default), on the real clock.
 
 Run, on machine A and machine B of one subnet:
 
-    export AYLLU_URL='udp://0.0.0.0:7400?discovery=239.255.65.89:7400&ttl=1'
-    python main.py 1    # on A
-    python main.py 2    # on B
+    export AYLLU_URL='udp://0.0.0.0:0?discovery=239.255.65.89:7390&ttl=1'
+    python3 main.py 1    # on A
+    python3 main.py 2    # on B
 
 Exits 0 once the other robot's values have driven this robot's motor, 1 (naming the likely
 cause) if none arrived within the run (`--for SECONDS`, 10 by default). The Rust program beside

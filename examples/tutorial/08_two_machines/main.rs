@@ -7,7 +7,7 @@
 //! Run, on machine A and machine B of one subnet:
 //!
 //! ```sh
-//! export AYLLU_URL='udp://0.0.0.0:7400?discovery=239.255.65.89:7400&ttl=1'
+//! export AYLLU_URL='udp://0.0.0.0:0?discovery=239.255.65.89:7390&ttl=1'
 //! cargo run -p ayllu --example tutorial_08_two_machines -- 1    # on A
 //! cargo run -p ayllu --example tutorial_08_two_machines -- 2    # on B
 //! ```

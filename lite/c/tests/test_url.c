@@ -151,7 +151,7 @@ static void defaults_names_and_limits(void) {
 
     CHECK(ayl_url_parse(&u, AYL_URL_DEFAULT, err, sizeof err) == 0);
     CHECK(u.team == 0 && !u.keyed && u.npeers == 0 && !u.has_broadcast && u.ngroups == 0);
-    CHECK(u.has_discovery && u.discovery.ip4[0] == 239 && u.discovery.port == 7400 && u.ttl == 0);
+    CHECK(u.has_discovery && u.discovery.ip4[0] == 239 && u.discovery.port == 7390 && u.ttl == 0);
     CHECK(u.hello_ms == 1000 && u.mtu == AYL_MTU && u.spin_us == 50 && u.name.len == 0);
     CHECK(ayl_url_parse(&u, "udp://0.0.0.0:0", err, sizeof err) == 0 && u.ttl == 1);
 

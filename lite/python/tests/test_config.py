@@ -12,10 +12,10 @@ import ayllu_lite as al
 
 
 def test_the_default_url_is_the_runtimes() -> None:
-    assert al.DEFAULT_URL == "udp://0.0.0.0:0?discovery=239.255.65.89:7400&ttl=0"
+    assert al.DEFAULT_URL == "udp://0.0.0.0:0?discovery=239.255.65.89:7390&ttl=0"
     o = al.parse_url(al.DEFAULT_URL)
     assert o["bind"] == ("0.0.0.0", 0)
-    assert o["discovery"] == ("239.255.65.89", 7400)
+    assert o["discovery"] == ("239.255.65.89", 7390)
     assert o["ttl"] == 0
     assert "team" not in o, "team 0 unless the URL says otherwise"
 

@@ -16,7 +16,7 @@ use common::netns::Netns;
 use common::{Proc, BIN};
 
 const LIMIT: Duration = Duration::from_secs(20);
-const SUBNET_URL: &str = "udp://0.0.0.0:0?discovery=239.255.65.89:7400&ttl=1";
+const SUBNET_URL: &str = "udp://0.0.0.0:0?discovery=239.255.65.89:7390&ttl=1";
 
 fn namespaces(tag: &str, subnet: u8, n: usize) -> Option<Netns> {
     match Netns::create(tag, subnet, n) {
@@ -85,13 +85,13 @@ fn with_the_subnet_url_nodes_on_other_machines_are_found() {
 #[test]
 fn a_node_of_another_team_is_named_as_such() {
     let Some(net) = namespaces("zt", 81, 1) else { return };
-    let team5 = "udp://0.0.0.0:0?discovery=239.255.65.89:7400&ttl=0&team=5";
+    let team5 = "udp://0.0.0.0:0?discovery=239.255.65.89:7390&ttl=0&team=5";
     let _n3 = relay(&net, 0, 3, Some(team5));
     let run = common::run(command(&net, 0, None, &["why", "3", "RELAY.In", "--timeout", "1.5"]), LIMIT)
         .fails(1, "unknown node n3");
     assert!(run.stderr.contains("another team") && run.stderr.contains("team="), "{run:?}");
     // With the team's id the same command works.
-    let same = "udp://0.0.0.0:0?discovery=239.255.65.89:7400&ttl=0&team=5";
+    let same = "udp://0.0.0.0:0?discovery=239.255.65.89:7390&ttl=0&team=5";
     common::run(command(&net, 0, Some(same), &["why", "3", "RELAY.In"]), LIMIT).ok();
 }
 
@@ -101,7 +101,7 @@ fn a_node_of_another_team_is_named_as_such() {
 #[test]
 fn discovery_on_a_loopback_bind_is_named_when_nothing_is_heard() {
     let Some(net) = namespaces("lb", 82, 1) else { return };
-    let on_loopback = "udp://127.0.0.1:0?discovery=239.255.65.89:7400&ttl=0";
+    let on_loopback = "udp://127.0.0.1:0?discovery=239.255.65.89:7390&ttl=0";
     let _n4 = relay(&net, 0, 4, Some(on_loopback));
     let run =
         common::run(command(&net, 0, Some(on_loopback), &["list", "--timeout", "1"]), LIMIT).fails(1, "no node heard");
@@ -110,7 +110,7 @@ fn discovery_on_a_loopback_bind_is_named_when_nothing_is_heard() {
         .fails(1, "unknown node n4");
     assert!(run.stderr.contains("binds a loopback address"), "{run:?}");
     // The advice works: bound to any address, the tool hears the node's HELLOs.
-    let any = "udp://0.0.0.0:0?discovery=239.255.65.89:7400&ttl=0";
+    let any = "udp://0.0.0.0:0?discovery=239.255.65.89:7390&ttl=0";
     let run = common::run(command(&net, 0, Some(any), &["list", "--json"]), LIMIT).ok();
     assert_eq!(heard(&run), [4], "{run:?}");
 }

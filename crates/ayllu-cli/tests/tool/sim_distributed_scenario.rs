@@ -139,7 +139,11 @@ fn check(team: &mut Team, started: Instant) {
     assert!(status.success(), "{name}: robot 2 ended with {status}: {}", robot2.stderr());
     let last = robot2.latest().expect("robot 2's lines").1;
     assert_eq!(last["killed"], true, "{name}: {last}");
-    assert!(m["recover_s"].is_number() || m["unrecovered"].as_u64() > Some(0), "{name}: the kill was not judged: {m}");
+    // The metrics saw the kill: its re-cover judged, or (when robot 2 observed nothing that no
+    // other robot also did at that instant, which the real clock's timing decides: nothing to
+    // re-cover, `recover_s` null) the coverage of the robots left alive apart from the team's.
+    let judged = m["recover_s"].is_number() || m["unrecovered"].as_u64() > Some(0);
+    assert!(judged || m["top_k_alive"] != m["top_k"], "{name}: the metrics did not see the kill: {m}");
 
     // The radio model on the real traffic: what the others heard from their peers.
     let (mut lost, mut delivered) = (0, 0);

@@ -383,13 +383,29 @@ fn play_drives_a_live_port_in_order_and_hz_counts_and_finds_gaps() {
         .json();
         sent += w["sent"].as_u64().unwrap();
     }
-    // Every value written reaches RELAY.Out and hz, which reports each second.
-    let report = wait_for(LIMIT, Duration::from_millis(100), || {
+    // Every value RELAY.Out sent along hz's connection reaches hz, which reports each second.
+    // Not every value written: `Copy` runs on a write of In, and two writes that arrive in one
+    // turn of a busy node run it once (a trigger is a flag), so Out may send fewer than `sent`.
+    // The node's own count for the connection is what hz must match.
+    let conn: u64 = hz
+        .stderr()
+        .split("'s connection ")
+        .nth(1)
+        .and_then(|r| r.trim_start_matches('c').split(|c: char| !c.is_ascii_digit()).next()?.parse().ok())
+        .unwrap_or_else(|| panic!("hz names its connection: {}", hz.stderr()));
+    let on_conn = || -> Option<u64> {
+        let list = ayllu(&["list", "9", "--json", "--udp", &url], LIMIT).ok().json();
+        list["connections"].as_array()?.iter().find(|c| c["id"].as_u64() == Some(conn))?["sent"].as_u64()
+    };
+    let report = wait_for(LIMIT, Duration::from_millis(200), || {
         let last = hz.latest()?.1;
-        (last["messages"].as_u64()? >= sent).then_some(last)
+        let out = on_conn()?;
+        (out > 0 && last["messages"].as_u64()? == out).then_some((last, out))
     });
-    let report = report.unwrap_or_else(|| panic!("hz did not count {sent} messages: {:?}", hz.latest()));
-    assert_eq!(report["messages"].as_u64(), Some(sent), "{report}");
+    let (report, out) = report.unwrap_or_else(|| {
+        panic!("hz did not count what RELAY.Out sent it ({:?} of {sent} written): {:?}", on_conn(), hz.latest())
+    });
+    assert!(out <= sent && out * 2 >= sent, "RELAY.Out sent {out} of the {sent} values written: {report}");
     assert_eq!(report["lost"], 0, "{report}");
     assert_eq!(report["out_of_order"], 0, "{report}");
     let longest = report["gaps"].as_array().unwrap().iter().filter_map(|g| g["length"].as_f64()).fold(0.0, f64::max);

@@ -139,9 +139,17 @@ impl UdpTransport<OsSocket> {
     pub fn bind(id: NodeId, config: UdpConfig) -> Result<Self, Error> {
         let mut socket = OsSocket::bind(config.bind).map_err(|e| {
             let what = if e.kind() == std::io::ErrorKind::AddrInUse {
+                // RTPS (DDS, so ROS 2) takes 7400 + 250 x domain and the ports just above it: a
+                // fixed port there is the first thing a ROS 2 robot's node collides with.
+                let dds = if config.bind.port() >= 7400 {
+                    "; on a ROS 2 robot, DDS takes UDP 7400 and up (7400 + 250 x domain id), so pick a port \
+                     below 7400"
+                } else {
+                    ""
+                };
                 format!(
                     "binding UDP socket {}: another process holds this address (an earlier node still \
-                     running?); stop it, or bind port 0 to let the system choose a free one",
+                     running?); stop it, or bind port 0 to let the system choose a free one{dds}",
                     config.bind
                 )
             } else {
