@@ -1,6 +1,7 @@
 //! `ayllu replay FILE [--at T] why|list|echo|check`: a node's flight recording (`ayllu node
 //! --record FILE`, `Node::record`) played back, answering as the live node would have at a
-//! past instant. The replay engine is the library's ([`ayllu::replay`]); this only parses,
+//! past instant. `ayllu replay FILE FILE... check` (or a folder) checks a team's recordings as
+//! one system ([`ayllu::team_replay`]). The replay engine is the library's ([`ayllu::replay`]); this only parses,
 //! and prints with the printers of the live `why`, `list` and `echo`, so a replayed answer
 //! reads like a live one.
 //!
@@ -10,7 +11,7 @@
 use std::path::PathBuf;
 
 use ayllu::replay::{Ending, Recording, Replay};
-use ayllu::{Duration, Instant};
+use ayllu::{Duration, Instant, NodeId};
 use clap::{Args, Subcommand};
 use serde_json::json;
 
@@ -20,9 +21,14 @@ use crate::text::{human, node_report_json, node_report_text, port_report_json, v
 use crate::{parse_port_path, PortPath};
 
 #[derive(Args, Debug)]
+// `replay a.mcap b.mcap check`: the files end where a subcommand's name begins.
+#[command(subcommand_precedence_over_arg = true)]
 pub struct ReplayArgs {
     /// The recording: its first segment (`run.mcap`; `run.1.mcap`, ... are read after it).
-    pub file: PathBuf,
+    /// Several recordings, or a folder of them, are a team's: `check` replays them as one
+    /// system (clocks aligned from the messages, every remote value matched with its sending).
+    #[arg(required = true, num_args = 1.., value_name = "FILE")]
+    pub files: Vec<PathBuf>,
     /// The instant to answer at, on the node's clock (`12.5`, `12.5s`, `1500ms`); default:
     /// the end of the recording.
     #[arg(long, value_name = "T", value_parser = parse_time, global = true)]
@@ -42,6 +48,14 @@ pub enum ReplayCommand {
         /// BEHAVIOR.PORT
         #[arg(value_parser = parse_port_path)]
         target: PortPath,
+        /// With a team's recordings: the node asked (its id, `2` or `n2`); --at is on its clock.
+        #[arg(long, value_name = "ID", value_parser = parse_node)]
+        node: Option<NodeId>,
+        /// With a team's recordings: how many messages away to follow the causes (a window's
+        /// holder, a value's sender, what their process read), into the other robots'
+        /// recordings.
+        #[arg(long, value_name = "N", default_value_t = 2)]
+        depth: usize,
     },
     /// Describe the whole node as it was at --at.
     List,
@@ -58,7 +72,15 @@ pub enum ReplayCommand {
         to: Option<Instant>,
     },
     /// Replay the whole recording and check it: every accepted value reproduced bit for bit.
+    /// With a team's recordings: each node's replay, their clocks against the first's (with a
+    /// bound), and every remote value accepted matched with its sending (same value, sent no
+    /// later, accepted once); exit 1 naming what does not hold.
     Check,
+}
+
+/// `2` or `n2`: a node id.
+fn parse_node(s: &str) -> Result<NodeId, String> {
+    s.trim().trim_start_matches('n').parse().map(NodeId).map_err(|_| format!("`{s}` is not a node id (e.g. 2 or n2)"))
 }
 
 /// `12.5`, `12.5s`, `1500ms`, `250us`, `100ns`: a node time.
@@ -134,10 +156,112 @@ fn past_the_last_known(rec: &Recording, at: Instant, last: Instant) -> Fail {
     ))
 }
 
+/// The recordings `files` name: each file, and in each folder its recordings' first segments
+/// (`*.mcap` other than `NAME.N.mcap`, in name order).
+fn recordings(files: &[PathBuf]) -> Result<Vec<PathBuf>, Fail> {
+    let mut out = Vec::new();
+    for f in files {
+        if !f.is_dir() {
+            out.push(f.clone());
+            continue;
+        }
+        let mut found: Vec<PathBuf> = std::fs::read_dir(f)
+            .map_err(|e| Fail::error(format!("{}: {e}", f.display())))?
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.extension().is_some_and(|x| x == "mcap"))
+            .filter(|p| {
+                // `run.1.mcap` is a later segment of `run.mcap`, read with it.
+                let stem = p.file_stem().and_then(|s| s.to_str()).unwrap_or("");
+                !stem.rsplit_once('.').is_some_and(|(_, n)| !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit()))
+            })
+            .collect();
+        if found.is_empty() {
+            return Err(Fail::error(format!("{}: no recording (*.mcap) in this folder", f.display())));
+        }
+        found.sort();
+        out.extend(found);
+    }
+    Ok(out)
+}
+
+/// `ayllu replay` of a team's recordings: `check`, and `why --node N` followed across robots.
+fn run_team(args: &ReplayArgs, files: &[PathBuf]) -> Result<(), Fail> {
+    let mut recs = Vec::new();
+    for f in files {
+        let rec = Recording::open(f)?;
+        eprintln!(
+            "replay: {} — node {}, {} entries, {:.3}s of node time",
+            f.display(),
+            rec.node,
+            rec.entries.len(),
+            secs(rec.end())
+        );
+        recs.push(rec);
+    }
+    match &args.what {
+        ReplayCommand::Check => {
+            let team = ayllu::team_replay::check(&recs);
+            if args.json {
+                emit(&team.to_json().to_string())?;
+            } else {
+                emit(team.to_string().trim_end())?;
+            }
+            if team.passed() {
+                Ok(())
+            } else {
+                Err(Fail::error(format!(
+                    "the team's recordings do not hold together: {} finding(s), {} remote value(s) unexplained",
+                    team.findings.len(),
+                    team.unexplained()
+                )))
+            }
+        }
+        ReplayCommand::Why { target, node, depth } => {
+            let Some(node) = *node else {
+                return Err(Fail::usage(format!(
+                    "{} recordings: say which node's port with --node ID (--at is on its clock)",
+                    files.len()
+                )));
+            };
+            // Default: the last instant the node's recording tells about, as for one recording.
+            let at = args.at.unwrap_or_else(|| {
+                recs.iter().find(|r| r.node == node).map_or(Instant::ZERO, |r| r.last_known().unwrap_or(r.end()))
+            });
+            let team = ayllu::team_replay::Team::open(recs);
+            let chain = team.why(node, at, &target.behavior, &target.port, *depth)?;
+            if args.json {
+                emit(&chain.to_json().to_string())
+            } else {
+                emit(chain.to_string().trim_end())
+            }
+        }
+        _ => Err(Fail::usage(format!(
+            "{} recordings: a team replay answers `check` and `why --node ID` (list and echo take one recording: its \
+             node's)",
+            files.len()
+        ))),
+    }
+}
+
 /// `ayllu replay`.
 pub fn run(args: &ReplayArgs) -> Result<(), Fail> {
     check_range(args)?;
-    let rec = Recording::open(&args.file)?;
+    let files = recordings(&args.files)?;
+    if files.len() > 1 {
+        return run_team(args, &files);
+    }
+    let file = &files[0];
+    let rec = Recording::open(file)?;
+    if let ReplayCommand::Why { node: Some(node), .. } = &args.what {
+        if *node != rec.node {
+            return Err(Fail::usage(format!(
+                "--node {node}: {} is a recording of {}; give {node}'s recording too (a team replay follows causes \
+                 across recordings)",
+                file.display(),
+                rec.node
+            )));
+        }
+    }
     let end = rec.end();
     // A recording with a hole, or capped or cut, tells nothing after its last known instant:
     // the default instant is that one, and a later --at is refused (see `past_the_last_known`).
@@ -152,7 +276,7 @@ pub fn run(args: &ReplayArgs) -> Result<(), Fail> {
     });
     eprintln!(
         "replay: {} — node {}, {} entries in {} segment(s), {:.3}s of node time, {ending}{known}",
-        args.file.display(),
+        file.display(),
         rec.node,
         rec.entries.len(),
         rec.segments.len(),
@@ -168,7 +292,7 @@ pub fn run(args: &ReplayArgs) -> Result<(), Fail> {
     }
     let mut replay = Replay::new(&rec);
     match &args.what {
-        ReplayCommand::Why { target } => {
+        ReplayCommand::Why { target, .. } => {
             let report = replay.why_at(at, &target.behavior, &target.port)?;
             if args.json {
                 emit(&serde_json::to_string_pretty(&port_report_json(&report)).unwrap_or_default())

@@ -53,3 +53,21 @@ pub fn check_recording(py: Python<'_>, path: std::path::PathBuf) -> PyResult<usi
     })
     .map_err(errors::InvalidError::new_err)
 }
+
+/// Replay the flight recordings of several nodes of one team (files, in any order; the first
+/// one's clock is the reference) as one system: each node's replay, the clocks against the
+/// first's with a bound, and every remote value accepted matched with its sending (same value,
+/// sent no later, accepted once). Returns a dict (`passed`, `clocks`, `unexplained`,
+/// `findings`, ...: the `--json` of `ayllu replay FILE FILE... check`). Raises
+/// `ayllu.InvalidError` for a file that is not a flight recording.
+#[pyfunction]
+pub fn check_team(py: Python<'_>, paths: Vec<std::path::PathBuf>) -> PyResult<Py<PyAny>> {
+    let json = py
+        .detach(|| {
+            let recordings =
+                paths.iter().map(Recording::open).collect::<Result<Vec<_>, _>>().map_err(|e| e.to_string())?;
+            Ok::<String, String>(ayllu::team_replay::check(&recordings).to_json().to_string())
+        })
+        .map_err(errors::InvalidError::new_err)?;
+    Ok(py.import("json")?.call_method1("loads", (json,))?.unbind())
+}

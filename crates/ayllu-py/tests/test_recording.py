@@ -100,3 +100,30 @@ def test_files_that_made_the_mcap_reader_panic_raise_invalid_error() -> None:
     for f in files:
         with contextlib.suppress(ayllu.AylluError):
             ayllu.check_recording(f)
+
+
+def test_a_teams_recordings_check_as_one_system(tmp_path: Path) -> None:
+    # Two nodes of a deterministic team, each recording; node 1's values cross to node 2 and
+    # back. The team check matches every remote value with its sending and bounds the clocks.
+    team = ayllu.Team()
+    nodes = [team.add(i) for i in (1, 2)]
+    paths = [tmp_path / f"n{i}.mcap" for i in (1, 2)]
+    for node, path in zip(nodes, paths):
+        node.record(path)
+        node.create(Noisy, "N")
+    nodes[0].connect(ayllu.local("N", "Out"), ayllu.remote(2, "N", "In"))
+    nodes[1].connect(ayllu.local("N", "Out"), ayllu.remote(1, "N", "In"))
+    for k in range(50):
+        nodes[0].write("N", "In", k / 3.0)
+        team.advance(0.02, tick=0.01)
+    for node in nodes:
+        node.stop_recording()
+    result = ayllu.check_team(paths)
+    assert result["passed"], result
+    assert result["unexplained"] == 0 and result["accepted_remote"] >= 40, result
+    assert [m["from"] for m in result["matched"]] == [1, 2], result
+    # One clock (the team's): node 2's offset from node 1 is within its bound of zero.
+    clock = result["clocks"][1]
+    assert clock["low_s"] <= 0.0 <= clock["high_s"], clock
+    with pytest.raises(ayllu.InvalidError):
+        ayllu.check_team([tmp_path / "missing.mcap"])

@@ -30,6 +30,7 @@ pub mod routability;
 pub mod stdlib;
 pub mod team_channels;
 pub mod team_recording;
+pub mod team_replay;
 pub mod transaction;
 pub mod transport;
 pub mod udp;

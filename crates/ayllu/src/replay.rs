@@ -25,8 +25,8 @@ use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex, MutexGuard};
 
 use ayllu_core::{
-    BehaviorClass, ConnectOptions, Ctx, Entry, Event, Instant, Mono, NodeCore, NodeId, NodeReport, Port, PortReport,
-    Slot, Value,
+    BehaviorClass, ConnectOptions, Ctx, Entry, Event, Instant, Mono, NodeCore, NodeId, NodeReport, Outgoing, Port,
+    PortReport, Slot, Value,
 };
 
 use crate::error::Error;
@@ -318,7 +318,7 @@ fn is_effect(e: &Event) -> bool {
 }
 
 /// Whether the replay loop applies `e` itself (what is not a consequence of another entry).
-fn is_input(e: &Event) -> bool {
+pub(crate) fn is_input(e: &Event) -> bool {
     !matches!(e, Event::Accepted { .. } | Event::Run { .. } | Event::Gap { .. }) && !is_effect(e)
 }
 
@@ -431,6 +431,10 @@ pub struct Replay {
     stop: usize,
     /// The node time up to which inputs were applied.
     reached: Instant,
+    /// The messages the replayed core sent, with the node time of the input that made them,
+    /// when asked for ([`Replay::keep_sent`]; a team replay matches them with what the other
+    /// nodes received); else they are dropped as made.
+    sent: Option<Vec<(Instant, Outgoing)>>,
 }
 
 impl Replay {
@@ -457,7 +461,21 @@ impl Replay {
             scratch: Vec::new(),
             stop,
             reached: Instant::ZERO,
+            sent: None,
         }
+    }
+
+    /// Keep the messages the replayed core sends from now on (each with the node time of the
+    /// input that made it: the live node sent it then or a moment later), for
+    /// [`Replay::take_sent`]. A replay reproduces them as the live node made them, sequence
+    /// numbers included, since the sequence base is recorded.
+    pub fn keep_sent(&mut self) {
+        self.sent.get_or_insert_with(Vec::new);
+    }
+
+    /// The messages kept since [`Replay::keep_sent`] (or the last call), oldest first.
+    pub fn take_sent(&mut self) -> Vec<(Instant, Outgoing)> {
+        self.sent.as_mut().map(std::mem::take).unwrap_or_default()
     }
 
     /// The replayed core, as it stands (ask it `why_at`, `report_at`, `read_at`).
@@ -501,6 +519,27 @@ impl Replay {
             self.apply(entry)?;
         }
         self.reached = self.reached.max(t);
+        Ok(())
+    }
+
+    /// Apply every input recorded before journal position `entry` (and none from it on): the
+    /// node as it stood just before that input, e.g. before the poll in which a process ran,
+    /// to see what the process read. Stops at the first divergence.
+    pub fn run_before(&mut self, entry: usize) -> Result<(), Divergence> {
+        loop {
+            let next = {
+                let mut tape = lock(&self.tape);
+                tape.skip();
+                if tape.next >= self.stop.min(entry) {
+                    break;
+                }
+                let e = tape.entries[tape.next].clone();
+                tape.next += 1;
+                e
+            };
+            self.reached = self.reached.max(next.at);
+            self.apply(next)?;
+        }
         Ok(())
     }
 
@@ -597,7 +636,11 @@ impl Replay {
             }
             _ => {}
         }
-        while self.core.pop_outgoing().is_some() {}
+        while let Some(out) = self.core.pop_outgoing() {
+            if let Some(sent) = &mut self.sent {
+                sent.push((at, out));
+            }
+        }
         if let Some(d) = lock(&self.tape).divergence.clone() {
             return Err(d);
         }

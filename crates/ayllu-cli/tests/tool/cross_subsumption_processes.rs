@@ -686,3 +686,85 @@ fn soak() {
     assert!(fds1 <= fds0 + 2, "n2's descriptors grew {fds0} -> {fds1}");
     assert!(doubled <= 0.2, "double claims at {:.0} % of instants", doubled * 100.0);
 }
+
+#[test]
+fn three_recorded_processes_through_the_shaper_replay_as_one_team() {
+    // Issue 35: three `ayllu node --record` processes, the paper's team, through the userspace
+    // shaper with loss on top of its delay, jitter, reordering and duplication. Their three
+    // flight recordings, replayed as one system (`ayllu replay n1 n2 n3 check`, and the folder
+    // form), explain every remote value accepted (0 unexplained), bound every clock from both
+    // sides, and say by how much.
+    let net = match Netns::bare("tr", 89, 3) {
+        Ok(net) => net,
+        Err(reason) => return unavailable("netns", &reason),
+    };
+    let lossy: Vec<&str> = SHAPE.iter().copied().chain(["--loss", "0.1"]).collect();
+    let shaper = match start_shaper(&net, 3, &lossy, 60) {
+        Ok(shaper) => shaper,
+        Err(reason) => panic!("the shaper (`ayllu shape`): {reason}"),
+    };
+    let dir = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("team-replay-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let files: Vec<String> = (1..=3).map(|i| dir.join(format!("n{i}.mcap")).to_string_lossy().into_owned()).collect();
+    let mut nodes: Vec<Proc> = (0..3)
+        .map(|i| {
+            let url = format!("udp://10.89.0.{}:7400?broadcast=10.89.0.255:7400", i + 1);
+            let mut cmd = net.command(i, BIN);
+            cmd.args(node_args_for(i as u32 + 1, &url, 8)).args(["--record", &files[i]]);
+            let mut p = Proc::spawn(&format!("n{}", i + 1), cmd);
+            p.wait_ready();
+            p
+        })
+        .collect();
+    // Each ends by itself after 8 s, closing its recording.
+    for n in &mut nodes {
+        let status = wait_for(Duration::from_secs(30), Duration::from_millis(100), || n.exited());
+        let status = status.unwrap_or_else(|| panic!("{} did not end\n{}", n.name, n.stderr()));
+        assert!(status.success(), "{} ended with {status}: {}", n.name, n.stderr());
+    }
+    let shaped = shaper_counts(&shaper);
+    let mut args = vec!["replay"];
+    args.extend(files.iter().map(String::as_str));
+    args.extend(["check", "--json"]);
+    let run = ayllu(&args, Duration::from_secs(60));
+    let team = run.json();
+    eprintln!("team replay: {team}\nshaper: {shaped}");
+    assert_eq!(run.code, Some(0), "{run:?}");
+    assert_eq!(team["passed"], true, "{team}");
+    assert_eq!(team["unexplained"], 0, "{team}");
+    assert!(team["accepted_remote"].as_u64() > Some(100), "{team}");
+    assert_eq!(team["matched"].as_array().map(Vec::len), Some(6), "every pair exchanged values: {team}");
+    for c in team["clocks"].as_array().unwrap() {
+        // Bounded on both sides; by the shaper's delays, well under a second.
+        let bound = c["bound_s"].as_f64().unwrap_or_else(|| panic!("a clock bounded on both sides: {c}"));
+        assert!(bound < 0.5, "{c}");
+    }
+    // The faults were real.
+    for counter in ["lost", "duplicated", "reordered", "delayed"] {
+        assert!(shaped[counter].as_u64() > Some(0), "the shaper {counter} frames: {shaped}");
+    }
+    // Why, across robots: robot 1 sees no target 3, and its layer 3 is write-inhibited by
+    // robot 3's claim. The chain reaches robot 3's BLE select and the eligibility it heard
+    // from robot 2 (a third robot), with the message that carried each.
+    let mut why_args = vec!["replay"];
+    why_args.extend(files.iter().map(String::as_str));
+    why_args.extend(["--at", "6", "why", "--node", "1", "OBS3.Rotate", "--depth", "2", "--json"]);
+    let chain = ayllu(&why_args, Duration::from_secs(60)).ok().json();
+    let links = chain.as_array().expect("a chain of links");
+    let has = |node: u64, kind: &str, text: &str| {
+        links
+            .iter()
+            .any(|l| l["node"] == node && l["kind"] == kind && l["text"].as_str().is_some_and(|t| t.contains(text)))
+    };
+    assert!(has(1, "window", "WriteInhibit window held by n3/c"), "robot 1's window from robot 3: {chain:#}");
+    assert!(has(3, "message", "write-inhibit"), "the claim's message from robot 3: {chain:#}");
+    assert!(has(3, "activation", "BLE_Select"), "robot 3's BLE select wrote the claim: {chain:#}");
+    assert!(has(3, "input", "Best = 0.4 (n2/c"), "the eligibility robot 3 heard from robot 2: {chain:#}");
+    assert!(has(2, "message", "-> n3:OBS3.Best"), "and its message from robot 2: {chain:#}");
+
+    // A folder stands for its recordings.
+    let folder = ayllu(&["replay", dir.to_str().unwrap(), "check", "--json"], Duration::from_secs(60)).ok().json();
+    assert_eq!(folder["nodes"], team["nodes"], "{folder}");
+    assert_eq!(folder["explained"], team["explained"], "{folder}");
+}

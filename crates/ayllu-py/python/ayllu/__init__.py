@@ -40,6 +40,7 @@ from ayllu._native import (
     Team,
     ValueTypeError,
     check_recording,
+    check_team,
     default_url,
 )
 from ayllu._native import MonoDecl as Monostable
@@ -75,6 +76,7 @@ __all__ = [
     "ValueTypeError",
     "broadcast",
     "check_recording",
+    "check_team",
     "default_url",
     "every",
     "inhibit",

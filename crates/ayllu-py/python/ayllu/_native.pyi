@@ -1,7 +1,7 @@
 """Typed stubs of the native module (Rust, PyO3). See ``ayllu/__init__.py`` for the guide."""
 
 import os
-from typing import Any, Literal, Optional, Union
+from typing import Any, Literal, Optional, Sequence, Union
 
 from ayllu.report import ProcessError, Report, RequestStatus
 
@@ -168,6 +168,7 @@ class Node:
     def close(self) -> None: ...
 
 def check_recording(path: Union[str, os.PathLike[str]]) -> int: ...
+def check_team(paths: Sequence[Union[str, os.PathLike[str]]]) -> dict[str, Any]: ...
 
 class Team:
     def __init__(self) -> None: ...

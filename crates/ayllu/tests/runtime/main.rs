@@ -23,6 +23,7 @@ mod replay_rewiring;
 mod retrigger;
 mod return_routability;
 mod team_recording;
+mod team_replay;
 mod transaction_mem;
 mod transaction_operator;
 mod transaction_udp;

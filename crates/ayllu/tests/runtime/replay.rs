@@ -11,8 +11,8 @@ use ayllu::faults::{FaultConfig, FaultySocket};
 use ayllu::replay::{Ending, Recording, Replay};
 use ayllu::stdlib::{cross_subsumption, BASE, VISION};
 use ayllu::{
-    BehaviorClass, ConnectionKind, Duration, Endpoint, Event, Instant, Lockstep, Node, NodeId, PortSpec, RecordOptions,
-    Source, UdpConfig, UdpTransport, Value, WindowKind,
+    BehaviorClass, Clock, ConnectionKind, Duration, Endpoint, Event, Instant, Lockstep, ManualClock, Node, NodeId,
+    PortSpec, RecordOptions, Source, UdpConfig, UdpTransport, Value, WindowKind,
 };
 
 fn dir(name: &str) -> PathBuf {
@@ -22,14 +22,25 @@ fn dir(name: &str) -> PathBuf {
     d
 }
 
-/// Three nodes over real loopback UDP, each one's sends through the fault injector (15 %
-/// loss, duplication, reordering, delay), running the paper's cross-subsumption with BLE plus
-/// a remote relay with a process, each node recording. Every recording replays to its end
-/// with every accepted value equal, bit for bit, and none missing.
-#[test]
-fn a_recorded_three_node_udp_run_with_loss_replays_bit_for_bit() {
-    let d = dir("udp-loss");
-    let mut team = Lockstep::new("replay-udp-loss");
+/// A node's clock: the team's, `shift` ahead (robots whose clocks started at different moments).
+pub(crate) struct Shifted(pub ManualClock, pub Duration);
+
+impl Clock for Shifted {
+    fn now(&self) -> Instant {
+        self.0.now() + self.1
+    }
+    fn is_real_time(&self) -> bool {
+        false
+    }
+}
+
+/// Three nodes over real loopback UDP, each one's sends through the fault injector (15 % loss,
+/// duplication, reordering, delay, seeded by `seed`), running the paper's cross-subsumption
+/// with BLE plus a remote relay ring with a process, each recording into `d` (`nI.mcap`), node
+/// `i`'s clock the team's shifted by `shift_ms[i]`; run for `secs` of the team's time. The
+/// recordings are still on.
+pub(crate) fn recorded_udp_team(d: &std::path::Path, name: &str, seed: u64, shift_ms: [u64; 3], secs: u64) -> Lockstep {
+    let mut team = Lockstep::new(name);
     let mut sockets: Vec<OsSocket> = (0..3).map(|_| OsSocket::bind("127.0.0.1:0".parse().unwrap()).unwrap()).collect();
     let addrs: Vec<SocketAddr> = sockets.iter().map(|s| s.local_addr().unwrap()).collect();
     sockets.reverse();
@@ -39,16 +50,20 @@ fn a_recorded_three_node_udp_run_with_loss_replays_bit_for_bit() {
         reorder: 0.05,
         delay: Duration::from_millis(3),
         jitter: Duration::from_millis(6),
-        ..FaultConfig::none(7)
+        ..FaultConfig::none(seed)
     };
     for id in 1..=3u32 {
         let socket = sockets.pop().unwrap();
         let mut config = UdpConfig::new(socket.local_addr().unwrap());
         config.peers = addrs.clone();
         config.hello_interval = Duration::from_millis(200);
-        let socket =
-            FaultySocket::new(socket, team.clock().clone(), FaultConfig { seed: 7 + u64::from(id), ..faults.clone() });
-        let mut node = Node::new(team.clock().clone(), UdpTransport::with_socket(NodeId(id), config, socket).unwrap());
+        let socket = FaultySocket::new(
+            socket,
+            team.clock().clone(),
+            FaultConfig { seed: seed + u64::from(id), ..faults.clone() },
+        );
+        let clock = Shifted(team.clock().clone(), Duration::from_millis(shift_ms[id as usize - 1]));
+        let mut node = Node::new(clock, UdpTransport::with_socket(NodeId(id), config, socket).unwrap());
         node.record(d.join(format!("n{id}.mcap")), RecordOptions::default()).unwrap();
         cross_subsumption(node.core_mut(), 3, "Peers", 2.0).unwrap();
         // A relay whose process doubles what arrives (a process the replay has no code for).
@@ -69,7 +84,7 @@ fn a_recorded_three_node_udp_run_with_loss_replays_bit_for_bit() {
     }
     let tick = Duration::from_millis(10);
     let mut k = 0u64;
-    while team.now() < Instant::from_secs(5) {
+    while team.now() < Instant::from_secs(secs) {
         if k.is_multiple_of(10) {
             for i in 0..3 {
                 let id = team.nodes()[i].id().0;
@@ -88,6 +103,16 @@ fn a_recorded_three_node_udp_run_with_loss_replays_bit_for_bit() {
         std::thread::sleep(std::time::Duration::from_micros(200));
         k += 1;
     }
+    team
+}
+
+/// Three nodes over real loopback UDP with faults ([`recorded_udp_team`]), each recording.
+/// Every recording replays to its end with every accepted value equal, bit for bit, and none
+/// missing.
+#[test]
+fn a_recorded_three_node_udp_run_with_loss_replays_bit_for_bit() {
+    let d = dir("udp-loss");
+    let mut team = recorded_udp_team(&d, "replay-udp-loss", 7, [0; 3], 5);
     let (mut sent, mut received) = (0, 0);
     for i in 0..3 {
         let node = team.node(i);
