@@ -75,7 +75,12 @@ pub enum ReplayCommand {
     /// With a team's recordings: each node's replay, their clocks against the first's (with a
     /// bound), and every remote value accepted matched with its sending (same value, sent no
     /// later, accepted once); exit 1 naming what does not hold.
-    Check,
+    Check {
+        /// With a team's recordings: also write every value their ports accepted, on one
+        /// timeline (the first recording's clock), as an MCAP file Foxglove opens.
+        #[arg(long, value_name = "FILE")]
+        mcap: Option<PathBuf>,
+    },
 }
 
 /// `2` or `n2`: a node id.
@@ -199,8 +204,13 @@ fn run_team(args: &ReplayArgs, files: &[PathBuf]) -> Result<(), Fail> {
         recs.push(rec);
     }
     match &args.what {
-        ReplayCommand::Check => {
-            let team = ayllu::team_replay::check(&recs);
+        ReplayCommand::Check { mcap } => {
+            let team = ayllu::team_replay::Team::open(recs);
+            if let Some(path) = mcap {
+                let n = team.write_timeline(path).map_err(|e| Fail::error(format!("{}: {e}", path.display())))?;
+                eprintln!("replay: {n} accepted values on one timeline in {}", path.display());
+            }
+            let team = team.check();
             if args.json {
                 emit(&team.to_json().to_string())?;
             } else {
@@ -282,12 +292,12 @@ pub fn run(args: &ReplayArgs) -> Result<(), Fail> {
         rec.segments.len(),
         secs(end)
     );
-    if !matches!(args.what, ReplayCommand::Check) {
+    if !matches!(args.what, ReplayCommand::Check { .. }) {
         if let Some(last) = last_known.filter(|&last| at > last) {
             return Err(past_the_last_known(&rec, at, last));
         }
     }
-    if at > end && !matches!(args.what, ReplayCommand::Check) {
+    if at > end && !matches!(args.what, ReplayCommand::Check { .. }) {
         eprintln!("replay: warning: --at {:.3}s is after the recording's end ({:.3}s)", secs(at), secs(end));
     }
     let mut replay = Replay::new(&rec);
@@ -337,7 +347,10 @@ pub fn run(args: &ReplayArgs) -> Result<(), Fail> {
             }
             Ok(())
         }
-        ReplayCommand::Check => {
+        ReplayCommand::Check { mcap } => {
+            if mcap.is_some() {
+                return Err(Fail::usage("--mcap writes a team's timeline: give two recordings or more"));
+            }
             replay.run_to_end().map_err(|d| Fail::error(d.to_string()))?;
             let complete = rec.ending == Ending::Closed && rec.gap.is_none();
             let line = if args.json {

@@ -38,6 +38,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(node::default_url, m)?)?;
     m.add_function(wrap_pyfunction!(recording::check_recording, m)?)?;
     m.add_function(wrap_pyfunction!(recording::check_team, m)?)?;
+    m.add_function(wrap_pyfunction!(recording::why_team, m)?)?;
     sim::register(m)?;
     served::register(m)?;
     m.add("DROP_CAUSES", ayllu_core::DropCause::ALL.iter().map(|c| c.name()).collect::<Vec<_>>())?;

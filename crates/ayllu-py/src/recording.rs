@@ -58,15 +58,55 @@ pub fn check_recording(py: Python<'_>, path: std::path::PathBuf) -> PyResult<usi
 /// one's clock is the reference) as one system: each node's replay, the clocks against the
 /// first's with a bound, and every remote value accepted matched with its sending (same value,
 /// sent no later, accepted once). Returns a dict (`passed`, `clocks`, `unexplained`,
-/// `findings`, ...: the `--json` of `ayllu replay FILE FILE... check`). Raises
+/// `findings`, ...: the `--json` of `ayllu replay FILE FILE... check`). With `mcap`, also
+/// writes every value the ports accepted on one timeline there (Foxglove opens it). Raises
 /// `ayllu.InvalidError` for a file that is not a flight recording.
 #[pyfunction]
-pub fn check_team(py: Python<'_>, paths: Vec<std::path::PathBuf>) -> PyResult<Py<PyAny>> {
+#[pyo3(signature = (paths, mcap = None))]
+pub fn check_team(
+    py: Python<'_>,
+    paths: Vec<std::path::PathBuf>,
+    mcap: Option<std::path::PathBuf>,
+) -> PyResult<Py<PyAny>> {
     let json = py
         .detach(|| {
             let recordings =
                 paths.iter().map(Recording::open).collect::<Result<Vec<_>, _>>().map_err(|e| e.to_string())?;
-            Ok::<String, String>(ayllu::team_replay::check(&recordings).to_json().to_string())
+            let team = ayllu::team_replay::Team::open(recordings);
+            if let Some(path) = &mcap {
+                team.write_timeline(path).map_err(|e| format!("{}: {e}", path.display()))?;
+            }
+            Ok::<String, String>(team.check().to_json().to_string())
+        })
+        .map_err(errors::InvalidError::new_err)?;
+    Ok(py.import("json")?.call_method1("loads", (json,))?.unbind())
+}
+
+/// Why `behavior.port` on node `node` held what it held at `at` (seconds on that node's
+/// clock), followed across the team's recordings `paths` as far as `depth` messages away: a
+/// list of links (dicts: `depth`, `level`, `node`, `t`, `kind`, `text`), the `--json` of
+/// `ayllu replay FILE FILE... --at T why --node ID BEHAVIOR.PORT --depth N`.
+#[pyfunction]
+#[pyo3(signature = (paths, node, at, behavior, port, depth = 2))]
+pub fn why_team(
+    py: Python<'_>,
+    paths: Vec<std::path::PathBuf>,
+    node: u32,
+    at: f64,
+    behavior: String,
+    port: String,
+    depth: usize,
+) -> PyResult<Py<PyAny>> {
+    let at = ayllu::Duration::try_from_secs_f64(at).map_err(|e| errors::value_error(e.to_string()))?;
+    let json = py
+        .detach(|| {
+            let recordings =
+                paths.iter().map(Recording::open).collect::<Result<Vec<_>, _>>().map_err(|e| e.to_string())?;
+            let team = ayllu::team_replay::Team::open(recordings);
+            let chain = team
+                .why(ayllu::NodeId(node), ayllu::Instant::ZERO + at, &behavior, &port, depth)
+                .map_err(|e| e.to_string())?;
+            Ok::<String, String>(chain.to_json().to_string())
         })
         .map_err(errors::InvalidError::new_err)?;
     Ok(py.import("json")?.call_method1("loads", (json,))?.unbind())

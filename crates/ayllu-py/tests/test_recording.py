@@ -118,12 +118,24 @@ def test_a_teams_recordings_check_as_one_system(tmp_path: Path) -> None:
         team.advance(0.02, tick=0.01)
     for node in nodes:
         node.stop_recording()
-    result = ayllu.check_team(paths)
+    timeline = tmp_path / "team.mcap"
+    result = ayllu.check_team(paths, mcap=timeline)
     assert result["passed"], result
     assert result["unexplained"] == 0 and result["accepted_remote"] >= 40, result
     assert [m["from"] for m in result["matched"]] == [1, 2], result
     # One clock (the team's): node 2's offset from node 1 is within its bound of zero.
     clock = result["clocks"][1]
     assert clock["low_s"] <= 0.0 <= clock["high_s"], clock
+    # The merged timeline opens in the independent reader: both nodes' ports, in time order.
+    with timeline.open("rb") as f:
+        reader = mcap_reader.make_reader(f)
+        topics = {c.topic for c in reader.get_summary().channels.values()}  # type: ignore[union-attr]
+        times = [m.log_time for _, _, m in reader.iter_messages()]
+    assert {"/n1/N/In", "/n2/N/In"} <= topics, topics
+    assert times == sorted(times) and len(times) == sum(r["values"] for r in result["replayed"])
+    # Why node 2's N.In held its value: the message from node 1, and what wrote its source.
+    chain = ayllu.why_team(paths, 2, 0.5, "N", "In", depth=1)
+    kinds = [(link["node"], link["kind"]) for link in chain]
+    assert (1, "message") in kinds and (1, "activation") in kinds, chain
     with pytest.raises(ayllu.InvalidError):
         ayllu.check_team([tmp_path / "missing.mcap"])

@@ -950,3 +950,34 @@ impl Team {
         }
     }
 }
+
+impl Team {
+    /// Every value each node's ports accepted, replayed, on one timeline: the reference node's
+    /// clock (each node's own time minus its estimated offset, [`TeamCheck::clocks`]), in
+    /// nanoseconds from that node's start. Written to `path` as an MCAP file in the team
+    /// layout `ayllu record` writes (a channel `/nK/BEHAVIOR/PORT` per port; Foxglove and the
+    /// `mcap` readers open it), in time order. Returns how many values. A node whose clock no
+    /// message joins to the reference is placed on its own clock.
+    pub fn write_timeline(&self, path: &std::path::Path) -> std::io::Result<u64> {
+        let mut values: Vec<(i128, NodeId, crate::replay::Accepted)> = Vec::new();
+        for r in &self.recordings {
+            let offset = self.offset(r.node, self.check.nodes[0]).map_or(0.0, |(o, _)| o);
+            let mut replay = Replay::new(r);
+            // A divergence is a finding of the check; the timeline keeps what was reproduced.
+            let _ = replay.run_to_end();
+            for a in replay.accepted() {
+                let t = i128::from(a.at.as_nanos()) - (offset * 1e9).round() as i128;
+                values.push((t, r.node, a.clone()));
+            }
+        }
+        values.sort_by(|a, b| a.0.cmp(&b.0).then(a.1.cmp(&b.1)));
+        let file = std::io::BufWriter::new(std::fs::File::create(path)?);
+        let mut w = crate::team_recording::TeamWriter::new(file)?;
+        for (t, node, a) in &values {
+            let channel = crate::team_channels::PortChannel::new(*node, &a.behavior, &a.port, a.value.ty());
+            w.write(&channel, &a.value, None, u64::try_from(*t).unwrap_or(0))?;
+        }
+        w.finish()?;
+        Ok(values.len() as u64)
+    }
+}

@@ -707,11 +707,15 @@ fn three_recorded_processes_through_the_shaper_replay_as_one_team() {
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     let files: Vec<String> = (1..=3).map(|i| dir.join(format!("n{i}.mcap")).to_string_lossy().into_owned()).collect();
+    // When each node was started, on this test's clock: its own clock starts after that.
+    let epoch = Instant::now();
+    let mut spawned = Vec::new();
     let mut nodes: Vec<Proc> = (0..3)
         .map(|i| {
             let url = format!("udp://10.89.0.{}:7400?broadcast=10.89.0.255:7400", i + 1);
             let mut cmd = net.command(i, BIN);
             cmd.args(node_args_for(i as u32 + 1, &url, 8)).args(["--record", &files[i]]);
+            spawned.push(epoch.elapsed().as_secs_f64());
             let mut p = Proc::spawn(&format!("n{}", i + 1), cmd);
             p.wait_ready();
             p
@@ -735,10 +739,30 @@ fn three_recorded_processes_through_the_shaper_replay_as_one_team() {
     assert_eq!(team["unexplained"], 0, "{team}");
     assert!(team["accepted_remote"].as_u64() > Some(100), "{team}");
     assert_eq!(team["matched"].as_array().map(Vec::len), Some(6), "every pair exchanged values: {team}");
-    for c in team["clocks"].as_array().unwrap() {
+    // Each node's clock against this test's, known from outside the recordings: it started
+    // after the node was spawned, so (node clock - test clock) <= -spawned; and each status
+    // line `t` was printed before the test read it at `r`, so it is >= t - r.
+    let outside: Vec<(f64, f64)> = nodes
+        .iter()
+        .zip(&spawned)
+        .map(|(n, &spawn)| {
+            let low = n
+                .lines()
+                .into_iter()
+                .filter_map(|(r, j)| Some(j["t"].as_f64()? - r.duration_since(epoch).as_secs_f64()));
+            (low.fold(f64::NEG_INFINITY, f64::max), -spawn)
+        })
+        .collect();
+    for (k, c) in team["clocks"].as_array().unwrap().iter().enumerate() {
         // Bounded on both sides; by the shaper's delays, well under a second.
         let bound = c["bound_s"].as_f64().unwrap_or_else(|| panic!("a clock bounded on both sides: {c}"));
         assert!(bound < 0.5, "{c}");
+        // And the team replay's interval for node k's clock minus node 1's meets the one known
+        // from outside: the estimate is within what the processes' own timing allows.
+        let (low, high) = (c["low_s"].as_f64().unwrap(), c["high_s"].as_f64().unwrap());
+        let (out_low, out_high) = (outside[k].0 - outside[0].1, outside[k].1 - outside[0].0);
+        eprintln!("n{}: team replay [{low:.4}, {high:.4}] s, from outside [{out_low:.4}, {out_high:.4}] s", k + 1);
+        assert!(low <= out_high + 1e-6 && out_low <= high + 1e-6, "n{}: {c} against [{out_low}, {out_high}]", k + 1);
     }
     // The faults were real.
     for counter in ["lost", "duplicated", "reordered", "delayed"] {

@@ -75,8 +75,9 @@ fn robot(net: &Netns, i: usize, id: u32, language: &str) -> Command {
     cmd
 }
 
-/// `text` with every run of digits as `#` and spaces collapsed: the shape of a line whose
-/// times, addresses and ages differ from run to run.
+/// `text` with every run of digits as `#`, a duration's unit as `s` (`42ms`, `3us`, `1.2s` are
+/// one shape) and spaces collapsed: the shape of a line whose times, addresses and ages differ
+/// from run to run.
 fn shape(text: &str) -> Vec<String> {
     text.lines()
         .map(|l| {
@@ -86,7 +87,7 @@ fn shape(text: &str) -> Vec<String> {
                     out.push(if c.is_ascii_digit() { '#' } else { c });
                 }
             }
-            out
+            out.replace("#ms", "#s").replace("#us", "#s").replace("#ns", "#s")
         })
         .collect()
 }

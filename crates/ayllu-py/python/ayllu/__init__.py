@@ -42,6 +42,7 @@ from ayllu._native import (
     check_recording,
     check_team,
     default_url,
+    why_team,
 )
 from ayllu._native import MonoDecl as Monostable
 from ayllu._native import PortDecl as Port
@@ -87,6 +88,7 @@ __all__ = [
     "override_out",
     "remote",
     "suppress",
+    "why_team",
     "write_inhibit",
 ]
 

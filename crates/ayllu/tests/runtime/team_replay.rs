@@ -51,6 +51,21 @@ fn a_teams_recordings_hold_together_and_give_the_clocks_within_their_bound() {
         // The messages were stepped every 10 ms: the bound is that, not seconds.
         assert!(c.bound().unwrap() < 0.02, "{}: bound {:?}", c.node, c.bound());
     }
+
+    // The merged timeline: every value each replay reproduced, on the reference clock, in
+    // time order, readable by an MCAP reader, a channel per node's port.
+    let path = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("timeline-{}.mcap", std::process::id()));
+    let written = team_replay::Team::open(recs).write_timeline(&path).unwrap();
+    let reproduced: usize = team.replayed.iter().map(|(_, k)| k).sum();
+    assert_eq!(written, reproduced as u64);
+    let bytes = std::fs::read(&path).unwrap();
+    let times: Vec<u64> = mcap::MessageStream::new(&bytes).unwrap().map(|m| m.unwrap().log_time).collect();
+    assert_eq!(times.len(), reproduced);
+    assert!(times.windows(2).all(|w| w[0] <= w[1]), "in time order");
+    let summary = mcap::read::Summary::read(&bytes).unwrap().expect("a summary");
+    for n in 1..=3 {
+        assert!(summary.channels.values().any(|c| c.topic.starts_with(&format!("/n{n}/"))), "node {n}'s channels");
+    }
 }
 
 #[test]
