@@ -236,7 +236,8 @@ enum Command {
     /// Print the rate, jitter, gaps and losses of a port's messages.
     Hz(hz::HzArgs),
     /// Play a node's flight recording (`node --record`) back and answer `why`, `list` or
-    /// `echo` as the node would have at a past instant (--at); `check` verifies it.
+    /// `echo` as the node would have at a past instant (--at); `check` verifies it. Given a
+    /// team's recordings: `check` them as one system, `why --node` across the robots.
     Replay(replay::ReplayArgs),
     /// Serve the team to Foxglove over its WebSocket protocol: port values, windows and BLE
     /// claims as topics (ws://HOST:PORT; docs/cli.md).
