@@ -267,10 +267,10 @@ test-ray:
 ## tutorials and its picture scripts (one file at a time: every tutorial is a main.py).
 lint-python:
 	@PY=$$(PYTHON=$(PYTHON) scripts/python-venv --tools-only) && cd crates/ayllu-py \
-		&& $$PY -m ruff check --config pyproject.toml . ../../examples/cmommt/python ../../examples/tutorial ../../scripts/book \
-		&& $$PY -m ruff format --config pyproject.toml --check . ../../examples/cmommt/python ../../examples/tutorial ../../scripts/book \
+		&& $$PY -m ruff check --config pyproject.toml . ../../examples/cmommt/python ../../examples/tutorial ../../scripts/book ../ayllu-cli/tests/tool/fixtures \
+		&& $$PY -m ruff format --config pyproject.toml --check . ../../examples/cmommt/python ../../examples/tutorial ../../scripts/book ../ayllu-cli/tests/tool/fixtures \
 		&& MYPYPATH=../../examples/cmommt/python $$PY -m mypy python/ayllu tests bench ../../examples/cmommt/python \
-		&& for f in ../../examples/tutorial/*/main.py ../../scripts/book/*.py; do \
+		&& for f in ../../examples/tutorial/*/main.py ../../scripts/book/*.py ../ayllu-cli/tests/tool/fixtures/*.py; do \
 			MYPYPATH=../../lite/python:python $$PY -m mypy --strict --no-error-summary $$f || exit 1; done
 
 ## Python benchmarks (not part of the tests): a port write, a process activation and a

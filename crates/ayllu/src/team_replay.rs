@@ -214,6 +214,10 @@ pub struct TeamCheck {
     /// or capped file) and sent after that point, by sender: what the sender did then is not
     /// known, so they are counted, not judged.
     pub after_sender_stopped: BTreeMap<NodeId, usize>,
+    /// Recordings that end before their node stopped recording (cut short: the node was
+    /// killed or the file cut; or capped), with how: not a contradiction (a killed robot's
+    /// recording is cut), but what the team replay knows of that node ends there.
+    pub endings: Vec<(NodeId, String)>,
     /// What the recordings contradict; empty when the team replay holds.
     pub findings: Vec<Finding>,
 }
@@ -249,6 +253,7 @@ impl TeamCheck {
             "unexplained": self.unexplained(),
             "from_unrecorded": by_node(&self.from_unrecorded),
             "after_sender_stopped": by_node(&self.after_sender_stopped),
+            "endings": self.endings.iter().map(|(n, e)| json!({"node": n.0, "ending": e})).collect::<Vec<_>>(),
             "findings": self.findings.iter().map(|f| f.to_string()).collect::<Vec<_>>(),
             "passed": self.passed(),
         })
@@ -309,6 +314,9 @@ impl fmt::Display for TeamCheck {
         if !self.from_unrecorded.is_empty() {
             let from: Vec<String> = self.from_unrecorded.iter().map(|(n, k)| format!("{n} ({k})")).collect();
             writeln!(f, "values from nodes not recorded (not judged): {}", from.join(", "))?;
+        }
+        for (node, ending) in &self.endings {
+            writeln!(f, "NOTE {node}'s recording ends early: {ending}")?;
         }
         for finding in &self.findings {
             writeln!(f, "FOUND {finding}")?;
@@ -397,6 +405,7 @@ pub fn check(recordings: &[Recording]) -> TeamCheck {
     // For a sender whose replay stops early: the last sequence number it is known to have sent
     // on each connection (an arrival beyond it is not judged).
     let mut known_up_to: HashMap<NodeId, HashMap<ConnectionId, u64>> = HashMap::new();
+    let mut endings = Vec::new();
     for r in recordings {
         let (s, checked, divergence) = sendings(r);
         if divergence.is_some() || r.gap.is_some() || r.ending != Ending::Closed {
@@ -408,6 +417,10 @@ pub fn check(recordings: &[Recording]) -> TeamCheck {
         }
         sent.extend(s);
         replayed.push((r.node, checked));
+        if r.ending != Ending::Closed {
+            let known = r.last_known().map_or(String::new(), |t| format!("; known up to t={t}"));
+            endings.push((r.node, format!("{}{known}", r.ending)));
+        }
         if let Some(divergence) = divergence {
             findings.push(Finding::Diverged { node: r.node, divergence });
         }
@@ -478,6 +491,7 @@ pub fn check(recordings: &[Recording]) -> TeamCheck {
         matched,
         from_unrecorded,
         after_sender_stopped,
+        endings,
         findings,
     }
 }

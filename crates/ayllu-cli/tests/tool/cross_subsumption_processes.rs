@@ -804,6 +804,27 @@ fn three_recorded_processes_through_the_shaper_replay_as_one_team() {
     assert!(has(3, "input", "Best = 0.4 (n2/c"), "the eligibility robot 3 heard from robot 2: {chain:#}");
     assert!(has(2, "message", "-> n3:OBS3.Best"), "and its message from robot 2: {chain:#}");
 
+    // A recording edited by hand, from outside (a fixture rewrites the MCAP file with the
+    // `mcap` package): one received value altered, one received message removed. The team
+    // replay fails and names both: the value with its sender's, the removal as a hole.
+    let tampered = dir.join("tampered");
+    std::fs::create_dir_all(&tampered).unwrap();
+    let n2x = tampered.join("n2.mcap").to_string_lossy().into_owned();
+    let fixture = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/tool/fixtures/tamper_recording.py");
+    let mut python = std::process::Command::new("python3");
+    python.args([fixture, &files[1], &n2x]);
+    let edit = common::run(python, Duration::from_secs(60)).ok().json();
+    let (altered, removed) = (edit["altered"].as_u64().expect("a value altered"), edit["removed"].as_u64().unwrap());
+    let run = ayllu(&["replay", &files[0], &n2x, &files[2], "check", "--json"], Duration::from_secs(60));
+    assert_eq!(run.code, Some(1), "a tampered team fails: {run:?}");
+    let found = run.json()["findings"].clone();
+    let named = |text: &str| found.as_array().unwrap().iter().any(|f| f.as_str().is_some_and(|f| f.contains(text)));
+    assert!(named(&format!("altered: n2 entry {altered} ")), "the altered value is named: {found:#}");
+    assert!(
+        named(&format!("n2's recording has a hole at entry {removed} ")),
+        "the removed message is named: {found:#}"
+    );
+
     // A folder stands for its recordings.
     let folder = ayllu(&["replay", dir.to_str().unwrap(), "check", "--json"], Duration::from_secs(60)).ok().json();
     assert_eq!(folder["nodes"], team["nodes"], "{folder}");
