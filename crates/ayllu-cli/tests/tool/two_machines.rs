@@ -1,8 +1,8 @@
 //! Tutorial 8 (docs/tutorials/08-two-machines.md) as its reader runs it: one program per robot,
 //! each on its own "machine" (a network namespace on a bridge the test creates), both given the
-//! tutorial's `AYLLU_URL` and nothing else, on the real clock. The Rust and the Python programs
-//! are run against each other, in both roles, so each is shown to make a team with the other
-//! across machines.
+//! tutorial's `AYLLU_URL` and nothing else, on the real clock. The Rust, Python and C programs
+//! are run against each other (Rust and Python in both roles, C with Python), so each is shown
+//! to make a team with the others across machines.
 //!
 //! The page's recipe for two machines on one computer (`two_namespaces.sh`) runs as printed too,
 //! and the output the page quotes has the shape of what robot 1 prints.
@@ -55,13 +55,24 @@ fn venv_python() -> PathBuf {
     python
 }
 
-/// Robot `id` in namespace `i`, in `language`.
+/// Robot `id` in namespace `i`, in `language` (`rust`, `python` or `c`: the C program as
+/// `make -C crates/ayllu-c` builds it, which `make test` does before the tests run).
 fn robot(net: &Netns, i: usize, id: u32, language: &str) -> Command {
     let mut cmd = match language {
         "rust" => {
             let mut cmd = net.command(i, std::env::current_exe().unwrap().to_str().unwrap());
             cmd.args(["two_machines::robot_process", "--exact", "--ignored", "--nocapture", "--test-threads=1", "-q"]);
             cmd.env(ROBOT, id.to_string());
+            cmd
+        }
+        "c" => {
+            let program = concat!(env!("CARGO_MANIFEST_DIR"), "/../ayllu-c/build/tutorial_08_two_machines");
+            assert!(
+                std::path::Path::new(program).exists(),
+                "{program} is missing: make -C crates/ayllu-c build/tutorial_08_two_machines (make test builds it)"
+            );
+            let mut cmd = net.command(i, program);
+            cmd.args([&id.to_string(), "--for", SECONDS]);
             cmd
         }
         _ => {
@@ -125,8 +136,11 @@ fn team(tag: &str, subnet: u8, languages: [&'static str; 2]) {
         // Its motor held the other robot's reading, supplied along the other robot's connection.
         let reading = format!("MOTOR.Speed = {:.1} from n{other}/", program::range_of(other));
         assert!(run.stdout.contains(&reading), "{who} printed no `{reading}`: {run:?}");
-        assert!(run.stdout.contains(&format!("n{id}:MOTOR.Speed (normal float)")), "{who} printed why: {run:?}");
-        assert!(run.stdout.contains(&format!("supplier  n{other}/")), "{who}'s why names the other robot: {run:?}");
+        if languages[i] != "c" {
+            // The C program prints the values only (its why is JSON, ayWhy).
+            assert!(run.stdout.contains(&format!("n{id}:MOTOR.Speed (normal float)")), "{who} printed why: {run:?}");
+            assert!(run.stdout.contains(&format!("supplier  n{other}/")), "{who}'s why names the other robot: {run:?}");
+        }
         if languages[i] == "rust" {
             assert!(run.stdout.contains(&format!("heard robot {other} at {}:", net.addr(1 - i))), "{who}: {run:?}");
             if id == 1 {
@@ -145,6 +159,11 @@ fn tutorial_8_a_rust_robot_and_a_python_robot_on_two_machines() {
 #[test]
 fn tutorial_8_a_python_robot_and_a_rust_robot_on_two_machines() {
     team("tb", 88, ["python", "rust"]);
+}
+
+#[test]
+fn tutorial_8_a_c_robot_and_a_python_robot_on_two_machines() {
+    team("tc", 90, ["c", "python"]);
 }
 
 #[test]
