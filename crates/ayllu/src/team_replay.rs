@@ -332,28 +332,15 @@ impl fmt::Display for TeamCheck {
 pub fn arrivals(recording: &Recording) -> Vec<Arrival> {
     let end = recording.gap.map_or(recording.entries.len(), |(seq, _)| seq as usize);
     let entries = &recording.entries[..end.min(recording.entries.len())];
-    let mut classes: HashMap<String, Vec<String>> = HashMap::new();
-    let mut behaviors: HashMap<String, String> = HashMap::new();
+    let mut names = PortNames::default();
     let mut out = Vec::new();
     for (i, e) in entries.iter().enumerate() {
-        match &e.event {
-            Event::Define(class) => {
-                classes.insert(class.name().to_owned(), class.ports().iter().map(|p| p.name.clone()).collect());
-            }
-            Event::Create { class, name } => {
-                behaviors.insert(name.clone(), class.clone());
-            }
-            _ => {}
-        }
+        names.see(&e.event);
         let Event::Receive { from, message: Message::Port(m) } = &e.event else { continue };
-        let port_of = |behavior: &str, handle: u16| {
-            let class = behaviors.get(behavior)?;
-            classes.get(class)?.get(usize::from(handle)).map(String::as_str)
-        };
         let consequences = entries[i + 1..].iter().take_while(|c| !is_input(&c.event));
         let accepted = consequences.into_iter().any(|c| match &c.event {
             Event::Accepted { behavior, port, .. } => {
-                **behavior == *m.behavior && port_of(behavior, *port) == Some(&*m.port)
+                **behavior == *m.behavior && names.port(behavior, *port) == Some(&*m.port)
             }
             _ => false,
         });
@@ -391,11 +378,22 @@ type Tightest = HashMap<(usize, usize), (i128, Arrival)>;
 
 /// Check a team's recordings as one system (see the module docs).
 pub fn check(recordings: &[Recording]) -> TeamCheck {
+    analyse(recordings).0
+}
+
+/// What the sender's replays sent, by message, and what each node received, by node.
+type Matched = (HashMap<MessageId, Sending>, HashMap<NodeId, Vec<Arrival>>);
+
+/// The check, with what it was made from: each recording is replayed and read once, for the
+/// check and for the questions [`Team::why`] asks afterwards.
+fn analyse(recordings: &[Recording]) -> (TeamCheck, Matched) {
     let nodes: Vec<NodeId> = recordings.iter().map(|r| r.node).collect();
     let index: HashMap<NodeId, usize> = nodes.iter().enumerate().map(|(i, n)| (*n, i)).rev().collect();
     let mut findings = Vec::new();
+    let mut repeated = Vec::new();
     for (i, n) in nodes.iter().enumerate() {
-        if nodes[..i].contains(n) && !nodes[..i].iter().enumerate().any(|(j, m)| m == n && nodes[..j].contains(m)) {
+        if nodes[..i].contains(n) && !repeated.contains(n) {
+            repeated.push(*n);
             findings.push(Finding::SameNode { node: *n });
         }
     }
@@ -436,8 +434,10 @@ pub fn check(recordings: &[Recording]) -> TeamCheck {
     let mut after_sender_stopped: BTreeMap<NodeId, usize> = BTreeMap::new();
     let mut tightest: Tightest = HashMap::new();
     let mut first_acceptance: HashMap<(NodeId, MessageId), Arrival> = HashMap::new();
+    let mut received: HashMap<NodeId, Vec<Arrival>> = HashMap::new();
     for r in recordings {
-        for a in arrivals(r) {
+        let all = arrivals(r);
+        for a in all.iter().cloned() {
             let Some(&from) = index.get(&a.id.from) else {
                 if a.accepted {
                     *from_unrecorded.entry(a.id.from).or_default() += 1;
@@ -477,12 +477,12 @@ pub fn check(recordings: &[Recording]) -> TeamCheck {
                 Some(_) => explained += 1,
             }
         }
+        received.insert(r.node, all);
     }
 
     let (clocks, contradictions) = clocks(&nodes, &tightest);
     findings.extend(contradictions);
-    // A value received before it was sent is not explained, though sent once with its value.
-    TeamCheck {
+    let check = TeamCheck {
         nodes,
         clocks,
         replayed,
@@ -493,7 +493,8 @@ pub fn check(recordings: &[Recording]) -> TeamCheck {
         after_sender_stopped,
         endings,
         findings,
-    }
+    };
+    (check, (sent, received))
 }
 
 /// Each node's clock against the first's, from the tightest bounds per pair (difference
@@ -618,25 +619,47 @@ impl Chain {
     }
 }
 
-/// Port names by behavior, from the classes a journal defined and the behaviors it created (a
-/// recorded process write names its port by handle).
-fn port_names(recording: &Recording, until: Instant) -> HashMap<String, Vec<String>> {
-    let mut classes: HashMap<String, Vec<String>> = HashMap::new();
-    let mut behaviors = HashMap::new();
-    for e in recording.entries.iter().take_while(|e| e.at <= until) {
-        match &e.event {
+/// Port names by behavior, from the classes a journal defined and the behaviors it created,
+/// as the journal is read in order (a recorded `accepted` or process write names its port by
+/// handle, and the class of the entry is a stand-in).
+#[derive(Default)]
+struct PortNames {
+    classes: HashMap<String, Vec<String>>,
+    behaviors: HashMap<String, Vec<String>>,
+}
+
+impl PortNames {
+    /// Learn from one journal entry.
+    fn see(&mut self, e: &Event) {
+        match e {
             Event::Define(class) => {
-                classes.insert(class.name().to_owned(), class.ports().iter().map(|p| p.name.clone()).collect());
+                self.classes.insert(class.name().to_owned(), class.ports().iter().map(|p| p.name.clone()).collect());
             }
             Event::Create { class, name } => {
-                if let Some(ports) = classes.get(class) {
-                    behaviors.insert(name.clone(), ports.clone());
+                if let Some(ports) = self.classes.get(class) {
+                    self.behaviors.insert(name.clone(), ports.clone());
                 }
             }
             _ => {}
         }
     }
-    behaviors
+
+    /// The name of `behavior`'s port with handle `handle`.
+    fn port(&self, behavior: &str, handle: u16) -> Option<&str> {
+        self.behaviors.get(behavior)?.get(usize::from(handle)).map(String::as_str)
+    }
+
+    /// The names of `behavior`'s ports, in handle order.
+    fn ports(&self, behavior: &str) -> &[String] {
+        self.behaviors.get(behavior).map_or(&[], Vec::as_slice)
+    }
+
+    /// What `recording` defined up to `until`.
+    fn until(recording: &Recording, until: Instant) -> PortNames {
+        let mut names = PortNames::default();
+        recording.entries.iter().take_while(|e| e.at <= until).for_each(|e| names.see(&e.event));
+        names
+    }
 }
 
 /// How a port got its value last, at or before `t`: the process run that wrote it (its index
@@ -657,8 +680,8 @@ enum Writer {
 }
 
 fn last_writer(recording: &Recording, t: Instant, behavior: &str, port: &str) -> Option<Writer> {
-    let names = port_names(recording, t);
-    let handle = names.get(behavior)?.iter().position(|p| p == port)? as u16;
+    let names = PortNames::until(recording, t);
+    let handle = names.ports(behavior).iter().position(|p| p == port)? as u16;
     let mut run: Option<(&str, &str, bool)> = None;
     let mut input = 0;
     let mut found = None;
@@ -687,14 +710,8 @@ fn last_writer(recording: &Recording, t: Instant, behavior: &str, port: &str) ->
 impl Team {
     /// Replay `recordings` as one system (the check of [`check`] is made once, here).
     pub fn open(recordings: Vec<Recording>) -> Team {
-        let check = check(&recordings);
-        let mut sent = HashMap::new();
-        let mut all = HashMap::new();
-        for r in &recordings {
-            sent.extend(sendings(r).0);
-            all.insert(r.node, arrivals(r));
-        }
-        Team { recordings, check, sent, arrivals: all }
+        let (check, (sent, arrivals)) = analyse(&recordings);
+        Team { recordings, check, sent, arrivals }
     }
 
     /// What the recordings say of the team as one system.
@@ -836,12 +853,12 @@ impl Team {
         depth: usize,
     ) {
         let Some(rec) = self.recording(node) else { return };
-        let names = port_names(rec, at);
+        let names = PortNames::until(rec, at);
         let ble = process == ayllu_core::BLE_SELECT;
         let ports: Vec<String> = if ble {
             vec![ayllu_core::LOCAL.to_owned(), ayllu_core::BEST.to_owned()]
         } else {
-            names.get(behavior).cloned().unwrap_or_default().into_iter().filter(|p| p != written).collect()
+            names.ports(behavior).iter().filter(|p| *p != written).cloned().collect()
         };
         let mut replay = Replay::new(rec);
         if replay.run_before(input).is_err() {
