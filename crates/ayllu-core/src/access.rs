@@ -18,6 +18,7 @@ use crate::time::Duration;
 
 /// Which nodes a right is given to.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum Allow {
     /// Every node that can reach this one (the paper's open team; the default).
     #[default]
@@ -41,6 +42,7 @@ impl Allow {
 
 /// The rights other nodes have on this one. The node's own code is never restricted.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Access {
     /// Who may write this node's ports along connections (port messages of every kind).
     pub ports: Allow,
@@ -51,6 +53,7 @@ pub struct Access {
 /// Bounds on what the network can make a node hold. The defaults are far above the paper's use
 /// (a BLE team holds one connection per layer and peer; windows of a few seconds).
 #[derive(Clone, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Limits {
     /// Connections created by request, from all nodes together.
     pub remote_connections: usize,

@@ -97,6 +97,22 @@ impl Set {
     }
 }
 
+/// A port's windows as a checkpoint holds them: the list, in its order.
+#[cfg(feature = "serde")]
+impl serde::Serialize for Windows {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_seq(self.iter())
+    }
+}
+
+#[cfg(feature = "serde")]
+impl<'de> serde::Deserialize<'de> for Windows {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Windows, D::Error> {
+        let mut list = <Vec<Window> as serde::Deserialize>::deserialize(d)?.into_iter();
+        Ok(Windows { list: list.next().map(|first| Box::new(Set { first, more: list.collect() })) })
+    }
+}
+
 impl fmt::Debug for Windows {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let list: Option<Vec<Window>> = self.list.as_ref().map(|s| s.iter().copied().collect());

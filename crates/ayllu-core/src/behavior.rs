@@ -81,6 +81,7 @@ impl fmt::Debug for ProcessSpec {
 
 /// A slot declaration.
 #[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct SlotSpec {
     /// Unique among the behavior's registers (ports, slots, monostables).
     pub name: String,

@@ -67,6 +67,7 @@ use crate::time::{Duration, Instant};
 /// # Ok::<(), Error>(())
 /// ```
 #[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct BleConfig {
     /// The broadcast group of peers (the paper's `Peers`).
     pub group: String,
@@ -160,6 +161,7 @@ pub struct BleGroup {
 
 /// Per-behavior BLE bookkeeping, for introspection ("who claims which task").
 #[derive(Clone, Debug)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub(crate) struct BleState {
     pub(crate) group: Arc<str>,
     pub(crate) output: Port,
@@ -169,7 +171,9 @@ pub(crate) struct BleState {
     pub(crate) joined_at: Instant,
     pub(crate) claims: u64,
     pub(crate) last_claim: Option<Instant>,
+    #[cfg_attr(feature = "serde", serde(with = "crate::node::snapshot::best_bits"))]
     pub(crate) last_best: Option<(f64, Source)>,
+    #[cfg_attr(feature = "serde", serde(with = "crate::node::snapshot::float_bits"))]
     pub(crate) last_local: Option<f64>,
 }
 
@@ -288,7 +292,7 @@ impl NodeCore {
 pub const BLE_SELECT: &str = "BLE_Select";
 
 /// The BLE select process (paper: `BLE_Select`, 1 Hz).
-fn select(ctx: &mut Ctx<'_>) {
+pub(crate) fn select(ctx: &mut Ctx<'_>) {
     let now = ctx.now();
     let me = ctx.node();
     let Some((period, joined_at)) =

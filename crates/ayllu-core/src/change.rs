@@ -19,6 +19,7 @@ use crate::node::NodeCore;
 
 /// One structure change on one node (rule S9's operations, as a value).
 #[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum Change {
     /// Instantiate class `class` as behavior `name`.
     Create {
@@ -77,6 +78,7 @@ pub enum Change {
 
 /// What an applied change produced.
 #[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum Applied {
     /// Done; nothing to report.
     Done,
@@ -89,10 +91,12 @@ pub enum Applied {
 /// A change and what became of it: what a process reads on its next activation
 /// ([`crate::Ctx::changes`]).
 #[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct ChangeOutcome {
     /// The change as requested.
     pub change: Change,
     /// What it produced, or why the node refused it.
+    #[cfg_attr(feature = "serde", serde(with = "crate::node::snapshot::outcome"))]
     pub result: Result<Applied, Error>,
 }
 

@@ -204,6 +204,16 @@ pub enum Error {
         /// The merge rule that refused it: `not_a_number` or `shape_mismatch` (D3.5, D3.6).
         cause: DropCause,
     },
+    /// An error restored from a checkpoint (`NodeCore::restore`): a change outcome a process
+    /// had not read yet, or a transaction's, kept by its kind and its words (an error's other
+    /// fields are not data a checkpoint can hold). It reads, prints and classifies as the
+    /// original did.
+    Restored {
+        /// The original's kind.
+        kind: ErrorKind,
+        /// The original's message.
+        what: String,
+    },
 }
 
 /// What kind of refusal an [`Error`] is: the one classification C's status codes
@@ -211,6 +221,7 @@ pub enum Error {
 /// messages come from, so the three agree on every error. Decided once per variant in
 /// [`Error::kind`], with no catch-all: a new variant cannot compile without its kind.
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum ErrorKind {
     /// No class, behavior, port, process or connection of that name (or the name is not a
     /// port). C `AY_ERR_UNKNOWN`; Python `NotFoundError` (a `LookupError`).
@@ -262,6 +273,7 @@ impl Error {
             | Error::NotAllowed { .. }
             | Error::Ble { .. }
             | Error::Refused { .. } => K::Invalid,
+            Error::Restored { kind, .. } => *kind,
         }
     }
 }
@@ -374,6 +386,7 @@ impl fmt::Display for Error {
             Error::Ble { reason } => write!(f, "BLE group: {reason}"),
             Error::NotAllowed { what } => write!(f, "not allowed: {what}"),
             Error::Refused { what, cause } => write!(f, "{what} refused the value ({cause})"),
+            Error::Restored { what, .. } => f.write_str(what),
         }
     }
 }

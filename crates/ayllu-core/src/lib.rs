@@ -76,6 +76,8 @@ pub use introspect::{BehaviorReport, NodeReport, PortReport, ProcessReport, Regi
 pub use journal::{Entry, Event};
 pub use message::{ControlBody, ControlMessage, Destination, Message, Outgoing, PortMessage, ReplyBody};
 pub use node::{BehaviorRef, NodeCore, PortRef, RequestId, RequestStatus, RETRIGGER_INTERVAL};
+#[cfg(feature = "serde")]
+pub use node::{Snapshot, SNAPSHOT_VERSION};
 pub use port::{PortCell, PortKind, PortSpec};
 pub use process::Ctx;
 pub use time::{Compact, Duration, Instant};

@@ -17,6 +17,7 @@ use crate::value::Value;
 
 /// Where an outgoing message goes.
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum Destination {
     /// One node, by id; the transport sends it where that node was last heard from (D-S10.2).
     Node(NodeId),
@@ -26,6 +27,7 @@ pub enum Destination {
 
 /// One value travelling along a connection to a port on another node.
 #[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct PortMessage {
     /// The connection on the sending node; with the sender's id it names the pass holder.
     pub conn: ConnectionId,
@@ -45,6 +47,7 @@ pub struct PortMessage {
 
 /// A reliable request or its reply.
 #[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct ControlMessage {
     /// Chosen by the requester, unique among its requests; a reply repeats it.
     pub id: u64,
@@ -55,6 +58,7 @@ pub struct ControlMessage {
 /// What a control request asks of a node (N2), or the reply to one. Requests are retried
 /// until answered, and a receiver answers a repeat from memory, so each is applied once.
 #[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum ControlBody {
     /// Create a connection from a port of the receiver to `destination` (a `Node` or `Group`
     /// endpoint; never `Local`, which would be ambiguous across nodes).
@@ -160,6 +164,7 @@ pub enum ReplyBody {
 
 /// Everything one node says to another, before any byte encoding.
 #[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum Message {
     /// A value along a connection: best effort, newest wins (N1).
     Port(PortMessage),
@@ -169,6 +174,7 @@ pub enum Message {
 
 /// A message the core wants sent; the runtime hands it to a transport.
 #[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Outgoing {
     /// Who should receive it.
     pub to: Destination,

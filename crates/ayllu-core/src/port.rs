@@ -96,6 +96,7 @@ impl PortKind {
 /// # Ok::<(), Error>(())
 /// ```
 #[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct PortSpec {
     /// The port's name, unique among its behavior's registers.
     pub name: String,
@@ -192,6 +193,7 @@ impl PortSpec {
 // `Instant` rather than an `Option<Instant>` (16 bytes): that saving is what brings the
 // lifespan's length into the first line, so a freshness read touches one line, not two.
 #[repr(C)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct PortCell {
     pub(crate) kind: PortKind,
     /// Aggregating ports: no value in the current window. Normal ports are never empty.

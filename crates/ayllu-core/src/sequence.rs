@@ -257,6 +257,18 @@ impl SeqTable {
     pub(crate) fn iter(&self) -> impl Iterator<Item = &SeqEntry> {
         self.slots.iter().filter(|e| e.key.node != EMPTY)
     }
+
+    /// Every (sender, connection, newest sequence number), sorted: what a checkpoint keeps of
+    /// the table (the resolved ports are caches, found again by the next message).
+    #[cfg(feature = "serde")]
+    pub(crate) fn newest(&self) -> Vec<(u32, u64, u64)> {
+        let mut all: Vec<(u32, u64, u64)> = self
+            .iter()
+            .map(|e| (u32::try_from(e.key.node).unwrap_or(u32::MAX), e.key.conn, e.newest.load(Relaxed)))
+            .collect();
+        all.sort_unstable();
+        all
+    }
 }
 
 #[cfg(test)]

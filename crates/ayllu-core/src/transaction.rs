@@ -34,6 +34,7 @@ pub const MAX_CHANGES: usize = 256;
 
 /// Where a transaction stands on this node.
 #[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum TransactionState {
     /// Validated and held; aborts by itself at `deadline` unless committed or aborted before.
     Prepared {
@@ -64,6 +65,7 @@ pub enum TransactionState {
 
 /// One transaction as this node knows it.
 #[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct TransactionStatus {
     /// The coordinator's transaction number.
     pub txn: u64,
@@ -75,13 +77,15 @@ pub struct TransactionStatus {
     pub state: TransactionState,
 }
 
-#[derive(Debug, Default)]
+#[derive(Clone, Debug, Default)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub(crate) struct Transactions {
     held: Option<Held>,
     done: VecDeque<TransactionStatus>,
 }
 
-#[derive(Debug)]
+#[derive(Clone, Debug)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 struct Held {
     txn: u64,
     from: NodeId,

@@ -35,6 +35,8 @@ const FINISHED_REQUESTS_KEPT: usize = 1_024;
 
 /// A control request this node sent, kept until forgotten (see `FINISHED_REQUESTS_KEPT`).
 /// Its fields are the node's: answers are matched in `receive`, retries timed in `scheduler`.
+#[derive(Clone)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub(super) struct Request {
     pub(super) id: u64,
     pub(super) to: NodeId,

@@ -46,6 +46,8 @@ mod propagation;
 mod receive;
 mod registers;
 mod scheduler;
+#[cfg(feature = "serde")]
+pub(crate) mod snapshot;
 mod structure;
 mod tables;
 
@@ -53,6 +55,8 @@ pub(crate) use connections::connect_request;
 use connections::Request;
 use propagation::Frame;
 pub(crate) use registers::current;
+#[cfg(feature = "serde")]
+pub use snapshot::{Snapshot, SNAPSHOT_VERSION};
 pub(crate) use tables::{Behavior, Conn, Edge, MonoState, PortState, ProcState, Target};
 
 /// Whether a process body is running, for `run_body`'s borrowed body: a behavior removed
@@ -94,6 +98,7 @@ pub struct RequestId(pub u64);
 
 /// Where a control request stands.
 #[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum RequestStatus {
     /// Not answered yet; resent every 200 ms until answered or 25 sends (N2).
     Pending {

@@ -31,7 +31,9 @@ use super::scheduler::queue;
 /// refused) last. A message into an aggregating port that absorbs it then costs two or three
 /// cache lines, a plain hop three, where the compiler's order and an unaligned 376-byte slot
 /// spread them over four or five.
+#[derive(Clone)]
 #[repr(C, align(64))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub(crate) struct PortState {
     /// Whether a value accepted here needs none of the general path's checks (see
     /// [`PortState::is_plain`]); kept up to date wherever the triggers or windows change.
@@ -117,6 +119,8 @@ impl PortState {
     }
 }
 
+#[derive(Clone)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub(crate) struct MonoState {
     pub(crate) end: Instant,
     pub(crate) high: bool,
@@ -175,11 +179,14 @@ pub(crate) struct Behavior {
 }
 
 #[derive(Clone, Debug)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub(crate) enum Target {
     Local { b: u32, p: u16 },
     Remote { to: Destination, behavior: Arc<str>, port: Arc<str> },
 }
 
+#[derive(Clone)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub(crate) struct Conn {
     pub(crate) id: u64,
     pub(crate) src: (u32, u16),
@@ -198,6 +205,7 @@ pub(crate) struct Conn {
 /// One outgoing connection as the propagation loop sees it: a copy of the connection's
 /// immutable facts. `conns` stays the owner (sequence numbers, endpoints, remote targets).
 #[derive(Copy, Clone, Debug)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub(crate) struct Edge {
     /// Index into `NodeCore::conns`.
     pub(crate) conn: u32,

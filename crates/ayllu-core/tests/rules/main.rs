@@ -37,6 +37,9 @@ mod receive_cache;
 mod remote;
 mod request_table;
 mod shuttle;
+// Checkpoints exist with the serde feature (the workspace's tests have it: `ayllu` asks for it).
+#[cfg(feature = "serde")]
+mod snapshot;
 mod structure;
 mod structure_from_process;
 mod transaction_participant;
