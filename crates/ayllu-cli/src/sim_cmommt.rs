@@ -74,6 +74,11 @@ pub struct CmommtArgs {
     /// Also print the three tables after the summary (they are always in DIR/tables.txt).
     #[arg(long)]
     pub full: bool,
+    /// `lean` adds a BLE-lean row after BLE in every table: BLE offering its eligibility on a
+    /// 10 % change or every 500 ms instead of at every activation, so that the two policies'
+    /// coverage and messages are side by side. `paper` (the default): the study as it was.
+    #[arg(long, value_name = "POLICY", default_value = "paper", value_parser = ["paper", "lean"])]
+    pub eligibility: String,
 }
 
 pub fn run(args: &CmommtArgs) -> Result<(), Fail> {
@@ -87,6 +92,9 @@ pub fn run(args: &CmommtArgs) -> Result<(), Fail> {
     }
     if args.no_sweep {
         config.sweep_robots.clear();
+    }
+    if args.eligibility == "lean" {
+        config = config.with_lean_row();
     }
     let jobs = args.jobs.map_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()), |j| j as usize);
     let plan = Plan::new(&config);

@@ -155,6 +155,9 @@ fn distributed(c: Controller) -> Result<Controller, String> {
         Controller::Planner => Err("planner is not available in distributed mode: its base station exists \
              only in-process (use `sim run` or `sim cmommt` for it)"
             .into()),
+        Controller::BleSeek => Err("BLE-seek is not available in distributed mode: its robots are told their \
+             pose by the in-process simulator, which a robot process is not (use `sim run` or `sim sweep` for it)"
+            .into()),
         c => Ok(c),
     }
 }

@@ -219,6 +219,7 @@ impl Scenario {
         timing(self)?;
         radio(self, n)?;
         kills(self, n)?;
+        base_station_failure(self)?;
         controllers(self)?;
         recording(self)
     }
@@ -398,6 +399,31 @@ fn radio(s: &Scenario, robots: usize) -> Result<(), InvalidScenario> {
                     format!("must name a robot of the team, 1 to {robots}{base}"),
                 ));
             }
+        }
+    }
+    Ok(())
+}
+
+fn base_station_failure(s: &Scenario) -> Result<(), InvalidScenario> {
+    let Some(f) = &s.base_station_failure else { return Ok(()) };
+    number("base_station_failure.at", f.at, "instant", &TIME)?;
+    if let Some(until) = f.until {
+        number("base_station_failure.until", until, "instant", &TIME)?;
+        if until < f.at {
+            return Err(refuse(
+                "base_station_failure.until",
+                show(until),
+                "instant",
+                format!("the base station is reconnected at or after it is cut off ({} s)", show(f.at)),
+            ));
+        }
+        if f.how == crate::scenario::BaseStationLoss::Killed {
+            return Err(refuse(
+                "base_station_failure.until",
+                show(until),
+                "instant",
+                "a killed base station does not come back: `until` goes with how = \"partitioned\"".to_owned(),
+            ));
         }
     }
     Ok(())

@@ -18,6 +18,13 @@
 //!   partitions). Each robot (a `FOLLOW` behavior) reports its pose and sightings, follows its
 //!   last assignment while it is fresh, and falls back to the observer chain (as `Local`) when
 //!   it is not.
+//! * `BleSeek` — the BLE family without a base station that closes the gap to the `Planner`
+//!   (docs/cmommt.md, "BLE-seek"): the same observer layers and the same BLE (eligibility
+//!   broadcast plus cross-inhibition, no negotiation, no central node), but eligibility is
+//!   what the robot would gain (nothing on a target while a higher one holds it, a bonus on
+//!   the target it already claims), and a robot shares where the targets it sees but cannot
+//!   take are, so that a robot with nothing in view seeks one nobody claims (`SEEK`, between
+//!   the observers and `WANDER`).
 //!
 //! Each build returns a [`Brain`]: how the harness reads which target drives the robot (for
 //! switch counting and the replay) and, for `Centralized`, where the oracle writes.
@@ -30,7 +37,7 @@ use ayllu::stdlib::{
 };
 use ayllu_core::{
     BehaviorClass, BleConfig, ConnectOptions, ConnectionKind, Duration, Endpoint, Error, Instant, NodeCore, NodeId,
-    PortRef, PortSpec, Value,
+    Port, PortRef, PortSpec, Value,
 };
 use serde::{Deserialize, Serialize};
 
@@ -60,6 +67,15 @@ pub enum Controller {
     /// A central planner on a base station that knows only what the robots report over the
     /// radio, and whose assignments reach them over the radio: the honest centralized baseline.
     Planner,
+    /// The BLE family without a base station (docs/cmommt.md, "BLE-seek"): Fig. 2's observer
+    /// layers and BLE, with eligibility that counts what the robot would gain by taking the
+    /// target, a bonus for the claim it holds, and sightings of targets nobody claims shared
+    /// with the peers, which a robot with nothing in view seeks.
+    BleSeek,
+    /// The paper's BLE offering its eligibility by [`Eligibility::LEAN`] (a 10 % change or
+    /// every 500 ms, not at every activation), whatever `controllers.eligibility` says: the
+    /// study's row that shows BLE's message cost with the lean policy beside the paper's.
+    BleLean,
 }
 
 impl Controller {
@@ -73,6 +89,20 @@ impl Controller {
         Controller::Planner,
     ];
 
+    /// Every controller, [`Controller::ALL`] and then the controllers added after the study's
+    /// six, which the study runs only when asked (so that its tables and runs stay as they
+    /// were): what names parse to and what a sweep file may list.
+    pub const EVERY: [Controller; 8] = [
+        Controller::Ble,
+        Controller::Random,
+        Controller::Local,
+        Controller::ForceField,
+        Controller::Centralized,
+        Controller::Planner,
+        Controller::BleLean,
+        Controller::BleSeek,
+    ];
+
     /// The name used in tables, reports and files ("BLE", "ForceField", ...).
     pub fn name(self) -> &'static str {
         match self {
@@ -82,12 +112,14 @@ impl Controller {
             Controller::ForceField => "ForceField",
             Controller::Centralized => "Centralized",
             Controller::Planner => "Planner",
+            Controller::BleSeek => "BLE-seek",
+            Controller::BleLean => "BLE-lean",
         }
     }
 
     /// Case-insensitive, by [`Controller::name`].
     pub fn parse(s: &str) -> Option<Controller> {
-        Controller::ALL.into_iter().find(|c| c.name().eq_ignore_ascii_case(s))
+        Controller::EVERY.into_iter().find(|c| c.name().eq_ignore_ascii_case(s))
     }
 }
 
@@ -159,6 +191,16 @@ pub enum Brain {
         /// The fallback observer chain, as [`Brain::Chain`].
         chain: Vec<PortRef>,
     },
+    /// `BleSeek`: the observer chain drives as in [`Brain::Chain`], a layer seeking its target
+    /// from a peer's report too (so [`Brain::drive_seen`] reads every layer); the harness
+    /// writes the robot's pose to `SEEK.Pose`.
+    Seek {
+        /// `SEEK.Pose`: the robot's pose [x, y, theta], written by the harness (localization,
+        /// as the Planner's robots have it).
+        pose: PortRef,
+        /// The observer chain, as [`Brain::Chain`].
+        chain: Vec<PortRef>,
+    },
     /// Wander only.
     Wander,
 }
@@ -167,7 +209,7 @@ impl Brain {
     /// The target id driving the robot now (0: none).
     pub fn drive(&self, core: &NodeCore) -> u32 {
         match self {
-            Brain::Chain(layers) => chain_drive(core, layers),
+            Brain::Chain(layers) | Brain::Seek { chain: layers, .. } => chain_drive(core, layers),
             Brain::Follow { rotate, drive, chain, .. } => {
                 let now = core.now();
                 if core.last_accepted(*rotate).ok().flatten().is_some_and(|t| now < t + OVERRIDE_PERIOD) {
@@ -293,11 +335,27 @@ pub fn build(
 
 /// [`build`] with the controller's classes taken from (or built into) `classes`, so that the
 /// robots of one scenario share them (crate::classes). The Planner's `Follower` class knows
-/// its robot and is built for each node.
+/// its robot and is built for each node. `BleSeek` places sightings as in the lab's camera
+/// ([`WorldConfig::lab`]); [`build_in`] tells it the world's.
 pub fn build_shared(
     node: &mut NodeCore,
     controller: Controller,
     priorities: &[f64],
+    cfg: &ControllerConfig,
+    classes: &mut SharedClasses,
+) -> Result<Brain, Error> {
+    let lab = WorldConfig::lab(&[]);
+    build_in(node, controller, priorities, lab.focal * lab.target_height, cfg, classes)
+}
+
+/// [`build_shared`] in a world whose camera sees a target at distance `d` with apparent height
+/// `target_size / d` (`focal * target_height`, [`WorldConfig`]): how `BleSeek` turns a
+/// sighting into a place it can share. The other controllers do not use it.
+pub fn build_in(
+    node: &mut NodeCore,
+    controller: Controller,
+    priorities: &[f64],
+    target_size: f64,
     cfg: &ControllerConfig,
     classes: &mut SharedClasses,
 ) -> Result<Brain, Error> {
@@ -311,13 +369,15 @@ pub fn build_shared(
     local(node, (WANDER, "Rotate"), (BASE, "Rotate"), ConnectionKind::Normal)?;
     match controller {
         Controller::Random => Ok(Brain::Wander),
-        Controller::Ble | Controller::Local | Controller::Planner => {
-            classes.define(node, "Observer", || observer_class_with(cfg.eligibility))?;
+        Controller::Ble | Controller::BleLean | Controller::Local | Controller::Planner => {
+            // BLE-lean is Fig. 2 with the lean policy, whatever the tunables say.
+            let policy = if controller == Controller::BleLean { Eligibility::LEAN } else { cfg.eligibility };
+            classes.define(node, "Observer", || observer_class_with(policy))?;
             let ble = BleConfig::new(GROUP, "Rotate", cfg.claim_hz)?;
             // Lowest layer first, so that each layer's `next` exists when it is made.
             for num in (1..=m).rev() {
                 let next = if num == m { WANDER.to_owned() } else { format!("OBS{}", num + 1) };
-                if controller == Controller::Ble {
+                if matches!(controller, Controller::Ble | Controller::BleLean) {
                     make_observer(node, num, &next, &ble)?;
                 } else {
                     make_observer_layer(node, num, &next)?;
@@ -335,6 +395,7 @@ pub fn build_shared(
                 chain: layers,
             })
         }
+        Controller::BleSeek => build_ble_seek(node, priorities, target_size, cfg, classes),
         Controller::ForceField => {
             classes.define(node, "Force", || force_class(priorities))?;
             node.create("Force", "FORCE")?;
@@ -648,3 +709,310 @@ pub fn build_planner(
     }
     Ok(())
 }
+
+/// `BleSeek`: how much more eligible a robot is for the target it already claims. A peer must
+/// see the target 1.5 times as large (about two thirds of the distance) to take it: a claim is
+/// not given up for a marginally better one, which would cost both robots a turn.
+pub const HOLD_BONUS: f64 = 1.5;
+/// `BleSeek`: a robot seeking a target it does not see is this eligible for it, as a share of
+/// the apparent height the target would have at the distance it was told (a sighting is
+/// surer than a report): a robot seeing the target at twice the distance is as eligible.
+pub const SEEK_WEIGHT: f64 = 0.5;
+/// `BleSeek`: a robot that holds a target it sees leaves it for a reported one only if that
+/// one is worth this many times more (priority): a small gain is not worth the trip.
+pub const LEAVE_FOR: f64 = 1.5;
+/// `BleSeek`: how long an observer layer's word "I hold the robot" (`Engaged`) counts for the
+/// layers below it and for `SEEK`: three 20 Hz activations, so that one late activation does
+/// not free them.
+const ENGAGED_LIFESPAN: Duration = Duration::from_millis(150);
+/// `BleSeek`: how long a peer's eligibility for a target keeps it "covered" in a robot's
+/// eyes (`Covered`): longer than the half claim period between two offers.
+const COVERED_LIFESPAN: Duration = Duration::from_millis(1500);
+/// `BleSeek`: how often a robot shares the targets it sees but nobody takes (one message
+/// each time it has any).
+const SHARE_HZ: f64 = 1.0;
+/// `BleSeek`: how long (s) a shared sighting may start a search: a little over two sharing
+/// periods, so that one lost message does not drop it. A search the robot's layer holds goes
+/// on until it arrives (or [`SEEK_AT_MOST`]).
+const SOUGHT_FOR: f64 = 2.5;
+/// `BleSeek`: how long (s) a robot keeps turning to where it last saw a target it lost from
+/// view (a miss, a turn, the target stepping aside), as the Planner's robots steer to the
+/// planner's estimate: the observer layer keeps its target instead of handing the robot to
+/// the layers below for a moment.
+const TRACK_FOR: f64 = 3.0;
+/// `BleSeek`: the longest search (s) for one report.
+const SEEK_AT_MOST: f64 = 30.0;
+/// `BleSeek`: a robot this close (m) to where a reported target was, and not seeing it, gives
+/// up that report (the target moved on).
+const ARRIVED: f64 = 1.0;
+/// `BleSeek`: a search its layer does not hold this long after it began (s) lost to a peer's
+/// better eligibility; that target is not sought again for [`SOUGHT_FOR`].
+const REFUSED_AFTER: f64 = 0.3;
+
+/// `BleSeek`'s observer (class `SeekObserver`): Fig. 2's `ObserveTarget`, whose target is the
+/// one it sees or, when it sees none, the one `SEEK` asks it to seek (`Sought = [turn,
+/// eligibility]`, from a peer's report), and whose eligibility counts what the robot would
+/// gain. At 20 Hz: turn towards the target (`Rotate`); if a higher layer holds the robot
+/// (`Above` fresh), offer nothing (the robot would not go there: claiming would only keep a
+/// free peer away); otherwise offer the apparent height (or `Sought`'s eligibility), times
+/// [`HOLD_BONUS`] while this robot claims the target, as eligibility (`Local`) once per half
+/// claim period (at once on a first sight), and tell the layers below and `SEEK` that it holds
+/// the robot (`Engaged`) unless a peer offered more this cycle. A peer's eligibility heard this
+/// cycle (`Best`) for a target it sees tells `SEEK` the target is covered.
+fn seek_observer_class(claim_hz: f64) -> Result<BehaviorClass, Error> {
+    let mut c = BehaviorClass::new("SeekObserver");
+    let x = c.port(PortSpec::new("TargetX", 0.0).lifespan(VISION_LIFESPAN))?;
+    let y = c.port(PortSpec::new("TargetY", 0.0).lifespan(VISION_LIFESPAN))?;
+    let rotate = c.port(PortSpec::new("Rotate", 0.0))?;
+    let above = c.port(PortSpec::new("Above", 0.0).lifespan(ENGAGED_LIFESPAN))?;
+    let sought = c.port(PortSpec::new("Sought", Value::vector(&[])).lifespan(ENGAGED_LIFESPAN))?;
+    let engaged = c.port(PortSpec::new("Engaged", 0.0))?;
+    let covered = c.port(PortSpec::new("Covered", 0.0))?;
+    let offered_at = c.slot("OfferedAt", -1.0)?;
+    let period = 1.0 / claim_hz;
+    c.every_hz("TurnToTarget", 20.0, move |ctx| {
+        let seen = ctx.float(x).and_then(|b| ctx.float(y).map(|h| (b, h)));
+        let (turn, eligibility) = match seen {
+            Some((bearing, height)) => (-bearing, height),
+            None => match ctx.get_ref(sought) {
+                Some(Value::Vector(v)) if v.len() == 2 => (v[0], v[1]),
+                _ => return,
+            },
+        };
+        let _ = ctx.write(rotate, turn);
+        let now = ctx.now().as_secs_f64();
+        let peer = ctx.float(Port::BEST);
+        if seen.is_some() && peer.is_some() {
+            let _ = ctx.write(covered, 1.0);
+        }
+        if ctx.fresh(above) {
+            return;
+        }
+        // A claim is renewed every period: one within 1.5 periods is held.
+        let holding = ctx.last_accepted(Port::INHIBIT).is_some_and(|t| now - t.as_secs_f64() < 1.5 * period);
+        let mine = if holding { eligibility * HOLD_BONUS } else { eligibility };
+        if holding || peer.is_none_or(|p| p <= mine) {
+            let _ = ctx.write(engaged, 1.0);
+        }
+        let at = ctx.slot(offered_at).as_float().unwrap_or(-1.0);
+        // Two offers per claim cycle: one lost broadcast does not lose the claim.
+        if at < 0.0 || now - at >= period / 2.0 - 1e-9 {
+            let _ = ctx.write(Port::LOCAL, mine);
+            let _ = ctx.set_slot(offered_at, now);
+        }
+    })?;
+    Ok(c)
+}
+
+/// `BleSeek`'s `SEEK` (class `Seeker`): what the robot shares and hears, and which reported
+/// target it seeks.
+///
+/// Shares: once a second, the targets this robot sees that none of its layers holds and no
+/// peer offered for (not `Engaged{n}`, not `Covered{n}`) go to the peers as `Wanted = [n, x,
+/// y, ...]` (positions from the pose, the bearing and the apparent height: `target_size /
+/// height` m away), one broadcast. Hears: the peers' `Wanted` into `Heard`, each target's
+/// position remembered with the time heard. Seeks: at 20 Hz, among the targets heard within
+/// [`SOUGHT_FOR`] s that it does not see, above the layer holding the robot and worth
+/// [`LEAVE_FOR`] times its target, the one with the best priority / (1 m + distance); it writes
+/// that layer `Sought{n} = [turn, eligibility]` ([`SEEK_WEIGHT`] times the apparent height the
+/// target would have there). A search its layer holds goes on until the robot is within
+/// [`ARRIVED`] of the place (it then gives the report up) or sees the target; one its layer
+/// does not hold (a peer is more eligible) is given up.
+fn seeker_class(priorities: &[f64], target_size: f64) -> Result<BehaviorClass, Error> {
+    let m = priorities.len();
+    let prios = priorities.to_vec();
+    let mut c = BehaviorClass::new("Seeker");
+    let pose = c.port(PortSpec::new("Pose", Value::vector(&[])).lifespan(VISION_LIFESPAN))?;
+    let wanted = c.port(PortSpec::new("Wanted", Value::vector(&[])))?;
+    let heard = c.port(PortSpec::new("Heard", Value::vector(&[])))?;
+    let mut layers = Vec::with_capacity(m);
+    for n in 1..=m {
+        let a = c.port(PortSpec::new(&format!("T{n}Angle"), 0.0).lifespan(VISION_LIFESPAN))?;
+        let h = c.port(PortSpec::new(&format!("T{n}Bottom"), 0.0).lifespan(VISION_LIFESPAN))?;
+        let e = c.port(PortSpec::new(&format!("Engaged{n}"), 0.0).lifespan(ENGAGED_LIFESPAN))?;
+        let k = c.port(PortSpec::new(&format!("Covered{n}"), 0.0).lifespan(COVERED_LIFESPAN))?;
+        let s = c.port(PortSpec::new(&format!("Sought{n}"), Value::vector(&[])))?;
+        layers.push((a, h, e, k, s));
+    }
+    // Per target: x, y, when heard (s; negative: not sought), when a search for it was refused.
+    let known = c.slot("Known", Value::vector(&vec![-1.0; 4 * m]))?;
+    // The search under way: target index + 1 (0: none), when it began.
+    let search = c.slot("Search", Value::vector(&[0.0, 0.0]))?;
+    // Per target: where this robot last saw it, and when (s; negative: never).
+    let own = c.slot("Own", Value::vector(&vec![-1.0; 3 * m]))?;
+    let share_layers = layers.clone();
+    c.every_hz("Share", SHARE_HZ, move |ctx| {
+        let Some(Value::Vector(p)) = ctx.get(pose) else { return };
+        let (px, py, theta) = (p[0], p[1], p[2]);
+        let mut v = Vec::new();
+        for (n, &(a, h, e, k, _)) in share_layers.iter().enumerate() {
+            if ctx.fresh(e) || ctx.fresh(k) {
+                continue;
+            }
+            let (Some(angle), Some(height)) = (ctx.float(a), ctx.float(h)) else { continue };
+            if height <= 0.0 {
+                continue;
+            }
+            let d = target_size / height;
+            let heading = theta - angle; // right-positive bearing
+            v.extend([(n + 1) as f64, px + d * heading.cos(), py + d * heading.sin()]);
+        }
+        if !v.is_empty() {
+            let _ = ctx.write(wanted, Value::vector(&v));
+        }
+    })?;
+    c.on_write("Hear", heard, move |ctx| {
+        let Some(Value::Vector(h)) = ctx.get(heard) else { return };
+        let mut mem = ctx.slot(known).as_vector().map(<[f64]>::to_vec).unwrap_or_default();
+        if mem.len() != 4 * m {
+            return;
+        }
+        let now = ctx.now().as_secs_f64();
+        for e in h.chunks_exact(3) {
+            let n = e[0] as usize;
+            if (1..=m).contains(&n) {
+                mem[4 * (n - 1)..4 * (n - 1) + 3].copy_from_slice(&[e[1], e[2], now]);
+            }
+        }
+        let _ = ctx.set_slot(known, Value::vector(&mem));
+    })?;
+    c.every_hz("Seek", 20.0, move |ctx| {
+        let Some(Value::Vector(p)) = ctx.get(pose) else { return };
+        let (px, py, theta) = (p[0], p[1], p[2]);
+        let mut mem = ctx.slot(known).as_vector().map(<[f64]>::to_vec).unwrap_or_default();
+        let s = ctx.slot(search).as_vector().map(<[f64]>::to_vec).unwrap_or_default();
+        if mem.len() != 4 * m || s.len() != 2 {
+            return;
+        }
+        let now = ctx.now().as_secs_f64();
+        // What it sees now, placed; what it lost lately, sought where it was.
+        let mut mine = ctx.slot(own).as_vector().map(<[f64]>::to_vec).unwrap_or_default();
+        if mine.len() == 3 * m {
+            for (j, &(a, h, ..)) in layers.iter().enumerate() {
+                match (ctx.float(a), ctx.float(h)) {
+                    (Some(angle), Some(height)) if height > 0.0 => {
+                        let d = target_size / height;
+                        let heading = theta - angle;
+                        mine[3 * j..3 * j + 3].copy_from_slice(&[px + d * heading.cos(), py + d * heading.sin(), now]);
+                    }
+                    _ if mine[3 * j + 2] >= 0.0 && now - mine[3 * j + 2] <= TRACK_FOR => {
+                        let (tx, ty) = (mine[3 * j], mine[3 * j + 1]);
+                        let d = (tx - px).hypot(ty - py).max(ARRIVED);
+                        let turn = wrap((ty - py).atan2(tx - px) - theta);
+                        let _ = ctx.write(layers[j].4, Value::vector(&[turn, target_size / d]));
+                    }
+                    _ => {}
+                }
+            }
+            let _ = ctx.set_slot(own, Value::vector(&mine));
+        }
+        let lost = |j: usize| mine.get(3 * j + 2).is_some_and(|&t| t >= 0.0 && now - t <= TRACK_FOR);
+        let (mut current, began) = (s[0] as usize, s[1]);
+        // The search under way: held by its layer, lost to a peer, or over.
+        if current > 0 {
+            let j = current - 1;
+            let held = ctx.fresh(layers[j].2);
+            let d = (mem[4 * j] - px).hypot(mem[4 * j + 1] - py);
+            if !held && now - began > REFUSED_AFTER {
+                mem[4 * j + 3] = now;
+                current = 0;
+            } else if ctx.fresh(layers[j].0) || d < ARRIVED || now - began > SEEK_AT_MOST {
+                if !ctx.fresh(layers[j].0) {
+                    mem[4 * j + 2] = -1.0;
+                }
+                current = 0;
+            }
+        }
+        // The layer that holds the robot by sight (the search's own layer aside).
+        let holder = (0..m).find(|&j| j + 1 != current && ctx.fresh(layers[j].2));
+        let mut best: Option<(f64, usize, f64)> = None;
+        for (j, &(a, ..)) in layers.iter().enumerate() {
+            let (tx, ty, at, refused) = (mem[4 * j], mem[4 * j + 1], mem[4 * j + 2], mem[4 * j + 3]);
+            let ongoing = j + 1 == current;
+            if at < 0.0
+                || (!ongoing && (now - at > SOUGHT_FOR || now - refused < SOUGHT_FOR))
+                || ctx.fresh(a)
+                || lost(j)
+            {
+                continue;
+            }
+            if holder.is_some_and(|h| j >= h || prios[j] < LEAVE_FOR * prios[h]) {
+                continue;
+            }
+            let d = (tx - px).hypot(ty - py);
+            if d < ARRIVED {
+                mem[4 * j + 2] = -1.0;
+                continue;
+            }
+            // The search under way keeps its place unless another is clearly better.
+            let score = prios[j] / (1.0 + d) * if ongoing { HOLD_BONUS } else { 1.0 };
+            if best.is_none_or(|(b, _, _)| score > b) {
+                best = Some((score, j, d));
+            }
+        }
+        let next = match best {
+            Some((_, j, d)) => {
+                let (tx, ty) = (mem[4 * j], mem[4 * j + 1]);
+                let turn = wrap((ty - py).atan2(tx - px) - theta);
+                let _ = ctx.write(layers[j].4, Value::vector(&[turn, SEEK_WEIGHT * target_size / d.max(ARRIVED)]));
+                j + 1
+            }
+            None => 0,
+        };
+        let began = if next == current { began } else { now };
+        let _ = ctx.set_slot(known, Value::vector(&mem));
+        let _ = ctx.set_slot(search, Value::vector(&[next as f64, began]));
+    })?;
+    Ok(c)
+}
+
+/// Build [`Controller::BleSeek`] on `node` (see the module docs and docs/cmommt.md,
+/// "BLE-seek"): `OBS1..OBSm` (class `SeekObserver`) in a subsumption chain over `WANDER`, each
+/// layer in its BLE group as in Fig. 2, and `SEEK` beside them; `OBSk.Engaged` feeds every
+/// lower layer's `Above` and `SEEK`.
+fn build_ble_seek(
+    node: &mut NodeCore,
+    priorities: &[f64],
+    target_size: f64,
+    cfg: &ControllerConfig,
+    classes: &mut SharedClasses,
+) -> Result<Brain, Error> {
+    let m = priorities.len() as u32;
+    classes.define(node, "SeekObserver", || seek_observer_class(cfg.claim_hz))?;
+    classes.define(node, "Seeker", || seeker_class(priorities, target_size))?;
+    node.create("Seeker", SEEK)?;
+    let ble = BleConfig::new(GROUP, "Rotate", cfg.claim_hz)?;
+    for num in (1..=m).rev() {
+        let name = format!("OBS{num}");
+        let next = if num == m { WANDER.to_owned() } else { format!("OBS{}", num + 1) };
+        node.create("SeekObserver", &name)?;
+        for (from, to) in [("Angle", "TargetX"), ("Bottom", "TargetY")] {
+            local(node, (VISION, &format!("Target{num}{from}")), (&name, to), ConnectionKind::Normal)?;
+            local(
+                node,
+                (VISION, &format!("Target{num}{from}")),
+                (SEEK, &format!("T{num}{from}")),
+                ConnectionKind::Normal,
+            )?;
+        }
+        local(node, (&name, "Rotate"), (&next, "Rotate"), ConnectionKind::OverrideOut(OVERRIDE_PERIOD))?;
+        local(node, (&name, "Engaged"), (SEEK, &format!("Engaged{num}")), ConnectionKind::Normal)?;
+        local(node, (&name, "Covered"), (SEEK, &format!("Covered{num}")), ConnectionKind::Normal)?;
+        local(node, (SEEK, &format!("Sought{num}")), (&name, "Sought"), ConnectionKind::Normal)?;
+        for lower in num + 1..=m {
+            local(node, (&name, "Engaged"), (&format!("OBS{lower}"), "Above"), ConnectionKind::Normal)?;
+        }
+        node.ble_join(&name, &ble)?;
+    }
+    node.connect(
+        &Endpoint::local(SEEK, "Wanted"),
+        &Endpoint::group(GROUP, SEEK, "Heard"),
+        ConnectionKind::Normal,
+        ConnectOptions::default(),
+    )?;
+    let layers = (1..=m).map(|n| node.port(&format!("OBS{n}"), "Rotate")).collect::<Result<_, _>>()?;
+    Ok(Brain::Seek { pose: node.port(SEEK, "Pose")?, chain: layers })
+}
+
+/// `BleSeek`'s sharing and seeking behavior.
+pub const SEEK: &str = "SEEK";

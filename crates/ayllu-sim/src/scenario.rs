@@ -33,7 +33,7 @@ mod sim;
 mod tests;
 mod visit;
 
-pub use crate::scenario_spec::{Kill, Scenario};
+pub use crate::scenario_spec::{BaseStationFailure, BaseStationLoss, Kill, Scenario};
 pub use kills::{apply_due_kills, most_useful_robot};
 pub use outcome::{Outcome, RadioStats, SimError};
 pub use presets::priorities;

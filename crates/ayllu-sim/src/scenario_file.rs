@@ -130,7 +130,10 @@ pub fn sweep(text: &str) -> Result<Sweep, String> {
     // The cell's scenario is read (and held to the bounds) as the first controller's run; every
     // controller's run is checked below.
     table.insert("controller".into(), Json::String(controllers[0].name().to_owned()));
-    let mut cells: Vec<(Labels, Map<String, Json>)> = vec![(Vec::new(), table)];
+    let mut cells: Vec<(Labels, Map<String, Json>)> = match table.remove("cases") {
+        None => vec![(Vec::new(), table)],
+        Some(cases) => cases_of(&table, cases)?,
+    };
     for (path, values) in grid {
         let values =
             values.as_array().filter(|v| !v.is_empty()).ok_or(format!("grid.{path} must be a non-empty list"))?;
@@ -169,6 +172,55 @@ pub fn sweep(text: &str) -> Result<Sweep, String> {
         })
         .collect::<Result<_, String>>()?;
     Ok(Sweep { seeds, controllers, cells })
+}
+
+/// The cells of a sweep's `[[cases]]`: each case is the sweep's scenario with the case's
+/// fields laid over it (tables field by field, anything else replaced), labelled by its
+/// `title` (default `case N`); the grid, if any, then multiplies them.
+fn cases_of(table: &Map<String, Json>, cases: Json) -> Result<Vec<(Labels, Map<String, Json>)>, String> {
+    let cases = cases.as_array().filter(|c| !c.is_empty()).ok_or("`cases` must be a non-empty list of tables")?;
+    let mut cells = Vec::with_capacity(cases.len());
+    for (i, case) in cases.iter().enumerate() {
+        let mut case = case.as_object().cloned().ok_or(format!("cases[{i}] must be a table of fields"))?;
+        let title = match case.remove("title") {
+            None => format!("case {}", i + 1),
+            Some(Json::String(t)) => t,
+            Some(other) => return Err(format!("cases[{i}].title must be text, not {other}")),
+        };
+        let wander_seed = case.get("controllers").and_then(|c| c.get("wander_seed")).is_some();
+        for (path, given) in [
+            ("seed", case.contains_key("seed")),
+            ("controller", case.contains_key("controller")),
+            ("controllers.wander_seed", wander_seed),
+        ] {
+            if given {
+                return Err(set_by_the_sweep(path, &format!("cases[{i}].")));
+            }
+        }
+        let mut t = table.clone();
+        for (k, v) in case {
+            overlay(&mut t, k, v);
+        }
+        cells.push((vec![(CASE.to_owned(), title)], t));
+    }
+    Ok(cells)
+}
+
+/// The label of a cell's case (`[[cases]]`), whose value is the case's title.
+pub const CASE: &str = "case";
+
+/// Lay `value` over `table[key]`: tables field by field, anything else replaced.
+fn overlay(table: &mut Map<String, Json>, key: String, value: Json) {
+    match (table.get_mut(&key), value) {
+        (Some(Json::Object(base)), Json::Object(over)) => {
+            for (k, v) in over {
+                overlay(base, k, v);
+            }
+        }
+        (_, value) => {
+            table.insert(key, value);
+        }
+    }
 }
 
 /// Why a sweep file may not set `path` (`at` is `grid.` when the grid names it).
@@ -259,6 +311,10 @@ fn scenario_from(mut table: Map<String, Json>) -> Result<Scenario, String> {
     }
     let base = Scenario::sized(controller, robots, targets, seed);
     let mut merged = serde_json::to_value(&base).map_err(|e| e.to_string())?;
+    // Left out of the standard scenario's form while `None`, but a field a file may set.
+    if let Json::Object(m) = &mut merged {
+        m.entry("base_station_failure").or_insert(Json::Null);
+    }
     merge(&mut merged, Json::Object(table), "")?;
     let scenario: Scenario = serde_json::from_value(merged).map_err(|e| format!("the scenario does not fit: {e}"))?;
     scenario.validate().map_err(|e| e.to_string())?;

@@ -25,6 +25,35 @@ pub struct Kill {
     pub robot: Option<u32>,
 }
 
+/// How the Planner's base station is lost ([`BaseStationFailure`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum BaseStationLoss {
+    /// It stops for good: no more plans, and what it knew is gone.
+    Killed,
+    /// The radio cuts it off from every robot (a partition with the base station alone on its
+    /// side) until `until`, if given; it keeps running and planning from what reaches it
+    /// (nothing), and picks up again once reconnected.
+    Partitioned,
+}
+
+/// The Planner's base station failing at an instant (docs/cmommt.md, "Losing the base
+/// station"): an event of the scenario like a kill. A run without a base station (every
+/// controller but the Planner) has nothing to lose and runs as without it, so one sweep can
+/// compare the Planner losing its base station with the teams that have none.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BaseStationFailure {
+    /// Seconds into the run.
+    #[serde(deserialize_with = "crate::numbers::number_de")]
+    pub at: f64,
+    /// Killed or partitioned.
+    pub how: BaseStationLoss,
+    /// `Partitioned`: when the base station is reachable again (s); `None`: never.
+    #[serde(default, deserialize_with = "crate::numbers::optional_number_de")]
+    pub until: Option<f64>,
+}
+
 /// Everything that defines a run: the world, the team, the controller, the radio, the kills,
 /// the seed and the rates. Serializable: `scenario_file` reads it from TOML.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -47,6 +76,11 @@ pub struct Scenario {
     pub seed: u64,
     /// Scheduled robot failures, any number, at any instants.
     pub kills: Vec<Kill>,
+    /// The Planner's base station failing, if it does (nothing for the other controllers).
+    /// Left out of the scenario's serde form when `None`, so that scenarios written before it
+    /// existed read and write as they did.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub base_station_failure: Option<BaseStationFailure>,
     /// Keep every frame for a replay (costs memory; the hash is computed either way).
     pub record: bool,
     /// Virtual seconds between frames (hashed, sampled for coverage, recorded if `record`),

@@ -146,6 +146,18 @@ impl Default for StudyConfig {
 }
 
 impl StudyConfig {
+    /// The same study with a `BLE-lean` row after `BLE` in every table (BLE offering its
+    /// eligibility by [`ayllu::stdlib::Eligibility::LEAN`]), so that the paper's policy and
+    /// the lean one are side by side, coverage and messages (`ayllu sim cmommt --eligibility
+    /// lean`). Without BLE in the list the row goes first; already there, nothing changes.
+    pub fn with_lean_row(mut self) -> StudyConfig {
+        if !self.controllers.contains(&Controller::BleLean) {
+            let at = self.controllers.iter().position(|&c| c == Controller::Ble).map_or(0, |i| i + 1);
+            self.controllers.insert(at, Controller::BleLean);
+        }
+        self
+    }
+
     /// A study small enough for a smoke run: 3 seeds of 120 s, sweep 2 and 5 robots x 4
     /// targets x 0 and 30 % loss.
     pub fn quick() -> StudyConfig {

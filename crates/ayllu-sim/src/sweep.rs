@@ -34,7 +34,11 @@ pub struct SweepResults {
 
 /// The title of cell `i` (0-based): its grid values.
 pub fn cell_title(sweep: &Sweep, i: usize) -> String {
-    let values: Vec<String> = sweep.cells[i].values.iter().map(|(k, v)| format!("{k} = {v}")).collect();
+    let values: Vec<String> = sweep.cells[i]
+        .values
+        .iter()
+        .map(|(k, v)| if k == crate::scenario_file::CASE { v.clone() } else { format!("{k} = {v}") })
+        .collect();
     let what = if values.is_empty() { "the scenario as written".to_owned() } else { values.join(", ") };
     format!("cell{}: {what}", i + 1)
 }

@@ -46,6 +46,7 @@ impl Scenario {
             duration: 300.0,
             seed,
             kills: Vec::new(),
+            base_station_failure: None,
             record: false,
             frame_dt: 0.2,
             dt: 0.05,

@@ -15,11 +15,11 @@ use super::outcome::{Outcome, RadioStats, SimError};
 use super::visit::{visit, visit_threads, RobotNode, Tick, BLOCK, LOOK_AHEAD_TEAM};
 use crate::body::Body;
 use crate::classes::SharedClasses;
-use crate::controller::{build_planner, build_shared, Brain, Controller, ControllerConfig, PLANNER_NODE};
+use crate::controller::{build_in, build_planner, Brain, Controller, ControllerConfig, PLANNER_NODE};
 use crate::metrics::Meter;
-use crate::radio::{Radio, Station};
+use crate::radio::{Partition, Radio, Station};
 use crate::recording::{CoverageSeries, Event, Frame, Recording, RecordingMeta, RobotFrame, RobotInfo, TargetInfo};
-use crate::scenario_spec::Scenario;
+use crate::scenario_spec::{BaseStationLoss, Scenario};
 use crate::workers::Workers;
 use crate::world::{Command, SonarScratch, World};
 
@@ -34,6 +34,8 @@ pub struct Sim {
     dt: Duration,
     frame_every: u64,
     kills_done: Vec<bool>,
+    /// Whether the base station's failure has happened.
+    base_station_failed: bool,
     commands: Vec<Command>,
     pub(super) drives: Vec<u32>,
     stations: Vec<Station>,
@@ -78,7 +80,10 @@ impl Sim {
         let controller = scenario.controller;
         // One copy of each controller class for the whole team (crate::classes).
         let mut classes = SharedClasses::new();
-        Sim::with_controller(scenario, &mut |core, prios, cfg| build_shared(core, controller, prios, cfg, &mut classes))
+        let size = scenario.world.focal * scenario.world.target_height;
+        Sim::with_controller(scenario, &mut |core, prios, cfg| {
+            build_in(core, controller, prios, size, cfg, &mut classes)
+        })
     }
 
     /// [`Sim::new`] with every robot's controller built by `build` instead of
@@ -96,7 +101,18 @@ impl Sim {
         let world = World::new(scenario.world.clone(), scenario.robots, scenario.seed);
         let planner = scenario.controller == Controller::Planner;
         let stations = scenario.robots + usize::from(planner);
-        let mut radio = Radio::new(scenario.radio.clone(), stations, scenario.seed);
+        let mut radio_config = scenario.radio.clone();
+        if let Some(f) =
+            scenario.base_station_failure.as_ref().filter(|f| planner && f.how == BaseStationLoss::Partitioned)
+        {
+            // The base station alone on its side of a partition: it hears no robot, no robot hears it.
+            radio_config.partitions.push(Partition {
+                start: f.at,
+                end: f.until.unwrap_or(f64::INFINITY),
+                island: vec![PLANNER_NODE.0],
+            });
+        }
+        let mut radio = Radio::new(radio_config, stations, scenario.seed);
         let mut robots = Vec::with_capacity(scenario.robots);
         let mut body_classes = SharedClasses::new();
         for i in 0..scenario.robots {
@@ -121,6 +137,7 @@ impl Sim {
         let mut sim = Sim {
             meter: Meter::new(&prios, n),
             kills_done: vec![false; scenario.kills.len()],
+            base_station_failed: false,
             scenario,
             world,
             radio,
@@ -233,6 +250,7 @@ impl Sim {
         let now = self.now();
         let t = now.as_secs_f64();
         self.apply_kills(t);
+        self.apply_base_station_failure(t);
         // Messages due now are set aside before anyone sends, so that what is sent this tick
         // arrives at a later tick whatever the delay (as if every robot ran at once).
         self.radio.take_due(now);
@@ -271,7 +289,7 @@ impl Sim {
             world: &self.world,
             assignment: &self.assignment,
             sense,
-            chain_only: matches!(self.scenario.controller, Controller::Ble | Controller::Local),
+            chain_only: matches!(self.scenario.controller, Controller::Ble | Controller::BleLean | Controller::Local),
             centralized: self.scenario.controller == Controller::Centralized,
             ahead: self.look_ahead,
         };
@@ -336,8 +354,14 @@ impl Sim {
                 }
             }
         }
-        if let Some((core, _)) = &mut self.planner {
+        if let Some((core, s)) = &mut self.planner {
             let station = self.robots.len();
+            if !s.alive {
+                // A killed base station hears nothing and does nothing.
+                self.radio.deliver_due(station, |_, _| {});
+                self.radio.release_due();
+                return self.finish_tick(t);
+            }
             self.radio.deliver_due(station, |from, msg| core.receive_shared(now, from, msg));
             core.run_due(now);
             while let Some(out) = core.pop_outgoing() {
@@ -349,6 +373,11 @@ impl Sim {
             }
         }
         self.radio.release_due();
+        self.finish_tick(t)
+    }
+
+    /// The end of a tick: the world moves, the metrics count it, a frame every `frame_dt`.
+    fn finish_tick(&mut self, t: f64) -> Result<(), Error> {
         self.world.step(self.scenario.dt, &self.commands);
         let (observed, weighted) = self.meter.observe(t, self.scenario.dt, &self.world, &self.drives);
         self.last_coverage = (observed, weighted);
@@ -356,6 +385,24 @@ impl Sim {
             self.frame(observed, weighted);
         }
         Ok(())
+    }
+
+    /// The base station's failure when due (Planner runs): killed, it stops; cut off, the
+    /// radio's partition (made with the radio) does the rest. Either is an event of the run.
+    fn apply_base_station_failure(&mut self, t: f64) {
+        let (Some(f), Some((_, station))) = (&self.scenario.base_station_failure, &mut self.planner) else { return };
+        if self.base_station_failed || t < f.at {
+            return;
+        }
+        self.base_station_failed = true;
+        let kind = match f.how {
+            BaseStationLoss::Killed => {
+                station.alive = false;
+                "base station killed"
+            }
+            BaseStationLoss::Partitioned => "base station cut off",
+        };
+        self.events.push(Event { t, kind: kind.into(), robot: PLANNER_NODE.0 });
     }
 
     fn apply_kills(&mut self, t: f64) {
@@ -435,7 +482,7 @@ impl Sim {
                 let core = &self.robots[i].core;
                 let mut claims = Vec::new();
                 let mut inhibited = Vec::new();
-                if self.scenario.controller == Controller::Ble {
+                if matches!(self.scenario.controller, Controller::Ble | Controller::BleLean | Controller::BleSeek) {
                     for n in 1..=m {
                         if let Ok(Some(s)) = core.ble_status(&format!("OBS{n}")) {
                             if s.claiming && r.alive {

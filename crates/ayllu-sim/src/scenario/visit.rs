@@ -115,7 +115,7 @@ pub(super) fn visit(
         }
         if tick.sense {
             r.body.write_senses(&mut r.core, now, tick.world, i, sweep)?;
-            if let Brain::Follow { pose, .. } = r.brain {
+            if let Brain::Follow { pose, .. } | Brain::Seek { pose, .. } = r.brain {
                 // Localization: the robot knows where it is (as odometry on a map would).
                 let p = tick.world.robots[i].pose;
                 r.core.write(now, pose, Value::vector(&[p.x, p.y, p.theta]))?;
