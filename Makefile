@@ -2,7 +2,7 @@
 # CI (.ci/run) runs `make lint` and `make test`.
 CARGO ?= cargo
 
-.PHONY: test-asan demo test lint test-python test-ray lint-python bench-python bench bench-c bench-net bench-peers bench-sim zenoh test-zenoh bench-zenoh ros2 test-ros2 bench-ros2 ros2-c ros2-python fuzz fuzz-long soak fmt docs
+.PHONY: test-asan demo test lint test-python test-ray lint-python bench-python bench bench-c bench-net bench-peers bench-sim zenoh test-zenoh bench-zenoh ros2 test-ros2 bench-ros2 ros2-c ros2-python fuzz fuzz-long soak soak-recorder fmt docs
 
 ## Run the main demo: W-CMOMMT in the simulator (the paper's setting, a sweep, a robot killed
 ## halfway) for BLE and every baseline; prints a short summary (BLE against each baseline, whether
@@ -223,6 +223,11 @@ MINUTES ?= 60
 soak:
 	scripts/install-test-tools
 	SOAK_MINUTES=$(MINUTES) $(CARGO) test --release -p ayllu-cli --test tool cross_subsumption_processes::soak -- --ignored --nocapture
+
+## The rolling flight recorder for MINUTES (default 10) on a real node process talking UDP to
+## another, keeping its last 60 s: bounded files, replayed bit for bit from its oldest checkpoint.
+soak-recorder:
+	AYLLU_ROLLING_MINUTES=$(or $(RECORDER_MINUTES),10) $(CARGO) test -p ayllu-cli --test tool rolling_recording::ten_minutes -- --ignored --nocapture
 
 ## Fuzz every target (decoder, node, recordings, udp:// URLs, command lines) for SECONDS each (needs a
 ## nightly toolchain; installs cargo-fuzz), then AylluLite C's decoders (a datagram, a datagram

@@ -1397,6 +1397,22 @@ ay_status ay_node_apply(ay_node *node,
 // `node` is NULL or a pointer from this library; `path` is NULL or NUL-terminated.
 ay_status ay_node_record(ay_node *node, const char *path, uint64_t max_bytes);
 
+// Start a rolling recording of `node` into `path`: as `ay_node_record`, but only about the
+// last `keep_last_s` seconds are kept (a checkpoint of the node every quarter of that opens a
+// new segment, and the segments before the window are deleted; `ayllu replay` starts from
+// the oldest checkpoint kept). For a robot that records all the time.
+//
+// Ownership: borrows its arguments for the call; keeps nothing of `path`.
+// Thread-safety: the node's thread. Errors: as `ay_node_record`, and `AY_ERR_PERIOD`
+// (`keep_last_s` not a positive number of seconds).
+//
+// # Safety
+// `node` is NULL or a pointer from this library; `path` is NULL or NUL-terminated.
+ay_status ay_node_record_last(ay_node *node,
+                              const char *path,
+                              uint64_t max_bytes,
+                              double keep_last_s);
+
 // Stop recording `node` and close its files; `*written` (if not NULL) gets the number of
 // journal entries written. Not recording is not an error (`*written` is 0).
 //

@@ -45,6 +45,38 @@ pub unsafe extern "C" fn ay_node_record(node: *mut ay_node, path: *const c_char,
     })
 }
 
+/// Start a rolling recording of `node` into `path`: as `ay_node_record`, but only about the
+/// last `keep_last_s` seconds are kept (a checkpoint of the node every quarter of that opens a
+/// new segment, and the segments before the window are deleted; `ayllu replay` starts from
+/// the oldest checkpoint kept). For a robot that records all the time.
+///
+/// Ownership: borrows its arguments for the call; keeps nothing of `path`.
+/// Thread-safety: the node's thread. Errors: as `ay_node_record`, and `AY_ERR_PERIOD`
+/// (`keep_last_s` not a positive number of seconds).
+///
+/// # Safety
+/// `node` is NULL or a pointer from this library; `path` is NULL or NUL-terminated.
+#[no_mangle]
+pub unsafe extern "C" fn ay_node_record_last(
+    node: *mut ay_node,
+    path: *const c_char,
+    max_bytes: u64,
+    keep_last_s: f64,
+) -> ay_status {
+    boundary("ay_node_record_last", || {
+        // SAFETY: the C caller's promise on `path`.
+        let path = unsafe { text(path, "path") }?;
+        if max_bytes != 0 && max_bytes < 65_536 {
+            return Err(Fail::invalid("max_bytes must be 0 (the default) or at least 65536"));
+        }
+        let window = ayllu::Duration::try_from_positive_secs(keep_last_s)?;
+        let options =
+            if max_bytes == 0 { RecordOptions::default() } else { RecordOptions::default().max_bytes(max_bytes) };
+        let options = options.keep_last(std::time::Duration::from_nanos(window.as_nanos()));
+        with_node(node, |s| s.node.record(path, options).map_err(failed))
+    })
+}
+
 /// Stop recording `node` and close its files; `*written` (if not NULL) gets the number of
 /// journal entries written. Not recording is not an error (`*written` is 0).
 ///

@@ -166,7 +166,10 @@ fn feed_vision(node: &mut Node, args: &NodeArgs) -> Result<(), Fail> {
 /// removes the segments that follow FILE (`FILE.1.mcap`, ...) so that they are not read as this
 /// recording's; they belong to the earlier recording too, so they are refused as well.
 fn refuse_existing_recording(path: &std::path::Path) -> Result<(), Fail> {
-    for n in 0..2 {
+    // A rolling recording may have lost its first segments: any segment of the name counts.
+    let mut numbers = ayllu::recording::segment_numbers(path);
+    numbers.extend([0, 1]);
+    for n in numbers {
         let segment = ayllu::recording::segment_path(path, n);
         if segment.symlink_metadata().is_ok() {
             return Err(Fail::error(format!(
@@ -234,8 +237,11 @@ pub fn run(args: &NodeArgs) -> Result<(), Fail> {
     let mut node = Node::new(MonotonicClock::new(), transport);
     if let Some(path) = &args.record {
         // Before anything is declared: the replay rebuilds the node from its first definition.
-        let options =
+        let mut options =
             args.record_max_bytes.map_or_else(RecordOptions::default, |n| RecordOptions::default().max_bytes(n));
+        if let Some(secs) = args.record_last {
+            options = options.keep_last(std::time::Duration::from_secs_f64(secs));
+        }
         node.record(path, options)?;
     }
     node.core_mut().set_access(Access { ports: args.allow_write.clone(), structure: args.allow_rewire.clone() });
@@ -289,6 +295,13 @@ pub fn run(args: &NodeArgs) -> Result<(), Fail> {
             args.record.as_deref().map_or(String::new(), |p| p.display().to_string()),
             if dropped > 0 { format!("; {dropped} entries not recorded (cap or slow disk)") } else { String::new() }
         );
+        if let Some(secs) = args.record_last {
+            eprintln!(
+                "ayllu: rolling recording: kept {} segment(s), the last {secs} s or a little more; {} older deleted",
+                stats.segments.saturating_sub(stats.deleted),
+                stats.deleted
+            );
+        }
         if let Some(e) = stats.error {
             eprintln!("ayllu: warning: recording failed: {e}");
         }

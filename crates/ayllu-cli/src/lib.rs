@@ -348,6 +348,12 @@ pub struct NodeArgs {
     /// are at most 64 MiB (FILE, FILE.1.mcap, ...). Recording stops at the cap.
     #[arg(long, value_name = "N", requires = "record", value_parser = clap::value_parser!(u64).range(65_536..))]
     pub record_max_bytes: Option<u64>,
+    /// Keep only about the last SECS of the recording (node time): a rolling flight recorder
+    /// for a robot that records all the time. Every SECS/4 (at least 1 s) it checkpoints the
+    /// node and deletes what lies before the window; `ayllu replay FILE` replays from the
+    /// oldest checkpoint kept.
+    #[arg(long, value_name = "SECS", requires = "record", value_parser = positive_secs)]
+    pub record_last: Option<f64>,
     /// The robot's body is behind ROS 2 topics, as this mapping file says (docs/ros2.md):
     /// sensors' topics write its ports, its motor ports are published. Needs the tool built
     /// with ROS 2 (`make ros2`).
@@ -678,6 +684,7 @@ mod tests {
                 "--from",
                 "--record",
                 "--record-max-bytes",
+                "--record-last",
                 "12.5s",
                 "--netns",
                 "--udp",

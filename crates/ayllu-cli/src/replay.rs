@@ -161,8 +161,9 @@ fn past_the_last_known(rec: &Recording, at: Instant, last: Instant) -> Fail {
     ))
 }
 
-/// The recordings `files` name: each file, and in each folder its recordings' first segments
-/// (`*.mcap` other than `NAME.N.mcap`, in name order).
+/// The recordings `files` name: each file, and in each folder its recordings by their first
+/// segment's name (`NAME.mcap` for `NAME.mcap` and `NAME.N.mcap`: a rolling recording may have
+/// deleted its first segment), in name order.
 fn recordings(files: &[PathBuf]) -> Result<Vec<PathBuf>, Fail> {
     let mut out = Vec::new();
     for f in files {
@@ -174,12 +175,19 @@ fn recordings(files: &[PathBuf]) -> Result<Vec<PathBuf>, Fail> {
             .map_err(|e| Fail::error(format!("{}: {e}", f.display())))?
             .filter_map(|e| e.ok().map(|e| e.path()))
             .filter(|p| p.extension().is_some_and(|x| x == "mcap"))
-            .filter(|p| {
+            .map(|p| {
                 // `run.1.mcap` is a later segment of `run.mcap`, read with it.
                 let stem = p.file_stem().and_then(|s| s.to_str()).unwrap_or("");
-                !stem.rsplit_once('.').is_some_and(|(_, n)| !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit()))
+                match stem.rsplit_once('.') {
+                    Some((name, n)) if !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit()) => {
+                        p.with_file_name(format!("{name}.mcap"))
+                    }
+                    _ => p,
+                }
             })
             .collect();
+        found.sort();
+        found.dedup();
         if found.is_empty() {
             return Err(Fail::error(format!("{}: no recording (*.mcap) in this folder", f.display())));
         }
@@ -281,9 +289,16 @@ pub fn run(args: &ReplayArgs) -> Result<(), Fail> {
         Some((seq, t)) => format!("{}, with a hole at entry {seq} (t={:.3}s): replayed up to it", rec.ending, secs(*t)),
         None => rec.ending.to_string(),
     };
-    let known = last_known.map_or(String::new(), |last| {
+    let mut known = last_known.map_or(String::new(), |last| {
         format!("; it tells about the node up to t={:.3}s, and a replay answers no later", secs(last))
     });
+    if let Some(c) = &rec.checkpoint {
+        known.push_str(&format!(
+            "; rolling: it starts from its checkpoint at t={:.3}s (entry {}), what came before was not kept",
+            secs(c.at),
+            c.seq
+        ));
+    }
     eprintln!(
         "replay: {} — node {}, {} entries in {} segment(s), {:.3}s of node time, {ending}{known}",
         file.display(),
@@ -355,11 +370,16 @@ pub fn run(args: &ReplayArgs) -> Result<(), Fail> {
             let complete = rec.ending == Ending::Closed && rec.gap.is_none();
             let line = if args.json {
                 json!({"node": rec.node.0, "entries": rec.entries.len(), "accepted_checked": replay.checked(),
+                       "start": secs(rec.start()), "checkpoint_entry": rec.checkpoint.as_ref().map(|c| c.seq),
                        "end": secs(end), "ending": ending, "complete": complete})
                 .to_string()
             } else {
+                let from = rec
+                    .checkpoint
+                    .as_ref()
+                    .map_or(String::new(), |c| format!("from its checkpoint at t={:.3}s ", secs(c.at)));
                 format!(
-                    "replayed to t={:.3}s: {} accepted values reproduced bit for bit; recording {ending}",
+                    "replayed {from}to t={:.3}s: {} accepted values reproduced bit for bit; recording {ending}",
                     secs(replay.reached().min(end)),
                     replay.checked()
                 )

@@ -603,10 +603,18 @@ impl Node {
     /// Record everything that enters this node's core, and the values its ports accept, into
     /// the MCAP file `path` (Foxglove opens it; `ayllu replay` and `ayllu.check_recording`
     /// play it back). Call it before defining classes. `max_bytes`: cap on all segments
-    /// together (default 1 GiB; at least 65536).
-    #[pyo3(signature = (path, *, max_bytes = None))]
-    fn record(&self, py: Python<'_>, path: std::path::PathBuf, max_bytes: Option<u64>) -> PyResult<()> {
-        self.shared.with(py, |n| crate::recording::record(n, &path, max_bytes))
+    /// together (default 1 GiB; at least 65536). `keep_last`: keep only about the last that
+    /// many seconds (a rolling recording, checkpointed every quarter of it; replayed from its
+    /// oldest checkpoint kept).
+    #[pyo3(signature = (path, *, max_bytes = None, keep_last = None))]
+    fn record(
+        &self,
+        py: Python<'_>,
+        path: std::path::PathBuf,
+        max_bytes: Option<u64>,
+        keep_last: Option<f64>,
+    ) -> PyResult<()> {
+        self.shared.with(py, |n| crate::recording::record(n, &path, max_bytes, keep_last))
     }
 
     /// Stop recording and close the file; what was written (a dict), or None if the node was

@@ -13,15 +13,20 @@ use pyo3::types::PyDict;
 use crate::errors;
 
 /// Start recording `node` into `path` (segments `path.1.mcap`, ... follow it), all segments
-/// together at most `max_bytes` (None: 1 GiB).
-pub fn record(node: &mut ayllu::Node, path: &Path, max_bytes: Option<u64>) -> PyResult<()> {
-    let options = match max_bytes {
+/// together at most `max_bytes` (None: 1 GiB); with `keep_last` (seconds), only about the last
+/// that long is kept (a rolling recording).
+pub fn record(node: &mut ayllu::Node, path: &Path, max_bytes: Option<u64>, keep_last: Option<f64>) -> PyResult<()> {
+    let mut options = match max_bytes {
         None => RecordOptions::default(),
         Some(n) if n < 65_536 => {
             return Err(errors::InvalidError::new_err("max_bytes must be at least 65536"));
         }
         Some(n) => RecordOptions::default().max_bytes(n),
     };
+    if let Some(secs) = keep_last {
+        let window = ayllu::Duration::try_from_positive_secs(secs).map_err(errors::core)?;
+        options = options.keep_last(std::time::Duration::from_nanos(window.as_nanos()));
+    }
     node.record(path, options).map_err(errors::runtime)
 }
 
@@ -35,6 +40,7 @@ pub fn stats_dict<'py>(py: Python<'py>, s: &RecordStats) -> PyResult<Bound<'py, 
     d.set_item("dropped_queue", s.dropped_queue)?;
     d.set_item("dropped_journal", s.dropped_journal)?;
     d.set_item("dropped_cap", s.dropped_cap)?;
+    d.set_item("deleted", s.deleted)?;
     d.set_item("error", s.error.clone())?;
     Ok(d)
 }

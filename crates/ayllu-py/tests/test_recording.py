@@ -76,6 +76,30 @@ def test_the_recording_replays_without_the_python_code(tmp_path: Path) -> None:
     assert ayllu.check_recording(path) == 100, "every In and Out value compared"
 
 
+def test_a_rolling_recording_keeps_its_last_seconds_and_replays_from_a_checkpoint(tmp_path: Path) -> None:
+    path = tmp_path / "rolling.mcap"
+    node = ayllu.Node(3, manual=True)
+    node.record(path, keep_last=2.0)
+    node.create(Noisy, "N")
+    for k in range(1000):
+        node.write("N", "In", k / 7.0)
+        node.advance(0.01, tick=0.01)
+    stats = node.stop_recording()
+    assert stats is not None and stats["deleted"] > 5 and stats["error"] is None, stats
+    assert not path.exists(), "the first segment is gone: only the last window is kept"
+    kept = sorted(tmp_path.glob("rolling.*.mcap"))
+    assert 1 <= len(kept) <= 4, kept
+    # The oldest segment kept opens with a checkpoint, on its own channel.
+    with kept[0].open("rb") as f:
+        reader = mcap_reader.make_reader(f)
+        first = next(iter(reader.iter_messages()))
+        assert first[1].topic == "/ayllu/checkpoint"
+        assert json.loads(first[2].data)["snapshot"]["id"] == 3
+    # Each In and Out of the last 2 s to 3 s (checkpoints come every second at least), compared
+    # bit for bit with no Python code.
+    assert 400 <= ayllu.check_recording(path) <= 600
+
+
 def test_misuse_is_refused_with_a_reason(tmp_path: Path) -> None:
     node = ayllu.Node(2, manual=True)
     with pytest.raises(ayllu.InvalidError, match="65536"):

@@ -20,6 +20,14 @@
 //! * Each segment is a complete MCAP file once closed (on [`Recorder::finish`] or drop), and
 //!   a chunk is flushed at least every [`FLUSH_INTERVAL`], so a node killed outright loses
 //!   at most that much.
+//! * A rolling recorder ([`RecordOptions::keep_last`]) keeps the end instead of the
+//!   beginning: every [`checkpoint_interval`] of node time it takes a checkpoint of the core
+//!   ([`NodeCore::snapshot`], a copy of its state made on the node's thread, encoded by the
+//!   writer's) and starts a new segment with it; whole runs of segments (a checkpoint and
+//!   what follows it) are deleted once the next run alone reaches back `keep_last`, or to
+//!   stay under [`RecordOptions::max_bytes`]. The files kept then cover at least the last
+//!   `keep_last` (when the byte cap allows) and at most that plus one interval, and a replay
+//!   starts from the checkpoint of the oldest run kept.
 
 use std::collections::BTreeMap;
 use std::fs::File;
@@ -31,10 +39,13 @@ use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration as StdDuration, Instant as StdInstant, SystemTime, UNIX_EPOCH};
 
-use ayllu_core::{Entry, Event, NodeCore};
+use std::collections::VecDeque;
+use std::sync::atomic::AtomicBool;
+
+use ayllu_core::{Entry, Event, Instant, NodeCore, Snapshot};
 
 use crate::error::Error;
-use crate::recording_format::{encode, Topic, METADATA, PROFILE, VERSION};
+use crate::recording_format::{encode, encode_checkpoint, Topic, METADATA, PROFILE, ROLLING_VERSION, VERSION};
 
 /// A chunk is closed and written at least this often, so a crash loses little.
 pub const FLUSH_INTERVAL: StdDuration = StdDuration::from_millis(500);
@@ -55,11 +66,21 @@ pub struct RecordOptions {
     /// Entries waiting for the writer thread, at most (default 262 144: with entries of about
     /// 150 bytes plus what their values hold, some 40 MB).
     pub queue: usize,
+    /// Keep only about the last this long (node time), deleting older segments: a rolling
+    /// recording (see the module docs). `None` (the default): keep the beginning, stop at the
+    /// cap.
+    pub keep_last: Option<StdDuration>,
 }
 
 impl Default for RecordOptions {
     fn default() -> Self {
-        RecordOptions { max_bytes: 1 << 30, segment_bytes: 64 << 20, journal_capacity: 65_536, queue: 262_144 }
+        RecordOptions {
+            max_bytes: 1 << 30,
+            segment_bytes: 64 << 20,
+            journal_capacity: 65_536,
+            queue: 262_144,
+            keep_last: None,
+        }
     }
 }
 
@@ -70,6 +91,27 @@ impl RecordOptions {
         self.segment_bytes = self.segment_bytes.min(max_bytes);
         self
     }
+
+    /// Keep only about the last `window` of the node's life (a rolling recording: see the
+    /// module docs).
+    pub fn keep_last(mut self, window: StdDuration) -> Self {
+        self.keep_last = Some(window);
+        self
+    }
+}
+
+/// How often a rolling recorder keeping the last `window` takes a checkpoint: a quarter of the
+/// window (so the files hold at most a quarter more than asked), and not more often than every
+/// second (a checkpoint copies the node's whole state).
+pub fn checkpoint_interval(window: StdDuration) -> StdDuration {
+    (window / 4).max(StdDuration::from_secs(1))
+}
+
+/// What the recorder hands its writer thread: journal entries, then, in a rolling recording,
+/// maybe a checkpoint taken after them.
+struct Batch {
+    entries: Vec<Entry>,
+    checkpoint: Option<Box<Snapshot>>,
 }
 
 /// What a recorder has done so far.
@@ -87,6 +129,12 @@ pub struct RecordStats {
     pub bytes: u64,
     /// Segments written (files).
     pub segments: u64,
+    /// Segments a rolling recorder deleted (see [`RecordOptions::keep_last`]).
+    pub deleted: u64,
+    /// Entries journaled and not written yet (waiting for the writer thread): a recorder that
+    /// keeps up brings it back to 0 between bursts. A rolling recorder checkpoints only when
+    /// nothing waits, so a writer that stays behind also delays checkpoints.
+    pub waiting: u64,
     /// The first write error, if any (recording stopped there).
     pub error: Option<String>,
 }
@@ -100,13 +148,17 @@ struct Shared {
     dropped_cap: AtomicU64,
     bytes: AtomicU64,
     segments: AtomicU64,
+    /// Segments a rolling recorder deleted.
+    deleted: AtomicU64,
+    /// The writer asks for a checkpoint early (a rolling segment filled before its time).
+    want_checkpoint: AtomicBool,
     error: Mutex<Option<String>>,
 }
 
 /// Records one node's core. See the module docs.
 pub struct Recorder {
     path: PathBuf,
-    queue: Option<SyncSender<Vec<Entry>>>,
+    queue: Option<SyncSender<Batch>>,
     /// Emptied batches the writer hands back, so the journal's buffer is swapped, not copied.
     recycled: Receiver<Vec<Entry>>,
     thread: Option<JoinHandle<()>>,
@@ -119,6 +171,8 @@ pub struct Recorder {
     capacity: usize,
     /// Entries that may wait in the writer's queue, at most ([`RecordOptions::queue`]).
     queue_limit: u64,
+    /// A rolling recorder's checkpoint interval, and when the next checkpoint is due.
+    rolling: Option<(ayllu_core::Duration, Instant)>,
 }
 
 /// The file of segment `n`: `run.mcap`, then `run.1.mcap`, `run.2.mcap`, ...
@@ -132,6 +186,34 @@ pub fn segment_path(first: &Path, n: u64) -> PathBuf {
         None => format!("{stem}.{n}"),
     };
     first.with_file_name(name)
+}
+
+/// The numbers of the segments of recording `first` that exist, ascending: `run.mcap` is 0,
+/// `run.N.mcap` is N. A rolling recording deletes its oldest, so the first may not be 0.
+pub fn segment_numbers(first: &Path) -> Vec<u64> {
+    let mut found: Vec<u64> = Vec::new();
+    if first.is_file() {
+        found.push(0);
+    }
+    let dir = match first.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let Ok(entries) = std::fs::read_dir(&dir) else { return found };
+    let stem = first.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let ext = first.extension().map(|e| format!(".{}", e.to_string_lossy())).unwrap_or_default();
+    for entry in entries.flatten() {
+        let name = entry.file_name().to_string_lossy().into_owned();
+        let n = name
+            .strip_prefix(&stem)
+            .and_then(|r| r.strip_prefix('.'))
+            .and_then(|r| r.strip_suffix(ext.as_str()))
+            .and_then(|n| n.parse::<u64>().ok())
+            .filter(|&n| n > 0 && segment_path(first, n).file_name() == Some(entry.file_name().as_os_str()));
+        found.extend(n);
+    }
+    found.sort_unstable();
+    found
 }
 
 impl Recorder {
@@ -152,7 +234,13 @@ impl Recorder {
                 what: format!("a recording needs at least {MIN_SEGMENT_BYTES} bytes per segment"),
             });
         }
+        let rolling = options.keep_last.map(|w| {
+            ayllu_core::Duration::from_nanos(u64::try_from(checkpoint_interval(w).as_nanos()).unwrap_or(u64::MAX))
+        });
         let shared = Arc::new(Shared::default());
+        for n in segment_numbers(path).into_iter().filter(|&n| n > 0) {
+            let _ = std::fs::remove_file(segment_path(path, n));
+        }
         let mut writer = SegmentWriter {
             first: path.to_path_buf(),
             node: core.id().0,
@@ -164,14 +252,11 @@ impl Recorder {
             seq: 0,
             capped: false,
             shared: shared.clone(),
+            runs: VecDeque::from([Run { first: 0, start: core.now() }]),
+            sizes: BTreeMap::new(),
         };
-        writer.current = Some(writer.open(0, options.max_bytes.min(options.segment_bytes))?);
+        writer.current = Some(writer.open(0, writer.segment_budget(options.max_bytes))?);
         shared.segments.store(1, Ordering::Relaxed);
-        let mut n = 1;
-        while n < 100_000 && segment_path(path, n).exists() {
-            let _ = std::fs::remove_file(segment_path(path, n));
-            n += 1;
-        }
         // The channel's own bound only backs up `Shared::queued`, which is the real one.
         let (tx, rx) = sync_channel(1024);
         let (recycle, recycled) = sync_channel(4);
@@ -196,6 +281,7 @@ impl Recorder {
             dropped_journal: 0,
             capacity: options.journal_capacity.max(1),
             queue_limit: options.queue.max(1) as u64,
+            rolling: rolling.map(|every| (every, core.now() + every)),
         })
     }
 
@@ -221,7 +307,7 @@ impl Recorder {
             }
         }
         if self.batch.is_empty() {
-            return;
+            return self.checkpoint(core);
         }
         let Some(queue) = &self.queue else {
             self.batch.clear();
@@ -232,16 +318,19 @@ impl Recorder {
             self.batch.insert(0, Entry { at, event: Event::Gap { lost: self.dropped_since } });
             self.dropped_since = 0;
         }
-        let batch = std::mem::take(&mut self.batch);
-        let n = batch.len() as u64;
+        let batch = Batch { entries: std::mem::take(&mut self.batch), checkpoint: None };
+        let n = batch.entries.len() as u64;
         // Counted before it is sent: the writer subtracts it once written, maybe at once.
         let queued = self.shared.queued.fetch_add(n, Ordering::AcqRel);
         let sent = if queued + n > self.queue_limit { Err(TrySendError::Full(batch)) } else { queue.try_send(batch) };
         if sent.is_err() {
             self.shared.queued.fetch_sub(n, Ordering::AcqRel);
         }
-        match sent {
-            Ok(()) => {}
+        match sent.map_err(|e| match e {
+            TrySendError::Full(b) => TrySendError::Full(b.entries),
+            TrySendError::Disconnected(b) => TrySendError::Disconnected(b.entries),
+        }) {
+            Ok(()) => self.checkpoint(core),
             Err(TrySendError::Full(batch)) if batch.len() <= self.capacity => self.batch = batch,
             Err(TrySendError::Full(mut batch)) => {
                 let gap = u64::from(matches!(batch.first().map(|e| &e.event), Some(Event::Gap { .. })));
@@ -252,6 +341,24 @@ impl Recorder {
                 self.batch = batch;
             }
             Err(TrySendError::Disconnected(_)) => self.queue = None,
+        }
+    }
+
+    /// A rolling recorder's checkpoint, when one is due (or the writer asked for one early):
+    /// taken only when every entry journaled so far has gone to the writer, so that it stands
+    /// exactly between two journal positions. If the queue is full it is tried again at the
+    /// next drain, at a later position.
+    fn checkpoint(&mut self, core: &NodeCore) {
+        let Some((every, due)) = self.rolling else { return };
+        let asked = self.shared.want_checkpoint.load(Ordering::Relaxed);
+        if (core.now() < due && !asked) || !self.batch.is_empty() || self.dropped_since > 0 {
+            return;
+        }
+        let Some(queue) = &self.queue else { return };
+        let batch = Batch { entries: Vec::new(), checkpoint: Some(Box::new(core.snapshot())) };
+        if queue.try_send(batch).is_ok() {
+            self.shared.want_checkpoint.store(false, Ordering::Relaxed);
+            self.rolling = Some((every, core.now() + every));
         }
     }
 
@@ -273,6 +380,8 @@ impl Recorder {
             dropped_cap: s.dropped_cap.load(Ordering::Relaxed),
             bytes: s.bytes.load(Ordering::Relaxed),
             segments: s.segments.load(Ordering::Relaxed),
+            deleted: s.deleted.load(Ordering::Relaxed),
+            waiting: s.queued.load(Ordering::Relaxed) + self.batch.len() as u64,
             error: s.error.lock().map(|e| e.clone()).unwrap_or(None),
         }
     }
@@ -290,7 +399,7 @@ impl Recorder {
             }
             if !batch.is_empty() {
                 self.shared.queued.fetch_add(batch.len() as u64, Ordering::AcqRel);
-                let _ = queue.send(batch);
+                let _ = queue.send(Batch { entries: batch, checkpoint: None });
             }
         }
         self.close();
@@ -340,7 +449,7 @@ impl Seek for Counted {
 /// One open segment file.
 struct Segment {
     mcap: mcap::Writer<Counted>,
-    channels: [u16; 4],
+    channels: [u16; Topic::ALL.len()],
     /// Bytes that reached the file.
     size: Arc<AtomicU64>,
     /// This segment's share of the byte budget.
@@ -362,6 +471,18 @@ struct SegmentWriter {
     seq: u64,
     capped: bool,
     shared: Arc<Shared>,
+    /// A rolling recording's runs kept, oldest first: each a checkpoint (or the beginning) and
+    /// the segments after it up to the next run's first.
+    runs: VecDeque<Run>,
+    /// The size of each closed segment kept, by number.
+    sizes: BTreeMap<u64, u64>,
+}
+
+/// A run of segments: the first one's number and the node time it starts at.
+#[derive(Clone, Copy, Debug)]
+struct Run {
+    first: u64,
+    start: Instant,
 }
 
 /// The size of an MCAP chunk: small enough that a segment holds several and a crash loses
@@ -384,18 +505,26 @@ impl SegmentWriter {
             .chunk_size(Some(chunk_bytes(&self.options)))
             .create(counted)
             .map_err(|e| io(&e))?;
-        let mut channels = [0u16; 4];
+        let rolling = self.options.keep_last.is_some();
+        let mut channels = [0u16; Topic::ALL.len()];
         for (i, topic) in Topic::ALL.into_iter().enumerate() {
+            // Only a rolling recording has checkpoints: a whole one is version 1 as it was.
+            if topic == Topic::Checkpoint && !rolling {
+                continue;
+            }
             let schema = serde_json::to_vec(&topic.schema()).unwrap_or_default();
             let id = mcap.add_schema(topic.schema_name(), "jsonschema", &schema).map_err(|e| io(&e))?;
             channels[i] = mcap.add_channel(id, topic.name(), "json", &BTreeMap::new()).map_err(|e| io(&e))?;
         }
-        let metadata = BTreeMap::from([
-            ("version".to_owned(), VERSION.to_owned()),
+        let mut metadata = BTreeMap::from([
+            ("version".to_owned(), if rolling { ROLLING_VERSION } else { VERSION }.to_owned()),
             ("node".to_owned(), self.node.to_string()),
             ("segment".to_owned(), index.to_string()),
             ("epoch_unix_ns".to_owned(), self.epoch_ns.to_string()),
         ]);
+        if let Some(window) = self.options.keep_last {
+            metadata.insert("keep_last_s".to_owned(), window.as_secs_f64().to_string());
+        }
         mcap.write_metadata(&mcap::records::Metadata { name: METADATA.into(), metadata }).map_err(|e| io(&e))?;
         Ok(Segment { mcap, channels, size, budget, last_flush: StdInstant::now() })
     }
@@ -408,10 +537,10 @@ impl SegmentWriter {
         self.current = None;
     }
 
-    fn run(mut self, rx: Receiver<Vec<Entry>>, recycle: SyncSender<Vec<Entry>>) {
+    fn run(mut self, rx: Receiver<Batch>, recycle: SyncSender<Vec<Entry>>) {
         loop {
             match rx.recv_timeout(FLUSH_INTERVAL) {
-                Ok(mut batch) => {
+                Ok(Batch { entries: mut batch, checkpoint }) => {
                     let n = batch.len() as u64;
                     for e in &batch {
                         self.write(e);
@@ -419,7 +548,12 @@ impl SegmentWriter {
                     self.shared.queued.fetch_sub(n, Ordering::AcqRel);
                     batch.clear();
                     // Back to the recorder for the journal to fill again (dropped if it has enough).
-                    let _ = recycle.try_send(batch);
+                    if batch.capacity() > 0 {
+                        let _ = recycle.try_send(batch);
+                    }
+                    if let Some(snapshot) = checkpoint {
+                        self.start_run(&snapshot);
+                    }
                 }
                 Err(RecvTimeoutError::Timeout) => {}
                 Err(RecvTimeoutError::Disconnected) => break,
@@ -460,9 +594,13 @@ impl SegmentWriter {
         let data = serde_json::to_vec(&json).unwrap_or_default();
         let len = data.len() as u64;
         if !self.current.as_ref().is_some_and(|seg| self.fits(seg, len)) {
+            // A rolling segment that fills before its checkpoint is due is followed by a
+            // continuation segment, and the node is asked for a checkpoint at once.
+            self.shared.want_checkpoint.store(true, Ordering::Relaxed);
             let open = self.current.as_ref().map_or(0, |seg| seg.size.load(Ordering::Relaxed));
+            self.prune_for(open + self.segment_budget(self.options.max_bytes));
             let left = self.options.max_bytes.saturating_sub(self.closed_bytes + open);
-            let budget = left.min(self.options.segment_bytes);
+            let budget = left.min(self.segment_budget(self.options.max_bytes));
             if budget < MIN_SEGMENT_BYTES {
                 // Decided before closing, so that the last segment says the cap ended it.
                 self.capped = true;
@@ -525,9 +663,88 @@ impl SegmentWriter {
         });
         let size = seg.size.load(Ordering::Relaxed);
         self.closed_bytes += size;
+        self.sizes.insert(self.index, size);
         self.shared.bytes.fetch_add(size, Ordering::Relaxed);
         if let Err(e) = result {
             self.fail(e);
+        }
+    }
+}
+
+impl SegmentWriter {
+    /// One segment's share of the byte cap: all of it for a recording that keeps its
+    /// beginning; for a rolling one at most half, so that a run can be deleted while the next
+    /// is written.
+    fn segment_budget(&self, max_bytes: u64) -> u64 {
+        let cap = if self.options.keep_last.is_some() { max_bytes / 2 } else { max_bytes };
+        self.options.segment_bytes.min(cap)
+    }
+
+    /// Start a new run with `snapshot`: close the segment, open the next with the checkpoint
+    /// first, and delete the runs no longer needed (module docs).
+    fn start_run(&mut self, snapshot: &Snapshot) {
+        let Some(window) = self.options.keep_last else { return };
+        if self.shared.error.lock().is_ok_and(|e| e.is_some()) {
+            return;
+        }
+        self.close_segment();
+        self.capped = false;
+        self.index += 1;
+        let at = snapshot.at();
+        self.runs.push_back(Run { first: self.index, start: at });
+        let reach = ayllu_core::Duration::from_nanos(u64::try_from(window.as_nanos()).unwrap_or(u64::MAX));
+        while self.runs.len() > 1 && self.runs.get(1).is_some_and(|r| r.start + reach <= at) {
+            self.delete_oldest_run();
+        }
+        let budget = self.segment_budget(self.options.max_bytes);
+        self.prune_for(budget);
+        match self.open(self.index, budget) {
+            Ok(seg) => {
+                self.current = Some(seg);
+                self.shared.segments.fetch_add(1, Ordering::Relaxed);
+            }
+            Err(e) => return self.fail(e),
+        }
+        let data = serde_json::to_vec(&encode_checkpoint(self.seq, snapshot)).unwrap_or_default();
+        let Some(seg) = self.current.as_ref() else { return };
+        if seg.size.load(Ordering::Relaxed) + data.len() as u64 + 64 > seg.budget {
+            let budget = seg.budget;
+            return self.fail(format!(
+                "a checkpoint of {} bytes does not fit a segment of {budget} bytes: raise the recording's byte cap",
+                data.len()
+            ));
+        }
+        let Some(seg) = self.current.as_mut() else { return };
+        let topic_ix = Topic::ALL.iter().position(|t| *t == Topic::Checkpoint).unwrap_or(0);
+        let time = self.epoch_ns.saturating_add(at.as_nanos());
+        let header = mcap::records::MessageHeader {
+            channel_id: seg.channels[topic_ix],
+            sequence: self.seq as u32,
+            log_time: time,
+            publish_time: time,
+        };
+        if let Err(e) = seg.mcap.write_to_known_channel(&header, &data) {
+            self.fail(e);
+        }
+    }
+
+    /// Delete runs, oldest first (never the newest), until `more` bytes fit under the cap.
+    fn prune_for(&mut self, more: u64) {
+        while self.options.keep_last.is_some()
+            && self.runs.len() > 1
+            && self.closed_bytes + more > self.options.max_bytes
+        {
+            self.delete_oldest_run();
+        }
+    }
+
+    fn delete_oldest_run(&mut self) {
+        let (Some(old), Some(next)) = (self.runs.pop_front(), self.runs.front().copied()) else { return };
+        for n in old.first..next.first {
+            if std::fs::remove_file(segment_path(&self.first, n)).is_ok() {
+                self.shared.deleted.fetch_add(1, Ordering::Relaxed);
+            }
+            self.closed_bytes = self.closed_bytes.saturating_sub(self.sizes.remove(&n).unwrap_or(0));
         }
     }
 }

@@ -28,6 +28,13 @@ pub const PROFILE: &str = "ayllu-flight";
 pub const METADATA: &str = "ayllu.flight_recording";
 /// The format's version, in the metadata; a reader refuses versions it does not know.
 pub const VERSION: &str = "1";
+/// The version of a rolling recording (`--record-last`): version 1 plus checkpoints
+/// ([`Topic::Checkpoint`]), whose journal starts where its first checkpoint was taken. Written
+/// only by a rolling recorder, so that a reader that knows only version 1 refuses it by name
+/// rather than replay a journal whose beginning is gone.
+pub const ROLLING_VERSION: &str = "2";
+/// The versions this build reads.
+pub const VERSIONS_READ: [&str; 2] = [VERSION, ROLLING_VERSION];
 
 /// The channels of a recording.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
@@ -41,11 +48,14 @@ pub enum Topic {
     Process,
     /// Values the ports accepted.
     Accepted,
+    /// Checkpoints: the node's whole state ([`ayllu_core::Snapshot`]) where a segment of a
+    /// rolling recording starts.
+    Checkpoint,
 }
 
 impl Topic {
     /// Every topic, in channel-id order.
-    pub const ALL: [Topic; 4] = [Topic::Structure, Topic::Input, Topic::Process, Topic::Accepted];
+    pub const ALL: [Topic; 5] = [Topic::Structure, Topic::Input, Topic::Process, Topic::Accepted, Topic::Checkpoint];
 
     /// The MCAP topic.
     pub fn name(self) -> &'static str {
@@ -54,6 +64,7 @@ impl Topic {
             Topic::Input => "/ayllu/input",
             Topic::Process => "/ayllu/process",
             Topic::Accepted => "/ayllu/accepted",
+            Topic::Checkpoint => "/ayllu/checkpoint",
         }
     }
 
@@ -64,6 +75,7 @@ impl Topic {
             Topic::Input => "ayllu.Input",
             Topic::Process => "ayllu.Process",
             Topic::Accepted => "ayllu.Accepted",
+            Topic::Checkpoint => "ayllu.Checkpoint",
         }
     }
 
@@ -75,6 +87,15 @@ impl Topic {
             "t": {"type": "number", "description": "node time, s"},
             "event": {"type": "string"},
         });
+        if self == Topic::Checkpoint {
+            let extra = json!({
+                "version": {"type": "integer", "description": "the snapshot's layout (ayllu_core::SNAPSHOT_VERSION)"},
+                "snapshot": {"type": "object", "description": "the node's whole state; seq is the next entry's"},
+            });
+            if let (Some(p), Json::Object(e)) = (properties.as_object_mut(), extra) {
+                p.extend(e);
+            }
+        }
         if self == Topic::Accepted {
             let extra = json!({
                 "behavior": {"type": "string"},
@@ -252,6 +273,27 @@ fn change_from(f: &Fields<'_>) -> Result<Change, String> {
 /// Whether a `request` entry is a process's effect (it says so: `"by": "process"`).
 fn topic_is_process(f: &Fields<'_>) -> bool {
     f.0.get("by").and_then(Json::as_str) == Some("process")
+}
+
+/// The JSON object of a checkpoint taken before journal entry number `seq`.
+pub fn encode_checkpoint(seq: u64, snapshot: &ayllu_core::Snapshot) -> Json {
+    json!({
+        "seq": seq,
+        "t_ns": snapshot.at().as_nanos(),
+        "t": snapshot.at().as_secs_f64(),
+        "event": "checkpoint",
+        "version": ayllu_core::SNAPSHOT_VERSION,
+        "snapshot": serde_json::to_value(snapshot).unwrap_or(Json::Null),
+    })
+}
+
+/// The checkpoint [`encode_checkpoint`] wrote as `j`: the journal position it was taken
+/// before, and the snapshot. Errors name what is wrong.
+pub fn decode_checkpoint(j: &Json) -> Result<(u64, ayllu_core::Snapshot), String> {
+    let f = Fields(j.as_object().ok_or("a checkpoint is not a JSON object")?);
+    let seq = f.u64("seq")?;
+    let snapshot = f.serde::<ayllu_core::Snapshot>("snapshot")?;
+    Ok((seq, snapshot))
 }
 
 /// The topic and JSON object of journal entry number `seq`.

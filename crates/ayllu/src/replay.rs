@@ -19,6 +19,10 @@
 //! * A bad or cut file gives an error or a shorter recording ([`Ending`]), never a panic
 //!   (the records are framed by `mcap_records`, not by the `mcap` crate's readers, which
 //!   panic on some damaged files).
+//! * A rolling recording (`--record-last`), whose beginning was deleted, replays the same way
+//!   from the checkpoint that opens its oldest segment kept ([`Recording::checkpoint`]): the
+//!   core is restored from it ([`NodeCore::restore`], with players for bodies) and the
+//!   journal applied from there, checked as from a beginning.
 
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -26,13 +30,13 @@ use std::sync::{Arc, Mutex, MutexGuard};
 
 use ayllu_core::{
     BehaviorClass, ConnectOptions, Ctx, Entry, Event, Instant, Mono, NodeCore, NodeId, NodeReport, Outgoing, Port,
-    PortReport, Slot, Value,
+    PortReport, Slot, Snapshot, Value,
 };
 
 use crate::error::Error;
 use crate::mcap_records::{self, McapRecord};
-use crate::recording::segment_path;
-use crate::recording_format::{decode, same_bits, Topic, METADATA, VERSION};
+use crate::recording::{segment_numbers, segment_path};
+use crate::recording_format::{decode, decode_checkpoint, same_bits, Topic, METADATA, VERSIONS_READ};
 
 /// How a recording ends.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -77,6 +81,34 @@ pub struct Recording {
     /// Where the journal has a hole (entries dropped while recording, or a missing
     /// segment): a replay stops there. The journal position and node time.
     pub gap: Option<(u64, Instant)>,
+    /// The checkpoint the journal starts from, in a rolling recording whose beginning was
+    /// deleted: `entries[0]` is the node's journal entry number `checkpoint.seq`. `None`: the
+    /// journal starts at the node's first definition.
+    pub checkpoint: Option<Checkpoint>,
+}
+
+/// A checkpoint a recording starts from (see [`Recording::checkpoint`]).
+#[derive(Clone)]
+pub struct Checkpoint {
+    /// The journal position it was taken before (entries from there on follow it).
+    pub seq: u64,
+    /// The node's time when it was taken.
+    pub at: Instant,
+    /// The node's state then.
+    pub snapshot: Arc<Snapshot>,
+}
+
+impl fmt::Debug for Checkpoint {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Checkpoint").field("seq", &self.seq).field("at", &self.at).finish_non_exhaustive()
+    }
+}
+
+/// What the segments of a recording hold, read in order.
+struct Read {
+    node: Option<NodeId>,
+    entries: Vec<(u64, Entry)>,
+    checkpoints: Vec<(u64, Snapshot)>,
 }
 
 fn bad(path: &Path, what: impl fmt::Display) -> Error {
@@ -88,24 +120,27 @@ impl Recording {
     /// (`run.1.mcap`, ...). Errors: a file that cannot be read, is not MCAP, is not an Ayllu
     /// flight recording, or holds a message that does not decode. A file cut short is not an
     /// error: the recording ends where the file does ([`Ending::Cut`]).
+    ///
+    /// A rolling recording's first segment may be gone: then the reading starts at the oldest
+    /// segment kept (`run.N.mcap`), from its checkpoint ([`Recording::checkpoint`]).
     pub fn open(path: impl AsRef<Path>) -> Result<Recording, Error> {
         let first = path.as_ref();
-        let mut node = None;
-        let mut entries: Vec<(u64, Entry)> = Vec::new();
+        let mut read = Read { node: None, entries: Vec::new(), checkpoints: Vec::new() };
         let mut segments = Vec::new();
         let mut ending = Ending::Cut { reason: "no end record".into() };
-        let mut n = 0;
+        // The first segment's error, if there is no other segment, is the file's own.
+        let mut n = segment_numbers(first).first().copied().filter(|_| !first.exists()).unwrap_or(0);
         loop {
             let p = segment_path(first, n);
-            if n > 0 && !p.exists() {
+            if !segments.is_empty() && !p.exists() {
                 break;
             }
             let bytes = std::fs::read(&p).map_err(|e| bad(&p, e))?;
-            let (seg_node, seg_ending) = read_segment(&p, &bytes, &mut entries)?;
-            if let Some(other) = node.filter(|&x| x != seg_node) {
+            let (seg_node, seg_ending) = read_segment(&p, &bytes, &mut read)?;
+            if let Some(other) = read.node.filter(|&x| x != seg_node) {
                 return Err(bad(&p, format!("a segment of node {seg_node}, after segments of node {other}")));
             }
-            node = Some(seg_node);
+            read.node = Some(seg_node);
             segments.push(p);
             ending = seg_ending;
             n += 1;
@@ -113,29 +148,57 @@ impl Recording {
                 break;
             }
         }
-        Ok(Recording::assemble(node.unwrap_or(NodeId(0)), segments, entries, ending))
+        Recording::assemble(read, segments, ending)
     }
 
     /// Read a one-segment recording held in memory: `bytes` as [`Recording::open`] reads a
     /// segment file, with the same errors and endings (errors name the file `<bytes>`). For
     /// a recording that came another way than as a file, and for fuzzing the reader.
     pub fn from_bytes(bytes: &[u8]) -> Result<Recording, Error> {
-        let mut entries = Vec::new();
-        let (node, ending) = read_segment(Path::new("<bytes>"), bytes, &mut entries)?;
-        Ok(Recording::assemble(node, Vec::new(), entries, ending))
+        let mut read = Read { node: None, entries: Vec::new(), checkpoints: Vec::new() };
+        let (node, ending) = read_segment(Path::new("<bytes>"), bytes, &mut read)?;
+        read.node = Some(node);
+        Recording::assemble(read, Vec::new(), ending)
     }
 
-    /// The journal put back in order, and its first hole found.
-    fn assemble(node: NodeId, segments: Vec<PathBuf>, mut entries: Vec<(u64, Entry)>, ending: Ending) -> Recording {
+    /// The journal put back in order from its beginning, or from its first checkpoint when
+    /// the beginning is gone, and its first hole found. A checkpoint that does not restore
+    /// (damaged) is an error, found here rather than when replayed.
+    fn assemble(read: Read, segments: Vec<PathBuf>, ending: Ending) -> Result<Recording, Error> {
+        let Read { node, mut entries, checkpoints } = read;
+        let node = node.unwrap_or(NodeId(0));
         entries.sort_by_key(|(seq, _)| *seq);
+        let from_start = entries.first().is_none_or(|(seq, _)| *seq == 0) || checkpoints.is_empty();
+        let checkpoint = if from_start {
+            None
+        } else {
+            let (seq, snapshot) = checkpoints.into_iter().min_by_key(|(seq, _)| *seq).expect("not empty");
+            let at = snapshot.at();
+            let name = segments.first().map_or_else(|| PathBuf::from("<bytes>"), PathBuf::clone);
+            if snapshot.node() != node {
+                return Err(bad(&name, format!("a checkpoint of node {}, in a recording of {node}", snapshot.node())));
+            }
+            let trial = NodeCore::restore(snapshot.clone(), |_, _| Arc::new(|_: &mut Ctx<'_>| {}));
+            trial.map_err(|e| bad(&name, format!("its checkpoint at entry {seq} does not restore: {e}")))?;
+            entries.retain(|(s, _)| *s >= seq);
+            Some(Checkpoint { seq, at, snapshot: Arc::new(snapshot) })
+        };
+        let base = checkpoint.as_ref().map_or(0, |c| c.seq);
         let mut gap = None;
         for (i, (seq, e)) in entries.iter().enumerate() {
-            if *seq != i as u64 || matches!(e.event, Event::Gap { .. }) {
+            if *seq != base + i as u64 || matches!(e.event, Event::Gap { .. }) {
                 gap = Some((i as u64, e.at));
                 break;
             }
         }
-        Recording { node, segments, entries: entries.into_iter().map(|(_, e)| e).collect(), ending, gap }
+        let entries = entries.into_iter().map(|(_, e)| e).collect();
+        Ok(Recording { node, segments, entries, ending, gap, checkpoint })
+    }
+
+    /// The first instant the recording tells about: its checkpoint's, for a rolling
+    /// recording whose beginning was deleted; zero otherwise. Before it, a replay knows nothing.
+    pub fn start(&self) -> Instant {
+        self.checkpoint.as_ref().map_or(Instant::ZERO, |c| c.at)
     }
 
     /// The node time of the last entry (zero for an empty recording).
@@ -211,8 +274,8 @@ fn not_flight(path: &Path, bytes: &[u8], why: String) -> Error {
 }
 
 /// Read one segment's messages into `out`; its node and how it ends.
-fn read_segment(path: &Path, bytes: &[u8], out: &mut Vec<(u64, Entry)>) -> Result<(NodeId, Ending), Error> {
-    let mut topics: Vec<u16> = Vec::new();
+fn read_segment(path: &Path, bytes: &[u8], out: &mut Read) -> Result<(NodeId, Ending), Error> {
+    let mut topics: Vec<(u16, Topic)> = Vec::new();
     let mut node = None;
     let mut ending = Ending::Cut { reason: "the file has no end record (was the node killed?)".into() };
     let reader = mcap_records::records(bytes).map_err(|e| bad(path, e.what))?;
@@ -231,14 +294,15 @@ fn read_segment(path: &Path, bytes: &[u8], out: &mut Vec<(u64, Entry)>) -> Resul
         };
         match &record {
             McapRecord::Channel { id, topic } => {
-                if Topic::from_name(topic).is_some() {
-                    topics.push(*id);
+                if let Some(t) = Topic::from_name(topic) {
+                    topics.push((*id, t));
                 }
             }
             McapRecord::Metadata { name, .. } if *name == METADATA => {
                 let version = record.get("version").unwrap_or("");
-                if version != VERSION {
-                    return Err(bad(path, format!("flight recording version `{version}`; this build reads {VERSION}")));
+                if !VERSIONS_READ.contains(&version) {
+                    let known = VERSIONS_READ.join(" and ");
+                    return Err(bad(path, format!("flight recording version `{version}`; this build reads {known}")));
                 }
                 let id = record.get("node").and_then(|n| n.parse::<u32>().ok());
                 node = Some(NodeId(id.ok_or_else(|| bad(path, "no node id in its metadata"))?));
@@ -249,13 +313,16 @@ fn read_segment(path: &Path, bytes: &[u8], out: &mut Vec<(u64, Entry)>) -> Resul
                 ending = if capped { Ending::Capped { dropped } } else { Ending::Closed };
             }
             McapRecord::Message { channel, sequence, data, .. } => {
-                if !topics.contains(channel) {
-                    continue;
-                }
+                let Some(topic) = topics.iter().find(|(id, _)| id == channel).map(|(_, t)| *t) else { continue };
                 let json: serde_json::Value = serde_json::from_slice(data)
                     .map_err(|e| bad(path, format!("message {sequence} is not JSON: {e}")))?;
+                if topic == Topic::Checkpoint {
+                    let c = decode_checkpoint(&json).map_err(|e| bad(path, format!("checkpoint {sequence}: {e}")))?;
+                    out.checkpoints.push(c);
+                    continue;
+                }
                 let d = decode(&json).map_err(|e| bad(path, format!("message {sequence}: {e}")))?;
-                out.push((d.seq, d.entry));
+                out.entries.push((d.seq, d.entry));
             }
             McapRecord::Metadata { .. } | McapRecord::DataEnd | McapRecord::Footer => {}
         }
@@ -422,6 +489,8 @@ fn describe(e: &Event) -> String {
 pub struct Replay {
     core: NodeCore,
     tape: Arc<Mutex<Tape>>,
+    /// The first instant the recording tells about ([`Recording::start`]).
+    start: Instant,
     /// Positions of the recorded accepted values, in order, and the next to compare.
     recorded_accepted: Vec<usize>,
     next_accepted: usize,
@@ -450,17 +519,27 @@ impl Replay {
             .filter(|(_, e)| matches!(e.event, Event::Accepted { .. }))
             .map(|(i, _)| i)
             .collect();
-        let mut core = NodeCore::new(recording.node);
+        let tape = Arc::new(Mutex::new(Tape { entries, next: 0, in_native: false, divergence: None }));
+        let mut core = match &recording.checkpoint {
+            // Checked when the recording was read (`Recording::assemble`).
+            Some(c) => {
+                NodeCore::restore((*c.snapshot).clone(), |_, process| Arc::new(player(tape.clone(), process.into())))
+                    .unwrap_or_else(|_| NodeCore::new(recording.node))
+            }
+            None => NodeCore::new(recording.node),
+        };
+        let reached = recording.checkpoint.as_ref().map_or(Instant::ZERO, |c| c.at);
         core.start_journal(usize::MAX);
         Replay {
             core,
-            tape: Arc::new(Mutex::new(Tape { entries, next: 0, in_native: false, divergence: None })),
+            start: recording.start(),
+            tape,
             recorded_accepted,
             next_accepted: 0,
             accepted: Vec::new(),
             scratch: Vec::new(),
             stop,
-            reached: Instant::ZERO,
+            reached,
             sent: None,
         }
     }
@@ -563,14 +642,32 @@ impl Replay {
     /// Why `behavior.port` held what it held at `t`: the replay runs up to `t` and asks the
     /// core as the live node would have been asked then.
     pub fn why_at(&mut self, t: Instant, behavior: &str, port: &str) -> Result<PortReport, Error> {
+        self.known_at(t)?;
         self.run_until(t).map_err(|d| Error::Recording { what: d.to_string() })?;
         Ok(self.core.why_at(t, behavior, port)?)
     }
 
     /// The whole node as it stood at `t` (see [`Replay::why_at`]).
     pub fn list_at(&mut self, t: Instant) -> Result<NodeReport, Error> {
+        self.known_at(t)?;
         self.run_until(t).map_err(|d| Error::Recording { what: d.to_string() })?;
         Ok(self.core.report_at(t))
+    }
+
+    /// Refuse an instant before the recording's first (a rolling recording's beginning is
+    /// gone: the node then is not known).
+    fn known_at(&self, t: Instant) -> Result<(), Error> {
+        if t < self.start {
+            return Err(Error::Recording {
+                what: format!(
+                    "t={:.3}s is before {:.3}s, where this rolling recording starts (its checkpoint): what came \
+                     before was not kept; ask at or after it",
+                    t.as_secs_f64(),
+                    self.start.as_secs_f64()
+                ),
+            });
+        }
+        Ok(())
     }
 
     fn fail(&self, what: String) -> Divergence {

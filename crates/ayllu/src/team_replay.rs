@@ -214,6 +214,9 @@ pub struct TeamCheck {
     /// or capped file) and sent after that point, by sender: what the sender did then is not
     /// known, so they are counted, not judged.
     pub after_sender_stopped: BTreeMap<NodeId, usize>,
+    /// Values accepted from a sender whose recording is rolling and starts later (its
+    /// checkpoint), sent before that point, by sender: counted, not judged, for the same reason.
+    pub before_sender_started: BTreeMap<NodeId, usize>,
     /// Recordings that end before their node stopped recording (cut short: the node was
     /// killed or the file cut; or capped), with how: not a contradiction (a killed robot's
     /// recording is cut), but what the team replay knows of that node ends there.
@@ -253,6 +256,7 @@ impl TeamCheck {
             "unexplained": self.unexplained(),
             "from_unrecorded": by_node(&self.from_unrecorded),
             "after_sender_stopped": by_node(&self.after_sender_stopped),
+            "before_sender_started": by_node(&self.before_sender_started),
             "endings": self.endings.iter().map(|(n, e)| json!({"node": n.0, "ending": e})).collect::<Vec<_>>(),
             "findings": self.findings.iter().map(|f| f.to_string()).collect::<Vec<_>>(),
             "passed": self.passed(),
@@ -261,7 +265,10 @@ impl TeamCheck {
 
     /// Remote values accepted from recorded nodes, judged, and not matched with their sending.
     pub fn unexplained(&self) -> usize {
-        self.accepted_remote - self.explained - self.after_sender_stopped.values().sum::<usize>()
+        self.accepted_remote
+            - self.explained
+            - self.after_sender_stopped.values().sum::<usize>()
+            - self.before_sender_started.values().sum::<usize>()
     }
 }
 
@@ -310,6 +317,14 @@ impl fmt::Display for TeamCheck {
         if !self.after_sender_stopped.is_empty() {
             let from: Vec<String> = self.after_sender_stopped.iter().map(|(n, k)| format!("{n} ({k})")).collect();
             writeln!(f, "values sent after their sender's recording stops (not judged): {}", from.join(", "))?;
+        }
+        if !self.before_sender_started.is_empty() {
+            let from: Vec<String> = self.before_sender_started.iter().map(|(n, k)| format!("{n} ({k})")).collect();
+            writeln!(
+                f,
+                "values sent before their sender's rolling recording starts (not judged): {}",
+                from.join(", ")
+            )?;
         }
         if !self.from_unrecorded.is_empty() {
             let from: Vec<String> = self.from_unrecorded.iter().map(|(n, k)| format!("{n} ({k})")).collect();
@@ -404,8 +419,18 @@ fn analyse(recordings: &[Recording]) -> (TeamCheck, Matched) {
     // on each connection (an arrival beyond it is not judged).
     let mut known_up_to: HashMap<NodeId, HashMap<ConnectionId, u64>> = HashMap::new();
     let mut endings = Vec::new();
+    // For a sender whose rolling recording starts late: the first sequence number it is known to
+    // have sent on each connection (an arrival before it is not judged).
+    let mut known_from: HashMap<NodeId, HashMap<ConnectionId, u64>> = HashMap::new();
     for r in recordings {
         let (s, checked, divergence) = sendings(r);
+        if r.checkpoint.is_some() {
+            let first = known_from.entry(r.node).or_default();
+            for id in s.keys() {
+                let seq = first.entry(id.conn).or_insert(id.seq);
+                *seq = (*seq).min(id.seq);
+            }
+        }
         if divergence.is_some() || r.gap.is_some() || r.ending != Ending::Closed {
             let last = known_up_to.entry(r.node).or_default();
             for id in s.keys() {
@@ -432,6 +457,7 @@ fn analyse(recordings: &[Recording]) -> (TeamCheck, Matched) {
     let mut matched: BTreeMap<(NodeId, NodeId), usize> = BTreeMap::new();
     let mut from_unrecorded: BTreeMap<NodeId, usize> = BTreeMap::new();
     let mut after_sender_stopped: BTreeMap<NodeId, usize> = BTreeMap::new();
+    let mut before_sender_started: BTreeMap<NodeId, usize> = BTreeMap::new();
     let mut tightest: Tightest = HashMap::new();
     let mut first_acceptance: HashMap<(NodeId, MessageId), Arrival> = HashMap::new();
     let mut received: HashMap<NodeId, Vec<Arrival>> = HashMap::new();
@@ -469,6 +495,11 @@ fn analyse(recordings: &[Recording]) -> (TeamCheck, Matched) {
                 *after_sender_stopped.entry(a.id.from).or_default() += 1;
                 continue;
             }
+            let before = known_from.get(&a.id.from).map(|first| first.get(&a.id.conn).is_none_or(|&q| a.id.seq < q));
+            if s.is_none() && before == Some(true) {
+                *before_sender_started.entry(a.id.from).or_default() += 1;
+                continue;
+            }
             match s {
                 None => findings.push(Finding::NeverSent { arrival: a }),
                 Some(s) if !same_bits(&s.message.value, &a.message.value) => {
@@ -491,6 +522,7 @@ fn analyse(recordings: &[Recording]) -> (TeamCheck, Matched) {
         matched,
         from_unrecorded,
         after_sender_stopped,
+        before_sender_started,
         endings,
         findings,
     };

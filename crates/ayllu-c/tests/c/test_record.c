@@ -28,7 +28,7 @@ int main(void) {
     ay_node *node = NULL;
     ay_class *c = NULL;
     uint64_t written = 0, checked = 0;
-    char path[512];
+    char path[512], stem[480];
     const char *dir = getenv("TMPDIR");
     int i;
     /* A name no other run uses at the same time (no getpid in strict C99). */
@@ -76,7 +76,36 @@ int main(void) {
     CHECK_EQ_INT(checked, 0);
     OK(ay_set_default_node(NULL));
     OK(ay_node_free(node));
+    remove(path);
+
+    /* A rolling recording keeps the last 2 s of a 10 s run: replayed from its oldest
+     * checkpoint (every second), each In and Out of the last 2 s to 3 s. */
+    snprintf(stem, sizeof stem, "%s/ayllu-c-rolling-%ld-%lx", dir ? dir : "/tmp", (long)time(NULL),
+             (unsigned long)(uintptr_t)&written);
+    snprintf(path, sizeof path, "%s.mcap", stem);
+    OK(ay_node_open_manual(3, "mem://c-record", clock, &node));
+    FAILS(ay_node_record_last(node, path, 0, -1.0), AY_ERR_PERIOD, "negative");
+    OK(ay_node_record_last(node, path, 0, 2.0));
+    OK(ay_class_new("Twice", &c));
+    OK(ay_class_port_float(c, "In", 0.0, AY_PORT_NORMAL, 0, 0, &in_));
+    OK(ay_class_port_float(c, "Out", 0.0, AY_PORT_NORMAL, 0, 0, &out_));
+    OK(ay_class_on_write(c, "Twice", "In", twice, NULL));
+    OK(ay_node_define(node, c));
+    OK(ay_node_create(node, "Twice", "T"));
+    for (i = 0; i < 1000; i++) {
+        OK(ay_clock_set(clock, 2.0 + i * 0.01));
+        OK(ay_node_write_float(node, "T", "In", sin(i * 0.1) / 3.0));
+        OK(ay_node_step(node, NULL));
+    }
+    OK(ay_node_stop_recording(node, &written));
+    OK(ay_recording_check(path, &checked));
+    CHECK(checked >= 400 && checked <= 600);
+    OK(ay_node_free(node));
     OK(ay_clock_free(clock));
     remove(path);
+    for (i = 1; i < 64; i++) {
+        snprintf(path, sizeof path, "%s.%d.mcap", stem, i);
+        remove(path);
+    }
     return check_exit("test_record");
 }

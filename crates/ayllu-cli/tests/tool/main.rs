@@ -18,6 +18,7 @@ mod node_views;
 mod quoted_figures;
 mod readme;
 mod replay;
+mod rolling_recording;
 mod ros2_bad_input;
 mod ros2_cmommt;
 mod ros2_robot;

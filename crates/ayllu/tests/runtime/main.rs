@@ -22,6 +22,7 @@ mod replay;
 mod replay_rewiring;
 mod retrigger;
 mod return_routability;
+mod rolling_recording;
 mod team_recording;
 mod team_replay;
 mod transaction_mem;

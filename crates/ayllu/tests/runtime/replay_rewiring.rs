@@ -95,7 +95,14 @@ fn a_process_that_rewires_replays_with_no_application_code() {
             decode(&json).unwrap_or_else(|err| panic!("entry {i} ({:?}): {err}", e.event)).entry
         })
         .collect();
-    let recording = Recording { node: NodeId(1), segments: Vec::new(), entries, ending: Ending::Closed, gap: None };
+    let recording = Recording {
+        node: NodeId(1),
+        segments: Vec::new(),
+        entries,
+        ending: Ending::Closed,
+        gap: None,
+        checkpoint: None,
+    };
     let mut replay = Replay::new(&recording);
     replay.run_to_end().unwrap_or_else(|d| panic!("{d}"));
     assert!(replay.checked() >= 8, "values compared: {}", replay.checked());
@@ -169,7 +176,14 @@ fn a_transaction_applied_to_a_node_replays() {
     let journal = live.stop_journal();
     let entries: Vec<Entry> =
         journal.iter().enumerate().map(|(i, e)| decode(&encode(i as u64, e).1).unwrap().entry).collect();
-    let recording = Recording { node: NodeId(2), segments: Vec::new(), entries, ending: Ending::Closed, gap: None };
+    let recording = Recording {
+        node: NodeId(2),
+        segments: Vec::new(),
+        entries,
+        ending: Ending::Closed,
+        gap: None,
+        checkpoint: None,
+    };
     let mut replay = Replay::new(&recording);
     replay.run_to_end().unwrap_or_else(|d| panic!("{d}"));
     let conns = |r: &ayllu::NodeReport| {
