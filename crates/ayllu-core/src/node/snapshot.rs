@@ -265,7 +265,7 @@ impl NodeCore {
             core.classes.insert(class.name.clone(), Arc::new(class));
         }
         for (b, slot) in s.behaviors.into_iter().enumerate() {
-            let Some(d) = slot else {
+            let Some(mut d) = slot else {
                 core.behaviors.push(None);
                 continue;
             };
@@ -275,6 +275,9 @@ impl NodeCore {
                 || d.processes.len() < class.processes.len()
             {
                 return Err(format!("behavior `{}` does not have its class's registers", d.name));
+            }
+            for port in &mut d.ports {
+                port.set_triggers();
             }
             let processes = d
                 .processes
@@ -438,6 +441,9 @@ fn check_indices(core: &NodeCore, free_behaviors: &[u32], free_conns: &[u32]) ->
     for c in core.conns.iter().flatten() {
         if !port(c.src.0, c.src.1) || matches!(c.dst, Target::Local { b, p } if !port(b, p)) {
             return Err(format!("connection {} joins no port", c.id));
+        }
+        if c.seq < c.seq_start {
+            return Err(format!("connection {} numbered below its start", c.id));
         }
     }
     let free_b = free_behaviors.iter().all(|&b| matches!(core.behaviors.get(b as usize), Some(None)));

@@ -37,12 +37,16 @@ use super::scheduler::queue;
 pub(crate) struct PortState {
     /// Whether a value accepted here needs none of the general path's checks (see
     /// [`PortState::is_plain`]); kept up to date wherever the triggers or windows change.
+    /// Not in a checkpoint: worked out again from the triggers and windows.
+    #[cfg_attr(feature = "serde", serde(skip))]
     pub(crate) plain: bool,
     /// `triggers` as a set of bits (bit `i`: process `i`) in the padding after `plain`, so
     /// that an accepted value finds the processes to queue in this first line instead of the
     /// far one `triggers` lives in (one cache line per accepted message). Exact while every
     /// trigger is a process below 31 added in ascending order (the bits then iterate in the
-    /// list's order); otherwise [`TRIGGERS_LISTED`], and the list is read.
+    /// list's order); otherwise [`TRIGGERS_LISTED`], and the list is read. Not in a
+    /// checkpoint: worked out again from the list ([`PortState::set_triggers`]).
+    #[cfg_attr(feature = "serde", serde(skip))]
     pub(crate) trigger_bits: u32,
     pub(crate) visited: u64,
     pub(crate) accepted: u64,
@@ -71,6 +75,18 @@ impl PortState {
         // Ascending below 31: the new bit is above every bit set (and the list bit is not).
         self.trigger_bits = if ix < 31 && bits >> ix == 0 { bits | 1 << ix } else { TRIGGERS_LISTED };
         self.triggers.push(ix);
+    }
+
+    /// Work `trigger_bits` and `plain` out again from the triggers and windows (a port
+    /// restored from a checkpoint keeps neither).
+    #[cfg(feature = "serde")]
+    pub(super) fn set_triggers(&mut self) {
+        let triggers = std::mem::take(&mut self.triggers);
+        self.trigger_bits = 0;
+        for ix in triggers {
+            self.add_trigger(ix);
+        }
+        self.refresh_plain();
     }
 
     /// Queue the processes this port triggers (in the order of `triggers`) that are not
