@@ -18,13 +18,16 @@
 //!   partitions). Each robot (a `FOLLOW` behavior) reports its pose and sightings, follows its
 //!   last assignment while it is fresh, and falls back to the observer chain (as `Local`) when
 //!   it is not.
-//! * `BleSeek` — the BLE family without a base station that closes the gap to the `Planner`
+//! * `BleSeek` — the BLE family without a base station, closer to the `Planner`
 //!   (docs/cmommt.md, "BLE-seek"): the same observer layers and the same BLE (eligibility
 //!   broadcast plus cross-inhibition, no negotiation, no central node), but eligibility is
-//!   what the robot would gain (nothing on a target while a higher one holds it, a bonus on
-//!   the target it already claims), and a robot shares where the targets it sees but cannot
-//!   take are, so that a robot with nothing in view seeks one nobody claims (`SEEK`, between
-//!   the observers and `WANDER`).
+//!   what the robot would gain (none offered for a target while a higher one holds the robot,
+//!   or while a peer is more eligible; a bonus on the target it claims), a target lost from
+//!   view is turned to where it was for a moment, and a robot shares where the targets it sees
+//!   but nobody takes are, so that another seeks one worth leaving its own for (`SEEK`, beside
+//!   the layers: it tells a layer where to turn, the layer competes as for a sight).
+//! * `BleLean` — `Ble` offering its eligibility by `Eligibility::LEAN`: the study's row for
+//!   the cheaper policy (docs/cmommt.md, "A cheaper BLE").
 //!
 //! Each build returns a [`Brain`]: how the harness reads which target drives the robot (for
 //! switch counting and the replay) and, for `Centralized`, where the oracle writes.
@@ -721,6 +724,11 @@ pub const SEEK_WEIGHT: f64 = 0.5;
 /// `BleSeek`: a robot that holds a target it sees leaves it for a reported one only if that
 /// one is worth this many times more (priority): a small gain is not worth the trip.
 pub const LEAVE_FOR: f64 = 1.5;
+/// `BleSeek`: how long (claim periods) a layer that heard a peer offer more stays quiet: the
+/// peer's claim inhibits it that long anyway ([`BleConfig::new`]'s lease, 2.25 periods and
+/// the delay), and a beaten robot that spoke up again after one period would claim whenever
+/// both of the peer's offers of a cycle were lost (4 % of cycles at 20 % loss).
+pub const QUIET_PERIODS: f64 = 2.25;
 /// `BleSeek`: how long an observer layer's word "I hold the robot" (`Engaged`) counts for the
 /// layers below it and for `SEEK`: three 20 Hz activations, so that one late activation does
 /// not free them.
@@ -750,15 +758,18 @@ const ARRIVED: f64 = 1.0;
 const REFUSED_AFTER: f64 = 0.3;
 
 /// `BleSeek`'s observer (class `SeekObserver`): Fig. 2's `ObserveTarget`, whose target is the
-/// one it sees or, when it sees none, the one `SEEK` asks it to seek (`Sought = [turn,
-/// eligibility]`, from a peer's report), and whose eligibility counts what the robot would
-/// gain. At 20 Hz: turn towards the target (`Rotate`); if a higher layer holds the robot
-/// (`Above` fresh), offer nothing (the robot would not go there: claiming would only keep a
-/// free peer away); otherwise offer the apparent height (or `Sought`'s eligibility), times
-/// [`HOLD_BONUS`] while this robot claims the target, as eligibility (`Local`) once per half
-/// claim period (at once on a first sight), and tell the layers below and `SEEK` that it holds
-/// the robot (`Engaged`) unless a peer offered more this cycle. A peer's eligibility heard this
-/// cycle (`Best`) for a target it sees tells `SEEK` the target is covered.
+/// one it sees or, when it sees none, the one `SEEK` asks it to turn to (`Sought = [turn,
+/// eligibility]`: where it lost the target, or a peer's report), and whose eligibility counts
+/// what the robot would gain. At 20 Hz: turn towards the target (`Rotate`, as the paper's); a
+/// peer's eligibility heard this cycle (`Best`) for a target it sees tells `SEEK` the target is
+/// covered (`Covered`). Then, unless a higher layer holds the robot (`Above` fresh: the robot
+/// would not go there, and a claim would only keep a free peer away): its eligibility is the
+/// apparent height (or `Sought`'s), times [`HOLD_BONUS`] while this robot claims the target;
+/// the layer holds the robot (`Engaged`, to the layers below and `SEEK`) unless a peer offered
+/// more this cycle; and it offers its eligibility (`Local`) twice per claim period (at once on
+/// a first sight) unless a peer offered more within [`QUIET_PERIODS`]: a robot that would lose
+/// the comparison gains nothing by broadcasting, and BLE's claims are unchanged (the select is
+/// the core's, [`NodeCore::ble_join`]).
 fn seek_observer_class(claim_hz: f64) -> Result<BehaviorClass, Error> {
     let mut c = BehaviorClass::new("SeekObserver");
     let x = c.port(PortSpec::new("TargetX", 0.0).lifespan(VISION_LIFESPAN))?;
@@ -769,6 +780,8 @@ fn seek_observer_class(claim_hz: f64) -> Result<BehaviorClass, Error> {
     let engaged = c.port(PortSpec::new("Engaged", 0.0))?;
     let covered = c.port(PortSpec::new("Covered", 0.0))?;
     let offered_at = c.slot("OfferedAt", -1.0)?;
+    // The best peer eligibility heard lately, and when (s; negative: never).
+    let heard = c.slot("Heard", Value::vector(&[0.0, -1.0]))?;
     let period = 1.0 / claim_hz;
     c.every_hz("TurnToTarget", 20.0, move |ctx| {
         let seen = ctx.float(x).and_then(|b| ctx.float(y).map(|h| (b, h)));
@@ -794,6 +807,18 @@ fn seek_observer_class(claim_hz: f64) -> Result<BehaviorClass, Error> {
         if holding || peer.is_none_or(|p| p <= mine) {
             let _ = ctx.write(engaged, 1.0);
         }
+        // `Best` empties at every select: what was heard within a claim's lease still counts.
+        let last = ctx.slot(heard).as_vector().map(<[f64]>::to_vec).unwrap_or_default();
+        if let Some(p) = peer {
+            let _ = ctx.set_slot(heard, Value::vector(&[p, now]));
+        }
+        let beaten = match peer {
+            Some(p) => p > mine,
+            None => last.len() == 2 && last[1] >= 0.0 && now - last[1] < QUIET_PERIODS * period && last[0] > mine,
+        };
+        if beaten {
+            return; // a peer is more eligible: offering would gain nothing
+        }
         let at = ctx.slot(offered_at).as_float().unwrap_or(-1.0);
         // Two offers per claim cycle: one lost broadcast does not lose the claim.
         if at < 0.0 || now - at >= period / 2.0 - 1e-9 {
@@ -804,20 +829,24 @@ fn seek_observer_class(claim_hz: f64) -> Result<BehaviorClass, Error> {
     Ok(c)
 }
 
-/// `BleSeek`'s `SEEK` (class `Seeker`): what the robot shares and hears, and which reported
-/// target it seeks.
+/// `BleSeek`'s `SEEK` (class `Seeker`): what the robot shares and hears, where its targets
+/// were, and which reported target it seeks. It never drives the robot itself: it tells an
+/// observer layer where to turn (`Sought{n}`), and subsumption and BLE decide as for a sight.
 ///
-/// Shares: once a second, the targets this robot sees that none of its layers holds and no
-/// peer offered for (not `Engaged{n}`, not `Covered{n}`) go to the peers as `Wanted = [n, x,
-/// y, ...]` (positions from the pose, the bearing and the apparent height: `target_size /
-/// height` m away), one broadcast. Hears: the peers' `Wanted` into `Heard`, each target's
-/// position remembered with the time heard. Seeks: at 20 Hz, among the targets heard within
-/// [`SOUGHT_FOR`] s that it does not see, above the layer holding the robot and worth
-/// [`LEAVE_FOR`] times its target, the one with the best priority / (1 m + distance); it writes
-/// that layer `Sought{n} = [turn, eligibility]` ([`SEEK_WEIGHT`] times the apparent height the
-/// target would have there). A search its layer holds goes on until the robot is within
-/// [`ARRIVED`] of the place (it then gives the report up) or sees the target; one its layer
-/// does not hold (a peer is more eligible) is given up.
+/// Places: at 20 Hz, each target it sees is placed from the pose, the bearing and the apparent
+/// height (`target_size / height` m away). Tracks: a target lost from view while its layer held
+/// the robot is sought where it was for [`TRACK_FOR`] s, with the eligibility of the apparent
+/// height it would have there. Shares: once a second, the targets it sees that none of its
+/// layers holds and no peer offered for (not `Engaged{n}`, not `Covered{n}`) go to the peers as
+/// `Wanted = [n, x, y, ...]`, one broadcast. Hears: the peers' `Wanted` into `Heard`, each
+/// target's place remembered with the time heard. Seeks: among the targets heard within
+/// [`SOUGHT_FOR`] s that it neither sees nor tracks, above the layer holding the robot and worth
+/// [`LEAVE_FOR`] times its target, the one with the best priority / (1 m + distance); that layer
+/// gets `Sought{n} = [turn, eligibility]` ([`SEEK_WEIGHT`] times the apparent height the target
+/// would have there). A search its layer holds goes on until the robot is within [`ARRIVED`]
+/// of the place (it then gives the report up), sees the target, or [`SEEK_AT_MOST`]; one its
+/// layer does not hold [`REFUSED_AFTER`] s after it began (a peer is more eligible) is given up,
+/// and that target not sought again for [`SOUGHT_FOR`] s.
 fn seeker_class(priorities: &[f64], target_size: f64) -> Result<BehaviorClass, Error> {
     let m = priorities.len();
     let prios = priorities.to_vec();
@@ -839,23 +868,24 @@ fn seeker_class(priorities: &[f64], target_size: f64) -> Result<BehaviorClass, E
     // The search under way: target index + 1 (0: none), when it began.
     let search = c.slot("Search", Value::vector(&[0.0, 0.0]))?;
     // Per target: where this robot last saw it, and when (s; negative: never).
-    let own = c.slot("Own", Value::vector(&vec![-1.0; 3 * m]))?;
+    let own = c.slot("Own", Value::vector(&vec![-1.0; 4 * m]))?;
     let share_layers = layers.clone();
     c.every_hz("Share", SHARE_HZ, move |ctx| {
-        let Some(Value::Vector(p)) = ctx.get(pose) else { return };
-        let (px, py, theta) = (p[0], p[1], p[2]);
+        let mine = ctx.slot(own).as_vector().map(<[f64]>::to_vec).unwrap_or_default();
+        if mine.len() != 4 * m {
+            return;
+        }
+        let now = ctx.now().as_secs_f64();
         let mut v = Vec::new();
-        for (n, &(a, h, e, k, _)) in share_layers.iter().enumerate() {
+        for (n, &(a, _, e, k, _)) in share_layers.iter().enumerate() {
             if ctx.fresh(e) || ctx.fresh(k) {
                 continue;
             }
-            let (Some(angle), Some(height)) = (ctx.float(a), ctx.float(h)) else { continue };
-            if height <= 0.0 {
-                continue;
+            // Seen now (placed by `Seek` at its last activation, at most 50 ms ago).
+            let at = mine[4 * n + 2];
+            if ctx.fresh(a) && at >= 0.0 && now - at < 0.2 {
+                v.extend([(n + 1) as f64, mine[4 * n], mine[4 * n + 1]]);
             }
-            let d = target_size / height;
-            let heading = theta - angle; // right-positive bearing
-            v.extend([(n + 1) as f64, px + d * heading.cos(), py + d * heading.sin()]);
         }
         if !v.is_empty() {
             let _ = ctx.write(wanted, Value::vector(&v));
@@ -887,16 +917,26 @@ fn seeker_class(priorities: &[f64], target_size: f64) -> Result<BehaviorClass, E
         let now = ctx.now().as_secs_f64();
         // What it sees now, placed; what it lost lately, sought where it was.
         let mut mine = ctx.slot(own).as_vector().map(<[f64]>::to_vec).unwrap_or_default();
-        if mine.len() == 3 * m {
-            for (j, &(a, h, ..)) in layers.iter().enumerate() {
+        if mine.len() == 4 * m {
+            for (j, &(a, h, e, ..)) in layers.iter().enumerate() {
                 match (ctx.float(a), ctx.float(h)) {
                     (Some(angle), Some(height)) if height > 0.0 => {
                         let d = target_size / height;
                         let heading = theta - angle;
-                        mine[3 * j..3 * j + 3].copy_from_slice(&[px + d * heading.cos(), py + d * heading.sin(), now]);
+                        let held = if ctx.fresh(e) { now } else { mine[4 * j + 3] };
+                        mine[4 * j..4 * j + 4].copy_from_slice(&[
+                            px + d * heading.cos(),
+                            py + d * heading.sin(),
+                            now,
+                            held,
+                        ]);
                     }
-                    _ if mine[3 * j + 2] >= 0.0 && now - mine[3 * j + 2] <= TRACK_FOR => {
-                        let (tx, ty) = (mine[3 * j], mine[3 * j + 1]);
+                    // Lost from view while its layer held the robot: turn to where it was.
+                    _ if mine[4 * j + 2] >= 0.0
+                        && now - mine[4 * j + 2] <= TRACK_FOR
+                        && now - mine[4 * j + 3] <= TRACK_FOR =>
+                    {
+                        let (tx, ty) = (mine[4 * j], mine[4 * j + 1]);
                         let d = (tx - px).hypot(ty - py).max(ARRIVED);
                         let turn = wrap((ty - py).atan2(tx - px) - theta);
                         let _ = ctx.write(layers[j].4, Value::vector(&[turn, target_size / d]));
@@ -906,7 +946,7 @@ fn seeker_class(priorities: &[f64], target_size: f64) -> Result<BehaviorClass, E
             }
             let _ = ctx.set_slot(own, Value::vector(&mine));
         }
-        let lost = |j: usize| mine.get(3 * j + 2).is_some_and(|&t| t >= 0.0 && now - t <= TRACK_FOR);
+        let lost = |j: usize| mine.get(4 * j + 2).is_some_and(|&t| t >= 0.0 && now - t <= TRACK_FOR);
         let (mut current, began) = (s[0] as usize, s[1]);
         // The search under way: held by its layer, lost to a peer, or over.
         if current > 0 {

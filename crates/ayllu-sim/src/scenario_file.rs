@@ -7,7 +7,7 @@
 //! duration, frame and tick rates):
 //!
 //! ```toml
-//! controller = "BLE"       # BLE, Random, Local, ForceField, Centralized, Planner
+//! controller = "BLE"       # BLE, Random, Local, ForceField, Centralized, Planner, BLE-lean, BLE-seek
 //! robots = 3
 //! targets = 4              # priorities 4, 3, 2, 1 (or list world.targets yourself)
 //! seed = 1
@@ -17,13 +17,19 @@
 //! [[kills]]
 //! at = 150.0
 //! robot = 2
+//! [base_station_failure]    # the Planner's base station lost (nothing for the others)
+//! at = 200.0
+//! how = "killed"           # or "partitioned" (optionally `until`)
 //! [controllers]
 //! eligibility = "lean"     # or "paper"
 //! ```
 //!
 //! A sweep file is a scenario file plus `seeds` (runs per cell, seeds 1..=N), `controllers`
-//! (names; `compare` when the file also has a `[controllers]` table of tunables) and a `[grid]` table mapping field paths (`radio.loss`, `robots`, `world.arena`)
-//! to lists of values; the cells are the grid's cartesian product, in the order written.
+//! (names; `compare` when the file also has a `[controllers]` table of tunables), optional
+//! `[[cases]]` (each a `title` and fields laid over the file's: settings that differ in several
+//! fields at once) and a `[grid]` table mapping field paths (`radio.loss`, `robots`,
+//! `world.arena`) to lists of values; the cells are the cases (or the file alone), each times
+//! the grid's cartesian product, in the order written.
 //!
 //! Promises: every key must be a field of the scenario (a misspelt key is an error naming it,
 //! never silently ignored); tables merge into the defaults, arrays and values replace them;
@@ -441,6 +447,63 @@ mod tests {
         let both = sweep("compare = [\"Planner\"]\n[controllers]\nplan_hz = 4.0\n").unwrap();
         assert_eq!(both.controllers, [Controller::Planner]);
         assert_eq!(both.cells[0].scenario.controllers.plan_hz, 4.0);
+    }
+
+    /// `[[cases]]`: settings that differ in several fields at once, laid over the file's,
+    /// each multiplied by the grid; a case may not set what the sweep sets for each run.
+    #[test]
+    fn cases_are_cells_laid_over_the_file_and_multiplied_by_the_grid() {
+        let sw = sweep(
+            r#"
+            seeds = 1
+            compare = ["BLE", "Planner"]
+            robots = 4
+            [radio]
+            delay = 0.01
+            [[cases]]
+            title = "as is"
+            [[cases]]
+            title = "lossy, base station lost"
+            radio = { loss = 0.2 }
+            base_station_failure = { at = 5.0, how = "partitioned", until = 9.0 }
+            [[cases]]
+            robots = 2
+            [grid]
+            duration = [10.0, 20.0]
+            "#,
+        )
+        .unwrap();
+        assert_eq!(sw.cells.len(), 6);
+        let lossy = &sw.cells[2].scenario;
+        // The case's table merged into the file's: its loss, the file's delay.
+        assert_eq!((lossy.radio.loss, lossy.radio.delay, lossy.robots, lossy.duration), (0.2, 0.01, 4, 10.0));
+        let failure = lossy.base_station_failure.as_ref().unwrap();
+        assert_eq!((failure.at, failure.until), (5.0, Some(9.0)));
+        assert_eq!(sw.cells[0].scenario.base_station_failure, None);
+        assert_eq!(sw.cells[5].scenario.robots, 2);
+        assert_eq!(sw.cells[2].values[0], (CASE.to_owned(), "lossy, base station lost".to_owned()));
+        assert_eq!(sw.cells[4].values[0].1, "case 3");
+        let err = sweep(
+            "[[cases]]
+seed = 3
+",
+        )
+        .unwrap_err();
+        assert!(err.contains("cases[0].seed is set by the sweep"), "{err}");
+        let err = sweep(
+            "[[cases]]
+base_station_failure = { at = 5.0, how = \"killed\", until = 6.0 }
+",
+        )
+        .unwrap_err();
+        assert!(err.contains("base_station_failure.until"), "{err}");
+        let err = sweep(
+            "[[cases]]
+radio = { los = 0.1 }
+",
+        )
+        .unwrap_err();
+        assert!(err.contains("radio.los"), "{err}");
     }
 
     /// What every run of a sweep sets itself (its seed, its controller, the wander seed that

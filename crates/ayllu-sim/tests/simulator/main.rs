@@ -5,6 +5,7 @@
 //! One test binary (not one per file) keeps the test build short. Run one module with
 //! `cargo test -p ayllu-sim --test simulator determinism::`.
 
+mod ble_seek;
 mod body;
 mod cmommt;
 mod common;
