@@ -48,6 +48,9 @@ use crate::scenario::Scenario;
 /// `(field path, value)` of each grid axis.
 type Labels = Vec<(String, String)>;
 
+/// A cell being made: its labels and its scenario's table.
+type Draft = (Labels, Map<String, Json>);
+
 /// One cell of a sweep: the scenario (seed 1) and the grid values that made it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SweepCell {
@@ -136,7 +139,7 @@ pub fn sweep(text: &str) -> Result<Sweep, String> {
     // The cell's scenario is read (and held to the bounds) as the first controller's run; every
     // controller's run is checked below.
     table.insert("controller".into(), Json::String(controllers[0].name().to_owned()));
-    let mut cells: Vec<(Labels, Map<String, Json>)> = match table.remove("cases") {
+    let mut cells: Vec<Draft> = match table.remove("cases") {
         None => vec![(Vec::new(), table)],
         Some(cases) => cases_of(&table, cases)?,
     };
@@ -183,7 +186,7 @@ pub fn sweep(text: &str) -> Result<Sweep, String> {
 /// The cells of a sweep's `[[cases]]`: each case is the sweep's scenario with the case's
 /// fields laid over it (tables field by field, anything else replaced), labelled by its
 /// `title` (default `case N`); the grid, if any, then multiplies them.
-fn cases_of(table: &Map<String, Json>, cases: Json) -> Result<Vec<(Labels, Map<String, Json>)>, String> {
+fn cases_of(table: &Map<String, Json>, cases: Json) -> Result<Vec<Draft>, String> {
     let cases = cases.as_array().filter(|c| !c.is_empty()).ok_or("`cases` must be a non-empty list of tables")?;
     let mut cells = Vec::with_capacity(cases.len());
     for (i, case) in cases.iter().enumerate() {
