@@ -524,6 +524,20 @@ mod tests {
     }
 
     #[test]
+    fn the_lean_row_follows_ble_and_leaves_the_other_cells_as_they_were() {
+        let plain = Plan::new(&StudyConfig::quick());
+        let lean = Plan::new(&StudyConfig::quick().with_lean_row());
+        assert_eq!(lean.paper.len(), plain.paper.len() + 1);
+        assert_eq!(lean.paper[1].controller, Controller::BleLean);
+        let others: Vec<&Cell> = lean.cells().filter(|c| c.controller != Controller::BleLean).collect();
+        assert_eq!(others, plain.cells().collect::<Vec<_>>());
+        // Asked twice, one row; without BLE in the list, first.
+        assert_eq!(StudyConfig::quick().with_lean_row().with_lean_row().controllers.len(), 7);
+        let no_ble = StudyConfig { controllers: vec![Controller::Random], ..StudyConfig::quick() };
+        assert_eq!(no_ble.with_lean_row().controllers, [Controller::BleLean, Controller::Random]);
+    }
+
+    #[test]
     fn the_default_plan_has_the_documented_sizes() {
         let plan = Plan::new(&StudyConfig::default());
         let n = Controller::ALL.len();

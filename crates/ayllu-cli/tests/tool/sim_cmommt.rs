@@ -308,6 +308,33 @@ fn the_numbers_do_not_depend_on_the_number_of_threads() {
     let _ = std::fs::remove_dir_all(&out);
 }
 
+/// `--eligibility lean` adds a BLE-lean row after BLE in every table and changes no other row:
+/// the study's rows without it are those with it, the BLE-lean rows taken out.
+#[test]
+fn eligibility_lean_adds_a_ble_lean_row_and_changes_no_other() {
+    let out = scratch("lean");
+    let out_arg = out.to_str().expect("a UTF-8 path");
+    let study = |extra: &[&str]| {
+        let args = ["sim", "cmommt", "--no-sweep", "--seeds", "1", "--duration", "20", "--json", "--out", out_arg];
+        ayllu(&[&args[..], extra].concat(), LIMIT).ok().json()
+    };
+    let paper: Json = study(&[]);
+    let lean: Json = study(&["--eligibility", "lean"]);
+    for table in ["paper", "robustness"] {
+        let with: &Vec<Json> = lean[table].as_array().expect("rows");
+        let names: Vec<&str> = with.iter().filter_map(|r| r["controller"].as_str()).take(7).collect();
+        assert_eq!(names, ["BLE", "BLE-lean", "Random", "Local", "ForceField", "Centralized", "Planner"], "{table}");
+        let without: Vec<&Json> = with.iter().filter(|r| r["controller"] != "BLE-lean").collect();
+        let before: Vec<&Json> = paper[table].as_array().expect("rows").iter().collect();
+        assert_eq!(without, before, "{table}: the other rows are unchanged");
+        let msgs = |c: &str| {
+            with.iter().find(|r| r["controller"] == c).expect("a row")["metrics"]["msgs_per_robot_s"].as_f64()
+        };
+        assert!(msgs("BLE-lean") < msgs("BLE"), "{table}: the lean policy sends fewer messages");
+    }
+    let _ = std::fs::remove_dir_all(&out);
+}
+
 #[test]
 fn bad_arguments_and_an_unwritable_folder_fail_with_a_message() {
     let limit = Duration::from_secs(30);
