@@ -208,7 +208,10 @@ impl NodeCore {
     /// behavior already in a group ([`Error::Ble`]). A too short inhibit period is accepted
     /// and warned about (D11.2).
     pub fn ble_join(&mut self, behavior: &str, config: &BleConfig) -> Result<BleGroup, Error> {
-        self.journal(|| crate::journal::Event::BleJoin { behavior: behavior.to_owned(), config: config.clone() });
+        self.journal(|| crate::journal::Event::BleJoin {
+            behavior: behavior.to_owned(),
+            config: Box::new(config.clone()),
+        });
         self.unjournaled(|core| core.join_ble_group(behavior, config))
     }
 

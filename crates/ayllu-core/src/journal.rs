@@ -33,6 +33,12 @@ use crate::time::{Duration, Instant};
 use crate::value::Value;
 
 /// One journaled event and the node time it happened at.
+///
+/// 72 bytes: the variants whose fields are large and rare (a connection's endpoints, a BLE
+/// configuration, a message, a request's body, a change) hold them boxed, so that the entries a
+/// busy node makes all the time (writes, accepted values) are moved with a few register moves
+/// where 152-byte entries were copied by `memmove` three times each (half the journal's cost,
+/// docs/performance.md).
 #[derive(Clone, Debug)]
 pub struct Entry {
     /// The node's time once the call had moved it ([`NodeCore::now`]).
@@ -70,9 +76,9 @@ pub enum Event {
     /// [`NodeCore::connect`].
     Connect {
         /// The source port.
-        source: Endpoint,
+        source: Box<Endpoint>,
         /// The destination.
-        destination: Endpoint,
+        destination: Box<Endpoint>,
         /// The connection's kind.
         kind: ConnectionKind,
         /// Its priority.
@@ -101,7 +107,7 @@ pub enum Event {
         /// The member behavior.
         behavior: String,
         /// Its configuration.
-        config: BleConfig,
+        config: Box<BleConfig>,
     },
     /// [`NodeCore::set_sequence_base`].
     SequenceBase(u64),
@@ -139,14 +145,14 @@ pub enum Event {
         /// The sender.
         from: NodeId,
         /// The message as it arrived.
-        message: Message,
+        message: Box<Message>,
     },
     /// [`NodeCore::request`], [`NodeCore::request_connect`], [`NodeCore::request_disconnect`].
     Request {
         /// The node asked.
         to: NodeId,
         /// What was asked.
-        body: ControlBody,
+        body: Box<ControlBody>,
     },
     /// [`NodeCore::poll`].
     Poll,
@@ -187,13 +193,13 @@ pub enum Event {
     },
     /// Effect of the running process: a structure change it asked for ([`crate::Ctx::change`]),
     /// applied when it returns.
-    ProcessChange(Change),
+    ProcessChange(Box<Change>),
     /// Effect of the running process: a control request it sent ([`crate::Ctx::request`]).
     ProcessRequest {
         /// The node asked.
         to: NodeId,
         /// What was asked.
-        body: ControlBody,
+        body: Box<ControlBody>,
     },
     /// A port accepted a value (from a write, a connection or a message).
     Accepted {

@@ -176,7 +176,7 @@ impl Ctx<'_> {
         change.check()?;
         if self.core.journal.is_some() {
             let recorded = change.clone();
-            self.core.journal(|| Event::ProcessChange(recorded));
+            self.core.journal(|| Event::ProcessChange(Box::new(recorded)));
         }
         self.changes.push(change);
         Ok(self.changes.len() - 1)
@@ -274,7 +274,7 @@ impl Ctx<'_> {
         }
         if self.core.journal.is_some() {
             let recorded = body.clone();
-            self.core.journal(|| Event::ProcessRequest { to: node, body: recorded });
+            self.core.journal(|| Event::ProcessRequest { to: node, body: Box::new(recorded) });
         }
         self.core.unjournaled(|core| core.request(node, body))
     }

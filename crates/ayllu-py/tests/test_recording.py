@@ -1,8 +1,8 @@
 """Flight recording from Python (spec/flight-recorder.md): a node whose process is Python
 code (here reading a random source the replay cannot know) records into an MCAP file; an
-independent reader (the ``mcap`` package from PyPI) finds the four JSON channels with their
-JSON Schemas, and the recording replays with no Python code, reproducing every accepted
-value bit for bit."""
+independent reader (the ``mcap`` package from PyPI, with ``mcap-ros2-support`` to decode CDR)
+finds the four CDR channels with their ros2msg schema, and the recording replays with no Python
+code, reproducing every accepted value bit for bit."""
 
 from __future__ import annotations
 
@@ -14,6 +14,7 @@ from pathlib import Path
 # The independent reader (scripts/python-venv installs it): without it this fails, not skips.
 import mcap.reader as mcap_reader
 import pytest
+from mcap_ros2.decoder import DecoderFactory
 
 import ayllu
 
@@ -45,29 +46,24 @@ def record_run(path: Path, steps: int = 100) -> list[float]:
     return outs
 
 
-def test_an_independent_reader_sees_json_channels_with_schemas(tmp_path: Path) -> None:
+def test_an_independent_reader_decodes_the_cdr_channels_with_their_schema(tmp_path: Path) -> None:
     path = tmp_path / "py.mcap"
     outs = record_run(path)
     with path.open("rb") as f:
-        reader = mcap_reader.make_reader(f)
+        reader = mcap_reader.make_reader(f, decoder_factories=[DecoderFactory()])
         summary = reader.get_summary()
         assert summary is not None
         topics = {c.topic: c for c in summary.channels.values()}
         assert sorted(topics) == ["/ayllu/accepted", "/ayllu/input", "/ayllu/process", "/ayllu/structure"]
         for channel in topics.values():
-            assert channel.message_encoding == "json"
+            assert channel.message_encoding == "cdr"
             schema = summary.schemas[channel.schema_id]
-            assert schema.encoding == "jsonschema"
-            assert json.loads(schema.data)["type"] == "object"
-        accepted = [
-            json.loads(m.data)
-            for _, channel, m in reader.iter_messages(topics=["/ayllu/accepted"])
-            if channel.topic == "/ayllu/accepted"
-        ]
-    out_values = [a["value"] for a in accepted if a["behavior"] == "N" and a["port"] == "Out"]
+            assert schema.encoding == "ros2msg" and schema.name == "ayllu_msgs/msg/FlightEntry"
+        accepted = [m for _, _, _, m in reader.iter_decoded_messages(topics=["/ayllu/accepted"])]
+    out_values = [a.float_value for a in accepted if a.behavior == "N" and a.name == "Out"]
     # Floats come back exactly: what the process wrote is what the file says.
     assert out_values == outs
-    assert all(a["type"] == "float" for a in accepted)
+    assert all(a.type == 3 for a in accepted)  # float
 
 
 def test_the_recording_replays_without_the_python_code(tmp_path: Path) -> None:
@@ -91,10 +87,10 @@ def test_a_rolling_recording_keeps_its_last_seconds_and_replays_from_a_checkpoin
     assert 1 <= len(kept) <= 4, kept
     # The oldest segment kept opens with a checkpoint, on its own channel.
     with kept[0].open("rb") as f:
-        reader = mcap_reader.make_reader(f)
-        first = next(iter(reader.iter_messages()))
-        assert first[1].topic == "/ayllu/checkpoint"
-        assert json.loads(first[2].data)["snapshot"]["id"] == 3
+        reader = mcap_reader.make_reader(f, decoder_factories=[DecoderFactory()])
+        _, channel, _, first = next(iter(reader.iter_decoded_messages()))
+        assert channel.topic == "/ayllu/checkpoint" and first.event == "checkpoint"
+        assert json.loads(first.json)["snapshot"]["id"] == 3
     # Each In and Out of the last 2 s to 3 s (checkpoints come every second at least), compared
     # bit for bit with no Python code.
     assert 400 <= ayllu.check_recording(path) <= 600

@@ -23,6 +23,7 @@ pub mod node;
 pub mod operator;
 pub mod plan_file;
 pub mod recording;
+pub mod recording_cdr;
 pub mod recording_format;
 pub mod replay;
 pub mod report_json;

@@ -3,7 +3,8 @@
 //!
 //! A [`Recorder`] turns the core's journal on and, each time it is drained (every
 //! [`crate::Node::step`]), hands what was journaled to a writer thread; the thread encodes
-//! it as JSON ([`crate::recording_format`]) and writes MCAP segments.
+//! each entry as one CDR message ([`crate::recording_cdr`]) in a reused buffer and writes MCAP
+//! segments.
 //!
 //! What it promises:
 //! * The node never waits on the disk: batches go to the writer through a queue bounded in
@@ -45,7 +46,8 @@ use std::sync::atomic::AtomicBool;
 use ayllu_core::{Entry, Event, Instant, NodeCore, Snapshot};
 
 use crate::error::Error;
-use crate::recording_format::{encode, encode_checkpoint, Topic, METADATA, PROFILE, ROLLING_VERSION, VERSION};
+use crate::recording_cdr::{encode_checkpoint_into, encode_into, SCHEMA, SCHEMA_NAME};
+use crate::recording_format::{Topic, METADATA, PROFILE, VERSION};
 
 /// A chunk is closed and written at least this often, so a crash loses little.
 pub const FLUSH_INTERVAL: StdDuration = StdDuration::from_millis(500);
@@ -254,6 +256,7 @@ impl Recorder {
             shared: shared.clone(),
             runs: VecDeque::from([Run { first: 0, start: core.now() }]),
             sizes: BTreeMap::new(),
+            buf: Vec::with_capacity(1024),
         };
         writer.current = Some(writer.open(0, writer.segment_budget(options.max_bytes))?);
         shared.segments.store(1, Ordering::Relaxed);
@@ -476,6 +479,8 @@ struct SegmentWriter {
     runs: VecDeque<Run>,
     /// The size of each closed segment kept, by number.
     sizes: BTreeMap<u64, u64>,
+    /// The message being encoded: reused, so that an entry costs no allocation.
+    buf: Vec<u8>,
 }
 
 /// A run of segments: the first one's number and the node time it starts at.
@@ -507,17 +512,16 @@ impl SegmentWriter {
             .map_err(|e| io(&e))?;
         let rolling = self.options.keep_last.is_some();
         let mut channels = [0u16; Topic::ALL.len()];
+        let schema = mcap.add_schema(SCHEMA_NAME, "ros2msg", SCHEMA.as_bytes()).map_err(|e| io(&e))?;
         for (i, topic) in Topic::ALL.into_iter().enumerate() {
-            // Only a rolling recording has checkpoints: a whole one is version 1 as it was.
+            // Only a rolling recording has checkpoints.
             if topic == Topic::Checkpoint && !rolling {
                 continue;
             }
-            let schema = serde_json::to_vec(&topic.schema()).unwrap_or_default();
-            let id = mcap.add_schema(topic.schema_name(), "jsonschema", &schema).map_err(|e| io(&e))?;
-            channels[i] = mcap.add_channel(id, topic.name(), "json", &BTreeMap::new()).map_err(|e| io(&e))?;
+            channels[i] = mcap.add_channel(schema, topic.name(), "cdr", &BTreeMap::new()).map_err(|e| io(&e))?;
         }
         let mut metadata = BTreeMap::from([
-            ("version".to_owned(), if rolling { ROLLING_VERSION } else { VERSION }.to_owned()),
+            ("version".to_owned(), VERSION.to_owned()),
             ("node".to_owned(), self.node.to_string()),
             ("segment".to_owned(), index.to_string()),
             ("epoch_unix_ns".to_owned(), self.epoch_ns.to_string()),
@@ -583,15 +587,22 @@ impl SegmentWriter {
         seg.size.load(Ordering::Relaxed) + len + 64 + self.reserve(seg) <= seg.budget
     }
 
+    /// Encode and write one entry, in the writer's reused buffer.
     fn write(&mut self, entry: &Entry) {
+        let mut data = std::mem::take(&mut self.buf);
+        self.write_with(entry, &mut data);
+        self.buf = data;
+    }
+
+    fn write_with(&mut self, entry: &Entry, data: &mut Vec<u8>) {
         let seq = self.seq;
         self.seq += 1;
         if self.capped {
             self.shared.dropped_cap.fetch_add(1, Ordering::Relaxed);
             return;
         }
-        let (topic, json) = encode(seq, entry);
-        let data = serde_json::to_vec(&json).unwrap_or_default();
+        data.clear();
+        let topic = encode_into(seq, entry, data);
         let len = data.len() as u64;
         if !self.current.as_ref().is_some_and(|seg| self.fits(seg, len)) {
             // A rolling segment that fills before its checkpoint is due is followed by a
@@ -636,7 +647,7 @@ impl SegmentWriter {
             log_time: time,
             publish_time: time,
         };
-        match seg.mcap.write_to_known_channel(&header, &data) {
+        match seg.mcap.write_to_known_channel(&header, data) {
             Ok(()) => {
                 self.shared.written.fetch_add(1, Ordering::Relaxed);
             }
@@ -705,7 +716,8 @@ impl SegmentWriter {
             }
             Err(e) => return self.fail(e),
         }
-        let data = serde_json::to_vec(&encode_checkpoint(self.seq, snapshot)).unwrap_or_default();
+        let mut data = Vec::new();
+        encode_checkpoint_into(self.seq, snapshot, &mut data);
         let Some(seg) = self.current.as_ref() else { return };
         if seg.size.load(Ordering::Relaxed) + data.len() as u64 + 64 > seg.budget {
             let budget = seg.budget;

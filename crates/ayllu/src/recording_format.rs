@@ -26,15 +26,17 @@ use serde_json::{json, Map, Value as Json};
 pub const PROFILE: &str = "ayllu-flight";
 /// The name of the metadata record that opens every segment.
 pub const METADATA: &str = "ayllu.flight_recording";
-/// The format's version, in the metadata; a reader refuses versions it does not know.
-pub const VERSION: &str = "1";
-/// The version of a rolling recording (`--record-last`): version 1 plus checkpoints
-/// ([`Topic::Checkpoint`]), whose journal starts where its first checkpoint was taken. Written
-/// only by a rolling recorder, so that a reader that knows only version 1 refuses it by name
-/// rather than replay a journal whose beginning is gone.
-pub const ROLLING_VERSION: &str = "2";
+/// The JSON form's version, in the metadata; a reader refuses versions it does not know.
+/// Written by earlier builds; this one writes [`VERSION`] and reads both.
+pub const JSON_VERSION: &str = "1";
+/// A rolling recording in the JSON form (`--record-last`): version 1 plus checkpoints
+/// ([`Topic::Checkpoint`]), whose journal starts where its first checkpoint was taken.
+pub const ROLLING_JSON_VERSION: &str = "2";
+/// The version this build writes: the binary form ([`crate::recording_cdr`]), whole or rolling
+/// (a rolling recording has the checkpoint channel and `keep_last_s` in its metadata).
+pub const VERSION: &str = "3";
 /// The versions this build reads.
-pub const VERSIONS_READ: [&str; 2] = [VERSION, ROLLING_VERSION];
+pub const VERSIONS_READ: [&str; 3] = [JSON_VERSION, ROLLING_JSON_VERSION, VERSION];
 
 /// The channels of a recording.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
@@ -642,21 +644,21 @@ pub fn decode(j: &Json) -> Result<Decoded, String> {
         "leave" => Event::Leave(f.str("group")?),
         "ble_join" => Event::BleJoin {
             behavior: f.str("behavior")?,
-            config: BleConfig {
+            config: Box::new(BleConfig {
                 group: f.str("group")?,
                 output: f.str("output")?,
                 claim_rate_hz: float_from(f.get("claim_rate_hz")?)?,
                 inhibit_period: f.serde("inhibit_period")?,
                 network_delay: f.serde("network_delay")?,
-            },
+            }),
         },
         "sequence_base" => Event::SequenceBase(f.u64("base")?),
         "warn" => Event::Warn(f.str("warning")?),
-        "change" => Event::ProcessChange(change_from(&f.object("change")?)?),
+        "change" => Event::ProcessChange(Box::new(change_from(&f.object("change")?)?)),
         "request" if topic_is_process(&f) => {
-            Event::ProcessRequest { to: NodeId(f.u32("to")?), body: body_from(f.get("body")?)? }
+            Event::ProcessRequest { to: NodeId(f.u32("to")?), body: Box::new(body_from(f.get("body")?)?) }
         }
-        "request" => Event::Request { to: NodeId(f.u32("to")?), body: body_from(f.get("body")?)? },
+        "request" => Event::Request { to: NodeId(f.u32("to")?), body: Box::new(body_from(f.get("body")?)?) },
         "gap" => Event::Gap { lost: f.u64("lost")? },
         // A process's write names no behavior (it is the running one's).
         "write" if !f.0.contains_key("behavior") => {
@@ -674,7 +676,9 @@ pub fn decode(j: &Json) -> Result<Decoded, String> {
         "trigger" => Event::Trigger { behavior: f.str("behavior")?, mono: f.str("mono")?, period: f.serde("period")? },
         "reset" if f.0.contains_key("port_index") => Event::ProcessReset { port: f.u16("port_index")? },
         "reset" => Event::Reset { behavior: Arc::from(f.str("behavior")?), port: f.str("port")? },
-        "receive" => Event::Receive { from: NodeId(f.u32("from")?), message: message_from(f.get("message")?)? },
+        "receive" => {
+            Event::Receive { from: NodeId(f.u32("from")?), message: Box::new(message_from(f.get("message")?)?) }
+        }
         "poll" => Event::Poll,
         "run" => Event::Run {
             behavior: Arc::from(f.str("behavior")?),

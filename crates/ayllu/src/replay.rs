@@ -276,6 +276,8 @@ fn not_flight(path: &Path, bytes: &[u8], why: String) -> Error {
 /// Read one segment's messages into `out`; its node and how it ends.
 fn read_segment(path: &Path, bytes: &[u8], out: &mut Read) -> Result<(NodeId, Ending), Error> {
     let mut topics: Vec<(u16, Topic)> = Vec::new();
+    // The binary form (version 3) or the JSON one (1 and 2), from the metadata.
+    let mut binary = false;
     let mut node = None;
     let mut ending = Ending::Cut { reason: "the file has no end record (was the node killed?)".into() };
     let reader = mcap_records::records(bytes).map_err(|e| bad(path, e.what))?;
@@ -300,6 +302,7 @@ fn read_segment(path: &Path, bytes: &[u8], out: &mut Read) -> Result<(NodeId, En
             }
             McapRecord::Metadata { name, .. } if *name == METADATA => {
                 let version = record.get("version").unwrap_or("");
+                binary = version == crate::recording_format::VERSION;
                 if !VERSIONS_READ.contains(&version) {
                     let known = VERSIONS_READ.join(" and ");
                     return Err(bad(path, format!("flight recording version `{version}`; this build reads {known}")));
@@ -314,6 +317,19 @@ fn read_segment(path: &Path, bytes: &[u8], out: &mut Read) -> Result<(NodeId, En
             }
             McapRecord::Message { channel, sequence, data, .. } => {
                 let Some(topic) = topics.iter().find(|(id, _)| id == channel).map(|(_, t)| *t) else { continue };
+                if binary {
+                    match crate::recording_cdr::decode(data)
+                        .map_err(|e| bad(path, format!("message {sequence}: {e}")))?
+                    {
+                        crate::recording_cdr::Decoded::Entry(d) => out.entries.push((d.seq, d.entry)),
+                        crate::recording_cdr::Decoded::Checkpoint(j) => {
+                            let c =
+                                decode_checkpoint(&j).map_err(|e| bad(path, format!("checkpoint {sequence}: {e}")))?;
+                            out.checkpoints.push(c);
+                        }
+                    }
+                    continue;
+                }
                 let json: serde_json::Value = serde_json::from_slice(data)
                     .map_err(|e| bad(path, format!("message {sequence} is not JSON: {e}")))?;
                 if topic == Topic::Checkpoint {
@@ -461,10 +477,10 @@ fn player(tape: Arc<Mutex<Tape>>, name: String) -> impl Fn(&mut Ctx<'_>) + Send 
                 // Asked for again, so the core applies them when the player returns, as it
                 // did live when the process returned.
                 Event::ProcessChange(change) => {
-                    let _ = ctx.change(change);
+                    let _ = ctx.change(*change);
                 }
                 Event::ProcessRequest { to, body } => {
-                    let _ = ctx.request(to, body);
+                    let _ = ctx.request(to, *body);
                 }
                 _ => {}
             }
@@ -709,7 +725,7 @@ impl Replay {
             Event::BleJoin { behavior, config } => drop(core.ble_join(&behavior, &config)),
             Event::SequenceBase(b) => core.set_sequence_base(b),
             Event::Warn(w) => core.warn(w),
-            Event::Request { to, body } => drop(core.request(to, body)),
+            Event::Request { to, body } => drop(core.request(to, *body)),
             Event::Write { behavior, port, value, .. } => {
                 if let Ok(r) = core.port_by_handle(&behavior, Port(port)) {
                     let _ = core.write(at, r, value);
@@ -721,7 +737,7 @@ impl Replay {
                     let _ = core.reset(r);
                 }
             }
-            Event::Receive { from, message } => core.receive(at, from, message),
+            Event::Receive { from, message } => core.receive(at, from, *message),
             Event::Poll => drop(core.poll(at)),
             Event::Run { behavior, process, .. } => {
                 return Err(

@@ -351,7 +351,8 @@ pub fn arrivals(recording: &Recording) -> Vec<Arrival> {
     let mut out = Vec::new();
     for (i, e) in entries.iter().enumerate() {
         names.see(&e.event);
-        let Event::Receive { from, message: Message::Port(m) } = &e.event else { continue };
+        let Event::Receive { from, message } = &e.event else { continue };
+        let Message::Port(m) = &**message else { continue };
         let consequences = entries[i + 1..].iter().take_while(|c| !is_input(&c.event));
         let accepted = consequences.into_iter().any(|c| match &c.event {
             Event::Accepted { behavior, port, .. } => {

@@ -177,8 +177,8 @@ impl NodeCore {
         let edge = Edge { conn: c, id, local, kind, priority: options.priority };
         self.behavior_mut(sb).expect("resolved").ports[usize::from(sp)].out.push(edge);
         self.journal(|| Event::Connect {
-            source: journaled_source.unwrap_or_else(|| Endpoint::local("", "")),
-            destination: destination.clone(),
+            source: Box::new(journaled_source.unwrap_or_else(|| Endpoint::local("", ""))),
+            destination: Box::new(destination.clone()),
             kind,
             priority: options.priority,
         });
@@ -348,7 +348,7 @@ impl NodeCore {
     fn send_request(&mut self, to: NodeId, body: ControlBody) -> RequestId {
         if self.journal.is_some() {
             let recorded = body.clone();
-            self.journal(|| Event::Request { to, body: recorded });
+            self.journal(|| Event::Request { to, body: Box::new(recorded) });
         }
         let id = self.next_request;
         self.next_request += 1;

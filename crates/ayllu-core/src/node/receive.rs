@@ -53,7 +53,7 @@ impl NodeCore {
         self.advance(now);
         if self.journal.is_some() {
             let recorded = message.clone();
-            self.journal(|| Event::Receive { from, message: recorded });
+            self.journal(|| Event::Receive { from, message: Box::new(recorded) });
         }
         match message {
             Message::Port(m) => self.receive_port(from, &m),
@@ -65,7 +65,7 @@ impl NodeCore {
     /// simulator): a port message is applied without being copied; a control message is.
     pub fn receive_shared(&mut self, now: Instant, from: NodeId, message: &Message) {
         self.advance(now);
-        self.journal(|| Event::Receive { from, message: message.clone() });
+        self.journal(|| Event::Receive { from, message: Box::new(message.clone()) });
         match message {
             Message::Port(m) => self.receive_port(from, m),
             Message::Control(c) => self.receive_control(from, c.clone()),

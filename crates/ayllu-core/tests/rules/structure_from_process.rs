@@ -501,7 +501,7 @@ fn changes_are_journaled_as_process_effects() {
         .iter()
         .filter_map(|e| match &e.event {
             Event::Run { .. } => Some("run"),
-            Event::ProcessChange(Change::Create { .. }) => Some("change"),
+            Event::ProcessChange(c) if matches!(**c, Change::Create { .. }) => Some("change"),
             Event::ProcessRequest { .. } => Some("request"),
             Event::Create { .. } => Some("create"),
             Event::Request { .. } => Some("outer request"),

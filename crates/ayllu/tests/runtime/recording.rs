@@ -95,7 +95,7 @@ fn recording_does_not_change_what_the_nodes_do() {
 }
 
 #[test]
-fn the_file_is_mcap_with_json_schemas_on_four_channels() {
+fn the_file_is_mcap_with_a_ros2msg_schema_on_four_cdr_channels() {
     let d = dir("mcap");
     two_node_run(Some(&d), 100);
     let bytes = std::fs::read(d.join("n1.mcap")).unwrap();
@@ -111,21 +111,72 @@ fn the_file_is_mcap_with_json_schemas_on_four_channels() {
     topics.sort();
     let names: Vec<&str> = topics.iter().map(|t| t.0.as_str()).collect();
     assert_eq!(names, ["/ayllu/accepted", "/ayllu/input", "/ayllu/process", "/ayllu/structure"]);
-    assert!(topics.iter().all(|t| t.1 == "json" && t.2 == "jsonschema"));
+    assert!(topics.iter().all(|t| t.1 == "cdr" && t.2 == "ros2msg"));
     for c in summary.channels.values() {
-        let schema: serde_json::Value = serde_json::from_slice(&c.schema.as_ref().unwrap().data).unwrap();
-        assert_eq!(schema["type"], "object");
+        let schema = c.schema.as_ref().unwrap();
+        assert_eq!(schema.name, ayllu::recording_cdr::SCHEMA_NAME);
+        assert_eq!(&schema.data[..], ayllu::recording_cdr::SCHEMA.as_bytes());
     }
-    // Every message is a JSON object that names its event, with log times in Unix ns.
+    // Every message is one entry, with log times in Unix ns.
     let mut n = 0;
     for m in mcap::MessageStream::new(&bytes).unwrap() {
         let m = m.unwrap();
-        let j: serde_json::Value = serde_json::from_slice(&m.data).unwrap();
-        assert!(j["event"].is_string() && j["seq"].is_u64());
+        assert!(matches!(ayllu::recording_cdr::decode(&m.data), Ok(ayllu::recording_cdr::Decoded::Entry(_))));
         assert!(m.log_time > 1_600_000_000_000_000_000);
         n += 1;
     }
     assert!(n > 50, "{n} messages");
+}
+
+/// A recording in the JSON form an earlier build wrote (format version 1: one JSON object per
+/// message on four channels with JSON Schemas), made here message by message from a recording
+/// of this build: it replays to the same values.
+#[test]
+fn a_recording_in_the_json_form_of_earlier_builds_still_replays() {
+    let d = dir("json");
+    two_node_run(Some(&d), 600);
+    let rec = Recording::open(d.join("n1.mcap")).unwrap();
+    let path = d.join("old.mcap");
+    let mut w = mcap::WriteOptions::new()
+        .profile(ayllu::recording_format::PROFILE)
+        .create(std::io::BufWriter::new(std::fs::File::create(&path).unwrap()))
+        .unwrap();
+    let mut channels = Vec::new();
+    for topic in &ayllu::recording_format::Topic::ALL[..4] {
+        let schema = serde_json::to_vec(&topic.schema()).unwrap();
+        let s = w.add_schema(topic.schema_name(), "jsonschema", &schema).unwrap();
+        channels.push((*topic, w.add_channel(s, topic.name(), "json", &Default::default()).unwrap()));
+    }
+    let metadata = [("version", "1"), ("node", "1"), ("segment", "0"), ("epoch_unix_ns", "0")];
+    let metadata = metadata.iter().map(|(k, v)| (k.to_string(), v.to_string())).collect();
+    w.write_metadata(&mcap::records::Metadata { name: ayllu::recording_format::METADATA.into(), metadata }).unwrap();
+    for (seq, e) in rec.entries.iter().enumerate() {
+        // A recorded entry names its class by a stand-in: give the port name the JSON form had.
+        let (topic, json) = ayllu::recording_format::encode(seq as u64, e);
+        let channel = channels.iter().find(|(t, _)| *t == topic).unwrap().1;
+        let header = mcap::records::MessageHeader {
+            channel_id: channel,
+            sequence: seq as u32,
+            log_time: e.at.as_nanos(),
+            publish_time: e.at.as_nanos(),
+        };
+        w.write_to_known_channel(&header, &serde_json::to_vec(&json).unwrap()).unwrap();
+    }
+    let end = [("next_seq".to_string(), rec.entries.len().to_string()), ("capped".into(), "false".into())];
+    let end =
+        mcap::records::Metadata { name: format!("{}.end", ayllu::recording_format::METADATA), metadata: end.into() };
+    w.write_metadata(&end).unwrap();
+    w.finish().unwrap();
+    drop(w);
+
+    let old = Recording::open(&path).unwrap();
+    assert_eq!(old.ending, Ending::Closed);
+    assert_eq!(old.entries.len(), rec.entries.len());
+    let (mut a, mut b) = (Replay::new(&old), Replay::new(&rec));
+    a.run_to_end().unwrap();
+    b.run_to_end().unwrap();
+    assert!(a.checked() > 60, "{}", a.checked());
+    assert_eq!(a.accepted(), b.accepted());
 }
 
 #[test]

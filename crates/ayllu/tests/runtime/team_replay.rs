@@ -78,11 +78,12 @@ fn an_altered_value_and_a_removed_message_are_caught_and_named() {
     let i = rec
         .entries
         .iter()
-        .position(|e| matches!(&e.event, Event::Receive { message: Message::Port(m), .. } if &*m.behavior == "R"))
+        .position(|e| matches!(&e.event, Event::Receive { message, .. } if matches!(&**message, Message::Port(m) if &*m.behavior == "R")))
         .unwrap();
     let altered_at = rec.entries[i].at;
     let (conn, seq, original) = {
-        let Event::Receive { message: Message::Port(m), .. } = &mut rec.entries[i].event else { unreachable!() };
+        let Event::Receive { message, .. } = &mut rec.entries[i].event else { unreachable!() };
+        let Message::Port(m) = &mut **message else { unreachable!() };
         let original = std::mem::replace(&mut m.value, Value::Float(4242.0));
         (m.conn, m.seq, original)
     };
@@ -127,9 +128,10 @@ fn a_value_received_before_it_was_sent_contradicts_the_clocks() {
     let i = rec
         .entries
         .iter()
-        .rposition(|e| matches!(&e.event, Event::Receive { from, message: Message::Port(_) } if *from == NodeId(1)))
+        .rposition(|e| matches!(&e.event, Event::Receive { from, message } if *from == NodeId(1) && matches!(&**message, Message::Port(_))))
         .unwrap();
-    let Event::Receive { message: Message::Port(m), .. } = rec.entries[i].event.clone() else { unreachable!() };
+    let Event::Receive { message, .. } = rec.entries[i].event.clone() else { unreachable!() };
+    let Message::Port(m) = *message else { unreachable!() };
     let early = Instant::from_nanos(rec.entries[i].at.as_nanos().saturating_sub(3_000_000_000));
     rec.entries[i].at = early;
     let team = team_replay::check(&recs);
