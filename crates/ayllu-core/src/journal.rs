@@ -219,30 +219,251 @@ pub enum Event {
     },
 }
 
+/// A value a port accepted or a write from outside, as the journal keeps it: the behavior by
+/// its place in the batch's name table ([`JournalBatch`]) rather than by its names, so that
+/// journaling it clones no `Arc` (each clone and drop is an atomic operation, and they were most
+/// of what the journal cost a hop: docs/performance.md).
+#[derive(Clone, Debug)]
+struct Compact {
+    at: Instant,
+    /// Index into the batch's `names`.
+    name: u32,
+    port: u16,
+    /// A write from outside ([`Event::Write`]); else a value accepted ([`Event::Accepted`]).
+    write: bool,
+    value: Value,
+}
+
+/// One journaled record: compact, or a whole entry.
+#[derive(Clone, Debug)]
+enum Record {
+    Compact(Compact),
+    Entry(Entry),
+}
+
+/// What [`NodeCore::take_journal_batch`] takes: the entries journaled, with the names of the
+/// behaviors they name, once each. For a consumer on another thread (the flight recorder's
+/// writer), which reads them with [`JournalBatch::items`] and never needs the entries as
+/// [`Entry`] values, so that taking and dropping a batch touches no reference count per entry.
+#[derive(Clone, Debug, Default)]
+pub struct JournalBatch {
+    records: Vec<Record>,
+    names: Vec<(Arc<str>, Arc<BehaviorClass>)>,
+}
+
+/// One entry of a [`JournalBatch`], borrowed.
+#[derive(Clone, Copy, Debug)]
+pub enum JournalItem<'a> {
+    /// [`Event::Write`] or [`Event::Accepted`], by reference.
+    Value {
+        /// When.
+        at: Instant,
+        /// A write from outside; else a value a port accepted.
+        write: bool,
+        /// The behavior.
+        behavior: &'a Arc<str>,
+        /// Its class (for the port's name).
+        class: &'a Arc<BehaviorClass>,
+        /// The port's handle.
+        port: u16,
+        /// The value.
+        value: &'a Value,
+    },
+    /// Any other entry.
+    Entry(&'a Entry),
+}
+
+impl JournalItem<'_> {
+    /// When it happened (node time).
+    pub fn at(&self) -> Instant {
+        match self {
+            JournalItem::Value { at, .. } => *at,
+            JournalItem::Entry(e) => e.at,
+        }
+    }
+
+    /// The entry's event, if it is not a value ([`JournalItem::Value`]).
+    pub fn event(&self) -> Option<&Event> {
+        match self {
+            JournalItem::Value { .. } => None,
+            JournalItem::Entry(e) => Some(&e.event),
+        }
+    }
+
+    /// The entry as an owned [`Entry`] (cloning the names a value entry refers to).
+    pub fn to_entry(&self) -> Entry {
+        match *self {
+            JournalItem::Value { at, write, behavior, class, port, value } => {
+                let (behavior, class, value) = (behavior.clone(), class.clone(), value.clone());
+                let event = if write {
+                    Event::Write { behavior, class, port, value }
+                } else {
+                    Event::Accepted { behavior, class, port, value }
+                };
+                Entry { at, event }
+            }
+            JournalItem::Entry(e) => e.clone(),
+        }
+    }
+}
+
+impl JournalBatch {
+    /// How many entries it holds.
+    pub fn len(&self) -> usize {
+        self.records.len()
+    }
+
+    /// Whether it holds none.
+    pub fn is_empty(&self) -> bool {
+        self.records.is_empty()
+    }
+
+    /// How many entries it can hold before it allocates.
+    pub fn capacity(&self) -> usize {
+        self.records.capacity()
+    }
+
+    /// Forget every entry, keeping the buffers.
+    pub fn clear(&mut self) {
+        self.records.clear();
+        self.names.clear();
+    }
+
+    /// Entry `i`, borrowed.
+    pub fn get(&self, i: usize) -> Option<JournalItem<'_>> {
+        Some(match self.records.get(i)? {
+            Record::Compact(c) => {
+                let (behavior, class) = self.names.get(c.name as usize).map(|(n, k)| (n, k))?;
+                JournalItem::Value { at: c.at, write: c.write, behavior, class, port: c.port, value: &c.value }
+            }
+            Record::Entry(e) => JournalItem::Entry(e),
+        })
+    }
+
+    /// The entries in order, borrowed.
+    pub fn items(&self) -> impl Iterator<Item = JournalItem<'_>> {
+        (0..self.records.len()).filter_map(|i| self.get(i))
+    }
+
+    /// Put `entry` before all the others (a recorder marks a hole this way).
+    pub fn push_front(&mut self, entry: Entry) {
+        self.records.insert(0, Record::Entry(entry));
+    }
+
+    /// Append `other`'s entries, leaving it empty.
+    pub fn append(&mut self, other: &mut JournalBatch) {
+        let offset = self.names.len() as u32;
+        self.names.append(&mut other.names);
+        self.records.extend(other.records.drain(..).map(|mut r| {
+            if let Record::Compact(c) = &mut r {
+                c.name += offset;
+            }
+            r
+        }));
+    }
+}
+
 /// The journal's buffer (see the module docs).
 #[derive(Debug)]
 pub(crate) struct Journal {
-    entries: Vec<Entry>,
+    batch: JournalBatch,
+    /// By behavior slot: the behavior id whose names `batch.names[ix]` holds, in batch
+    /// `generation` (a name is added to a batch once, the first time the batch needs it).
+    bound: Vec<(u64, u64, u32)>,
+    generation: u64,
     capacity: usize,
     lost: u64,
 }
 
 impl Journal {
+    fn new(capacity: usize) -> Journal {
+        Journal { batch: JournalBatch::default(), bound: Vec::new(), generation: 1, capacity: capacity.max(1), lost: 0 }
+    }
+
+    /// Whether `record` may be kept (counting the loss if not), after a gap entry if entries
+    /// were lost before it.
     #[inline]
-    pub(crate) fn push(&mut self, at: Instant, event: Event) {
-        if self.entries.len() >= self.capacity {
+    fn room(&mut self, at: Instant) -> bool {
+        if self.batch.records.len() >= self.capacity {
             self.lost += 1;
-            return;
+            return false;
         }
         if self.lost > 0 {
-            self.entries.push(Entry { at, event: Event::Gap { lost: self.lost } });
+            self.batch.records.push(Record::Entry(Entry { at, event: Event::Gap { lost: self.lost } }));
             self.lost = 0;
-            if self.entries.len() >= self.capacity {
+            if self.batch.records.len() >= self.capacity {
                 self.lost = 1;
-                return;
+                return false;
             }
         }
-        self.entries.push(Entry { at, event });
+        true
+    }
+
+    #[inline]
+    pub(crate) fn push(&mut self, at: Instant, event: Event) {
+        if self.room(at) {
+            self.batch.records.push(Record::Entry(Entry { at, event }));
+        }
+    }
+
+    /// Journal a value port `port` of the behavior in slot `b` (id `id`, named `behavior`, of
+    /// class `class`) accepted, or a write from outside into it.
+    #[inline]
+    pub(crate) fn push_value(
+        &mut self,
+        at: Instant,
+        write: bool,
+        (b, id): (u32, u64),
+        (behavior, class): (&Arc<str>, &Arc<BehaviorClass>),
+        port: u16,
+        value: &Value,
+    ) {
+        if !self.room(at) {
+            return;
+        }
+        let b = b as usize;
+        if self.bound.len() <= b {
+            self.bound.resize(b + 1, (0, 0, 0));
+        }
+        let (bound_id, generation, ix) = self.bound[b];
+        let name = if bound_id == id && generation == self.generation {
+            ix
+        } else {
+            let ix = self.batch.names.len() as u32;
+            self.batch.names.push((behavior.clone(), class.clone()));
+            self.bound[b] = (id, self.generation, ix);
+            ix
+        };
+        let records = &mut self.batch.records;
+        records.reserve(1);
+        // Written in place rather than pushed: a pushed record was built on the stack and then
+        // copied with wide loads over its narrow stores, a store-forwarding stall that was most
+        // of the journal's cost per value (docs/performance.md).
+        // SAFETY: `reserve(1)` made room for one more record at index `len`; it is written
+        // whole before the length counts it.
+        unsafe {
+            let len = records.len();
+            records.as_mut_ptr().add(len).write(Record::Compact(Compact {
+                at,
+                name,
+                port,
+                write,
+                value: value.clone(),
+            }));
+            records.set_len(len + 1);
+        }
+    }
+
+    /// The batch so far, leaving an empty one (`out`'s buffers, if it was empty).
+    fn take(&mut self, out: &mut JournalBatch) {
+        if out.is_empty() {
+            out.names.clear();
+            std::mem::swap(out, &mut self.batch);
+        } else {
+            out.append(&mut self.batch);
+        }
+        // The next batch has its own name table.
+        self.generation += 1;
     }
 }
 
@@ -251,12 +472,15 @@ impl NodeCore {
     /// most `capacity` entries until [`NodeCore::take_journal`] takes them. Replaces a
     /// journal already running (its entries are dropped).
     pub fn start_journal(&mut self, capacity: usize) {
-        self.journal = Some(Box::new(Journal { entries: Vec::new(), capacity: capacity.max(1), lost: 0 }));
+        self.journal = Some(Box::new(Journal::new(capacity)));
     }
 
     /// Stop journaling; the entries not taken yet are returned.
     pub fn stop_journal(&mut self) -> Vec<Entry> {
-        self.journal.take().map(|j| j.entries).unwrap_or_default()
+        let mut out = Vec::new();
+        self.take_journal(&mut out);
+        self.journal = None;
+        out
     }
 
     /// Whether a journal is running.
@@ -264,16 +488,21 @@ impl NodeCore {
         self.journal.is_some()
     }
 
-    /// Move the entries journaled since the last call into `out` (appended, oldest first).
-    /// An empty `out` is swapped with the journal's buffer rather than filled, so a caller
-    /// that hands back emptied buffers moves no entry at all.
+    /// Move the entries journaled since the last call into `out` (appended, oldest first), as
+    /// [`Entry`] values. A consumer on another thread takes them as a [`JournalBatch`] instead
+    /// ([`NodeCore::take_journal_batch`]): cheaper.
     pub fn take_journal(&mut self, out: &mut Vec<Entry>) {
+        let mut batch = JournalBatch::default();
+        self.take_journal_batch(&mut batch);
+        out.extend(batch.items().map(|item| item.to_entry()));
+    }
+
+    /// Move the entries journaled since the last call into `out` (appended, oldest first). An
+    /// empty `out` is swapped with the journal's buffer rather than filled, so a caller that
+    /// hands back emptied batches moves no entry at all.
+    pub fn take_journal_batch(&mut self, out: &mut JournalBatch) {
         if let Some(j) = self.journal.as_mut() {
-            if out.is_empty() {
-                std::mem::swap(out, &mut j.entries);
-            } else {
-                out.append(&mut j.entries);
-            }
+            j.take(out);
         }
     }
 

@@ -73,7 +73,7 @@ pub use connection::{ConnectOptions, ConnectionInfo, ConnectionKind};
 pub use counters::{Counters, DropCause};
 pub use error::{Error, ErrorKind};
 pub use introspect::{BehaviorReport, NodeReport, PortReport, ProcessReport, RegisterReport, WindowReport};
-pub use journal::{Entry, Event};
+pub use journal::{Entry, Event, JournalBatch, JournalItem};
 pub use message::{ControlBody, ControlMessage, Destination, Message, Outgoing, PortMessage, ReplyBody};
 pub use node::{BehaviorRef, NodeCore, PortRef, RequestId, RequestStatus, RETRIGGER_INTERVAL};
 #[cfg(feature = "serde")]

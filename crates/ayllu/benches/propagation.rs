@@ -16,8 +16,8 @@
 //! * `process_activation` — a write into a port with an OnWrite process, then the `poll` that
 //!   runs it (the process reads the port and stores it in a slot).
 //! * `normal_hop_journaled` — `normal_hop` with the core's journal on (the flight recorder's
-//!   tap), its entries taken every 256 writes and dropped: what the tap itself costs the
-//!   node's thread, with no writer thread beside it.
+//!   tap), its entries taken every 256 writes (as the recorder takes them, a `JournalBatch`)
+//!   and dropped: what the tap itself costs the node's thread, with no writer thread beside it.
 //! * `normal_hop_recorded` — `normal_hop` on a node with the flight recorder on
 //!   (`ayllu::Recorder`, writing an MCAP file in the system's temp directory), drained every
 //!   256 writes as a busy node's loop would: the cost the recorder adds to the node's own
@@ -164,14 +164,14 @@ fn bench_write(
 fn bench_journaled_hop(c: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>) {
     let (mut node, port) = fan_node(1);
     node.start_journal(65_536);
-    let mut taken = Vec::new();
+    let mut taken = ayllu::JournalBatch::default();
     let mut t = 0u64;
     c.bench_function("normal_hop_journaled", |b| {
         b.iter(|| {
             t += 1_000;
             node.write(Instant::from_nanos(t), port, black_box(t as i64)).unwrap();
             if (t / 1_000).is_multiple_of(256) {
-                node.take_journal(&mut taken);
+                node.take_journal_batch(&mut taken);
                 taken.clear();
             }
         })

@@ -43,10 +43,10 @@ use std::time::{Duration as StdDuration, Instant as StdInstant, SystemTime, UNIX
 use std::collections::VecDeque;
 use std::sync::atomic::AtomicBool;
 
-use ayllu_core::{Entry, Event, Instant, NodeCore, Snapshot};
+use ayllu_core::{Entry, Event, Instant, JournalBatch, JournalItem, NodeCore, Snapshot};
 
 use crate::error::Error;
-use crate::recording_cdr::{encode_checkpoint_into, encode_into, SCHEMA, SCHEMA_NAME};
+use crate::recording_cdr::{encode_checkpoint_into, encode_item, SCHEMA, SCHEMA_NAME};
 use crate::recording_format::{Topic, METADATA, PROFILE, VERSION};
 
 /// A chunk is closed and written at least this often, so a crash loses little.
@@ -112,7 +112,7 @@ pub fn checkpoint_interval(window: StdDuration) -> StdDuration {
 /// What the recorder hands its writer thread: journal entries, then, in a rolling recording,
 /// maybe a checkpoint taken after them.
 struct Batch {
-    entries: Vec<Entry>,
+    entries: JournalBatch,
     checkpoint: Option<Box<Snapshot>>,
 }
 
@@ -162,10 +162,10 @@ pub struct Recorder {
     path: PathBuf,
     queue: Option<SyncSender<Batch>>,
     /// Emptied batches the writer hands back, so the journal's buffer is swapped, not copied.
-    recycled: Receiver<Vec<Entry>>,
+    recycled: Receiver<JournalBatch>,
     thread: Option<JoinHandle<()>>,
     shared: Arc<Shared>,
-    batch: Vec<Entry>,
+    batch: JournalBatch,
     /// Entries of batches dropped since the last one sent, to be reported as a gap.
     dropped_since: u64,
     dropped_journal: u64,
@@ -279,7 +279,7 @@ impl Recorder {
             recycled,
             thread: Some(thread),
             shared,
-            batch: Vec::new(),
+            batch: JournalBatch::default(),
             dropped_since: 0,
             dropped_journal: 0,
             capacity: options.journal_capacity.max(1),
@@ -303,9 +303,9 @@ impl Recorder {
             }
         }
         let before = self.batch.len();
-        core.take_journal(&mut self.batch);
-        for e in &self.batch[before..] {
-            if let Event::Gap { lost } = e.event {
+        core.take_journal_batch(&mut self.batch);
+        for i in before..self.batch.len() {
+            if let Some(Event::Gap { lost }) = self.batch.get(i).as_ref().and_then(JournalItem::event) {
                 self.dropped_journal += lost;
             }
         }
@@ -317,8 +317,8 @@ impl Recorder {
             return;
         };
         if self.dropped_since > 0 {
-            let at = self.batch[0].at;
-            self.batch.insert(0, Entry { at, event: Event::Gap { lost: self.dropped_since } });
+            let at = self.batch.get(0).map_or(core.now(), |e| e.at());
+            self.batch.push_front(Entry { at, event: Event::Gap { lost: self.dropped_since } });
             self.dropped_since = 0;
         }
         let batch = Batch { entries: std::mem::take(&mut self.batch), checkpoint: None };
@@ -336,7 +336,8 @@ impl Recorder {
             Ok(()) => self.checkpoint(core),
             Err(TrySendError::Full(batch)) if batch.len() <= self.capacity => self.batch = batch,
             Err(TrySendError::Full(mut batch)) => {
-                let gap = u64::from(matches!(batch.first().map(|e| &e.event), Some(Event::Gap { .. })));
+                let first = batch.get(0);
+                let gap = u64::from(matches!(first.as_ref().and_then(JournalItem::event), Some(Event::Gap { .. })));
                 let lost = batch.len() as u64 - gap + if gap > 0 { self.gap_lost(&batch) } else { 0 };
                 self.dropped_since += lost;
                 self.shared.dropped_queue.fetch_add(batch.len() as u64 - gap, Ordering::Relaxed);
@@ -358,7 +359,7 @@ impl Recorder {
             return;
         }
         let Some(queue) = &self.queue else { return };
-        let batch = Batch { entries: Vec::new(), checkpoint: Some(Box::new(core.snapshot())) };
+        let batch = Batch { entries: JournalBatch::default(), checkpoint: Some(Box::new(core.snapshot())) };
         if queue.try_send(batch).is_ok() {
             self.shared.want_checkpoint.store(false, Ordering::Relaxed);
             self.rolling = Some((every, core.now() + every));
@@ -366,8 +367,8 @@ impl Recorder {
     }
 
     /// The entries a batch's leading gap already stood for.
-    fn gap_lost(&self, batch: &[Entry]) -> u64 {
-        match batch.first().map(|e| &e.event) {
+    fn gap_lost(&self, batch: &JournalBatch) -> u64 {
+        match batch.get(0).as_ref().and_then(JournalItem::event) {
             Some(Event::Gap { lost }) => *lost,
             _ => 0,
         }
@@ -392,13 +393,13 @@ impl Recorder {
     /// Drain `core` a last time, stop its journal, close the files and say what was recorded.
     /// This waits for the writer to write what is queued.
     pub fn finish(mut self, core: &mut NodeCore) -> RecordStats {
-        core.take_journal(&mut self.batch);
+        core.take_journal_batch(&mut self.batch);
         core.stop_journal();
         if let Some(queue) = &self.queue {
             let mut batch = std::mem::take(&mut self.batch);
             if self.dropped_since > 0 {
-                let at = batch.first().map_or(core.now(), |e| e.at);
-                batch.insert(0, Entry { at, event: Event::Gap { lost: self.dropped_since } });
+                let at = batch.get(0).map_or(core.now(), |e| e.at());
+                batch.push_front(Entry { at, event: Event::Gap { lost: self.dropped_since } });
             }
             if !batch.is_empty() {
                 self.shared.queued.fetch_add(batch.len() as u64, Ordering::AcqRel);
@@ -541,13 +542,13 @@ impl SegmentWriter {
         self.current = None;
     }
 
-    fn run(mut self, rx: Receiver<Batch>, recycle: SyncSender<Vec<Entry>>) {
+    fn run(mut self, rx: Receiver<Batch>, recycle: SyncSender<JournalBatch>) {
         loop {
             match rx.recv_timeout(FLUSH_INTERVAL) {
                 Ok(Batch { entries: mut batch, checkpoint }) => {
                     let n = batch.len() as u64;
-                    for e in &batch {
-                        self.write(e);
+                    for item in batch.items() {
+                        self.write(item);
                     }
                     self.shared.queued.fetch_sub(n, Ordering::AcqRel);
                     batch.clear();
@@ -588,13 +589,13 @@ impl SegmentWriter {
     }
 
     /// Encode and write one entry, in the writer's reused buffer.
-    fn write(&mut self, entry: &Entry) {
+    fn write(&mut self, entry: JournalItem<'_>) {
         let mut data = std::mem::take(&mut self.buf);
         self.write_with(entry, &mut data);
         self.buf = data;
     }
 
-    fn write_with(&mut self, entry: &Entry, data: &mut Vec<u8>) {
+    fn write_with(&mut self, entry: JournalItem<'_>, data: &mut Vec<u8>) {
         let seq = self.seq;
         self.seq += 1;
         if self.capped {
@@ -602,7 +603,7 @@ impl SegmentWriter {
             return;
         }
         data.clear();
-        let topic = encode_into(seq, entry, data);
+        let topic = encode_item(seq, entry, data);
         let len = data.len() as u64;
         if !self.current.as_ref().is_some_and(|seg| self.fits(seg, len)) {
             // A rolling segment that fills before its checkpoint is due is followed by a
@@ -634,13 +635,13 @@ impl SegmentWriter {
             // One entry larger than a whole segment (a huge value): it is left out, and the
             // recording says so where it was.
             self.shared.dropped_cap.fetch_add(1, Ordering::Relaxed);
-            let gap = Entry { at: entry.at, event: Event::Gap { lost: 1 } };
+            let gap = Entry { at: entry.at(), event: Event::Gap { lost: 1 } };
             self.seq -= 1;
-            return self.write(&gap);
+            return self.write(JournalItem::Entry(&gap));
         }
         let topic_ix = Topic::ALL.iter().position(|t| *t == topic).unwrap_or(0);
         let Some(seg) = self.current.as_mut() else { return };
-        let time = self.epoch_ns.saturating_add(entry.at.as_nanos());
+        let time = self.epoch_ns.saturating_add(entry.at().as_nanos());
         let header = mcap::records::MessageHeader {
             channel_id: seg.channels[topic_ix],
             sequence: seq as u32,

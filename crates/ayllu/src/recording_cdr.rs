@@ -25,7 +25,7 @@
 
 use std::sync::Arc;
 
-use ayllu_core::{BehaviorClass, Duration, Entry, Event, Instant, Value};
+use ayllu_core::{BehaviorClass, Duration, Entry, Event, Instant, JournalItem, Value};
 use serde_json::Value as Json;
 
 use crate::recording_format::{self, Topic};
@@ -167,6 +167,30 @@ pub fn encode_into(seq: u64, entry: &Entry, out: &mut Vec<u8>) -> Topic {
     };
     write(seq, entry.at, &f, "", out);
     topic(&entry.event)
+}
+
+/// [`encode_into`] for an entry of a [`JournalBatch`](ayllu_core::JournalBatch): a value
+/// entry is encoded from what it borrows, with no `Entry` made.
+pub fn encode_item(seq: u64, item: JournalItem<'_>, out: &mut Vec<u8>) -> Topic {
+    match item {
+        JournalItem::Value { at, write: is_write, behavior, class, port, value } => {
+            let f = Fields {
+                event: if is_write { "write" } else { "accepted" },
+                behavior,
+                name: port_name(class, port),
+                index: port,
+                value: Some(value),
+                int: 0,
+            };
+            write(seq, at, &f, "", out);
+            if is_write {
+                Topic::Input
+            } else {
+                Topic::Accepted
+            }
+        }
+        JournalItem::Entry(e) => encode_into(seq, e, out),
+    }
 }
 
 fn port_name(class: &BehaviorClass, port: u16) -> &str {

@@ -19,7 +19,7 @@ use crate::behavior::BehaviorClass;
 use crate::connection::ConnectionKind;
 use crate::counters::DropCause;
 use crate::error::Error;
-use crate::journal::{Event, Journal};
+use crate::journal::Journal;
 use crate::message::{Message, Outgoing, PortMessage};
 use crate::time::Instant;
 use crate::value::Value;
@@ -95,7 +95,7 @@ impl NodeCore {
         port.visited = wave;
         port.accepted += 1;
         if let Some(j) = self.journal.as_deref_mut() {
-            journal_accepted(j, now, &beh.name, &beh.class, p, &port.cell.value);
+            journal_accepted(j, now, (b, id), &beh.name, &beh.class, p, &port.cell.value);
         }
         port.queue_triggered(&mut self.pending, &mut beh.processes, b, id);
         // A port with nowhere to send has nothing to block: only real blocks are counted.
@@ -296,7 +296,7 @@ impl NodeCore {
         port.accepted += 1;
         if let Some(j) = self.journal.as_deref_mut() {
             let beh = self.behaviors[b as usize].as_ref().expect("the caller's live behavior");
-            journal_accepted(j, now, &beh.name, &beh.class, p, &port.cell.value);
+            journal_accepted(j, now, (b, beh.id), &beh.name, &beh.class, p, &port.cell.value);
         }
         if port.trigger_bits != 0 {
             let beh = self.behaviors[b as usize].as_mut().expect("the caller's live behavior");
@@ -319,10 +319,11 @@ impl NodeCore {
     #[cold]
     #[inline(never)]
     fn journal_write(&mut self, port: PortRef, value: &Value) {
-        let Some(beh) = self.behavior(port.b) else { return };
-        let (behavior, class) = (beh.name.clone(), beh.class.clone());
-        let value = value.clone();
-        self.journal(|| Event::Write { behavior, class, port: port.port.0, value });
+        let now = self.now;
+        let Some(beh) = self.behaviors.get(port.b as usize).and_then(Option::as_ref) else { return };
+        if let Some(j) = self.journal.as_deref_mut() {
+            j.push_value(now, true, (port.b, beh.id), (&beh.name, &beh.class), port.port.0, value);
+        }
     }
 }
 
@@ -333,11 +334,11 @@ impl NodeCore {
 fn journal_accepted(
     j: &mut Journal,
     now: Instant,
+    behavior_at: (u32, u64),
     behavior: &Arc<str>,
     class: &Arc<BehaviorClass>,
     p: u16,
     value: &Value,
 ) {
-    let event = Event::Accepted { behavior: behavior.clone(), class: class.clone(), port: p, value: value.clone() };
-    j.push(now, event);
+    j.push_value(now, false, behavior_at, (behavior, class), p, value);
 }
