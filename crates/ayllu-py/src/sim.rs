@@ -47,10 +47,11 @@ fn scenario_json(controller: &str, robots: usize, targets: usize, seed: u64) -> 
     wiring::json(&Scenario::sized(c, robots, targets, seed))
 }
 
-/// The built-in controllers' names, in the tables' order.
+/// Every built-in controller's name: the study's six in the tables' order, then the ones a
+/// study adds on request (BLE-lean, BLE-seek: docs/cmommt.md).
 #[pyfunction]
 fn controller_names() -> Vec<&'static str> {
-    Controller::ALL.iter().map(|c| c.name()).collect()
+    Controller::EVERY.iter().map(|c| c.name()).collect()
 }
 
 fn parse_controller(name: &str) -> PyResult<Controller> {

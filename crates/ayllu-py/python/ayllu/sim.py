@@ -43,7 +43,8 @@ __all__ = [
 
 RobotBuilder = _native.RobotBuilder
 CONTROLLERS: list[str] = list(_native.controller_names())
-"""The built-in controllers: BLE (the paper's Fig. 2), Random, Local, ForceField, Centralized, Planner."""
+"""The built-in controllers: BLE (the paper's Fig. 2), Random, Local, ForceField, Centralized, Planner (the
+study's six), then BLE-lean and BLE-seek (docs/cmommt.md)."""
 
 MAX_TRACE_VALUES: float = _native.MAX_TRACE_VALUES
 """The most values ``run(..., trace=True)`` keeps: ticks x (1 + 5 x robots + 2 x targets), 2e7
