@@ -92,6 +92,9 @@ fn rolling(name: &str, secs: u64, window: u64) {
     assert!(check.stderr.contains("rolling: it starts from its checkpoint"), "{check:?}");
     let text = ayllu(&["replay", &file, "check"], LIMIT).ok();
     assert!(text.stdout.contains("from its checkpoint at t="), "{text:?}");
+    // The folder stands for the recording whose first segment is gone.
+    let folder = ayllu(&["replay", &dir.display().to_string(), "--json", "check"], LIMIT).ok().json();
+    assert_eq!(folder["accepted_checked"], j["accepted_checked"], "{folder}");
 
     // Inside the window `why` answers as the live node would have; before it, it refuses.
     let inside = format!("{:.3}", start + 0.5);
