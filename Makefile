@@ -212,9 +212,12 @@ ros2-python:
 		&& cd crates/ayllu-py && AYLLU_TEST_ROS2=1 $$PY -m pytest -q tests/test_ros2.py
 
 ## Simulation speed against real time (10, 100, 1000 robots, BLE and Random; the 1000-robot team
-## also on every CPU), with a verdict per goal that this host's noise cannot fake (about 2 min).
+## also on every CPU), with a verdict per goal that this host's noise cannot fake (about 2 min);
+## then instructions and last-level misses per robot-tick under Callgrind (scripts/sim-counts,
+## 15 s), which every host counts alike.
 bench-sim:
 	$(CARGO) bench -p ayllu-sim --bench speed
+	scripts/sim-counts
 
 ## The faulted team (network namespaces joined by the userspace shaper: delay, jitter,
 ## reordering, duplication; 30 % loss and partitions by nftables; kills and restarts) for
