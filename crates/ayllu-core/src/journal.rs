@@ -515,3 +515,84 @@ impl NodeCore {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use crate::*;
+
+    /// A behavior removed and another created in its slot within one batch: each value names
+    /// its own behavior (the name table is keyed by slot and behavior id), in batches and as
+    /// entries, and the next batch has its own table.
+    #[test]
+    fn a_slot_reused_within_a_batch_names_each_value_by_its_own_behavior() {
+        let mut node = NodeCore::new(NodeId(1));
+        for name in ["A", "B"] {
+            let mut c = BehaviorClass::new(name);
+            c.port(PortSpec::new(&format!("{name}Out"), 0i64)).unwrap();
+            node.define(c).unwrap();
+        }
+        node.start_journal(1_000);
+        node.create("A", "a").unwrap();
+        let p = node.port("a", "AOut").unwrap();
+        node.write(Instant::from_millis(1), p, 1i64).unwrap();
+        node.remove("a").unwrap();
+        node.create("B", "b").unwrap();
+        let q = node.port("b", "BOut").unwrap();
+        node.write(Instant::from_millis(2), q, 2i64).unwrap();
+        let mut batch = JournalBatch::default();
+        node.take_journal_batch(&mut batch);
+        let named: Vec<(String, String, bool)> = batch
+            .items()
+            .filter_map(|item| match item {
+                JournalItem::Value { behavior, class, port, write, .. } => {
+                    Some((behavior.to_string(), class.ports()[usize::from(port)].name.clone(), write))
+                }
+                JournalItem::Entry(_) => None,
+            })
+            .collect();
+        let want = |b: &str, p: &str, w: bool| (b.to_owned(), p.to_owned(), w);
+        assert_eq!(
+            named,
+            [want("a", "AOut", true), want("a", "AOut", false), want("b", "BOut", true), want("b", "BOut", false)]
+        );
+        // The same through entries, and in a batch taken later.
+        node.write(Instant::from_millis(3), q, 3i64).unwrap();
+        let mut entries = Vec::new();
+        node.take_journal(&mut entries);
+        let names: Vec<String> = entries
+            .iter()
+            .filter_map(|e| match &e.event {
+                Event::Accepted { behavior, .. } => Some(behavior.to_string()),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(names, ["b"]);
+    }
+
+    /// Batches appended keep each value's names (the appended table is offset).
+    #[test]
+    fn appended_batches_keep_their_names() {
+        let mut node = NodeCore::new(NodeId(1));
+        let mut c = BehaviorClass::new("C");
+        c.port(PortSpec::new("Out", 0i64)).unwrap();
+        node.define(c).unwrap();
+        node.start_journal(1_000);
+        for name in ["x", "y"] {
+            node.create("C", name).unwrap();
+        }
+        let mut batch = JournalBatch::default();
+        for (t, name) in [(1, "x"), (2, "y"), (3, "x")] {
+            let p = node.port(name, "Out").unwrap();
+            node.write(Instant::from_millis(t), p, t as i64).unwrap();
+            node.take_journal_batch(&mut batch);
+        }
+        let written: Vec<String> = batch
+            .items()
+            .filter_map(|item| match item {
+                JournalItem::Value { behavior, write: true, .. } => Some(behavior.to_string()),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(written, ["x", "y", "x"]);
+    }
+}
