@@ -178,18 +178,30 @@ fn bench_journaled_hop(c: &mut criterion::BenchmarkGroup<'_, criterion::measurem
     });
 }
 
-/// `normal_hop` with the flight recorder on (see the module docs).
-fn bench_recorded_hop(c: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>) {
-    let path = std::env::temp_dir().join(format!("ayllu-bench-{}.mcap", std::process::id()));
+/// `fan_node(1)` recorded into `path` from its start, always on as on a robot: a rolling
+/// recording keeping the last `window`, so no byte cap ever stops it.
+fn recorded_hop_node(path: &std::path::Path, window: StdDuration) -> (NodeCore, Recorder, PortRef) {
     let mut node = NodeCore::new(NodeId(1));
-    // Always on, as on a robot: a rolling recording, so no byte cap ever stops it.
-    let options = RecordOptions::default().keep_last(StdDuration::from_secs(10));
-    let mut recorder = Recorder::start(&mut node, &path, options).unwrap();
+    let recorder = Recorder::start(&mut node, path, RecordOptions::default().keep_last(window)).unwrap();
     classes(&mut node);
     node.create("Src", "A").unwrap();
     node.create("Dst", "D0").unwrap();
     connect(&mut node, ("A", "Out"), ("D0", "In"), ConnectionKind::Normal);
     let port = node.port("A", "Out").unwrap();
+    (node, recorder, port)
+}
+
+/// Remove every segment of the recording `path`.
+fn remove_recording(path: &std::path::Path) {
+    for n in ayllu::recording::segment_numbers(path) {
+        let _ = fs::remove_file(ayllu::recording::segment_path(path, n));
+    }
+}
+
+/// `normal_hop` with the flight recorder on (see the module docs).
+fn bench_recorded_hop(c: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>) {
+    let path = std::env::temp_dir().join(format!("ayllu-bench-{}.mcap", std::process::id()));
+    let (mut node, mut recorder, port) = recorded_hop_node(&path, StdDuration::from_secs(10));
     let mut t = 0u64;
     c.bench_function("normal_hop_recorded", |b| {
         b.iter(|| {
@@ -208,23 +220,14 @@ fn bench_recorded_hop(c: &mut criterion::BenchmarkGroup<'_, criterion::measureme
         stats.dropped_cap,
         stats.bytes
     );
-    for n in ayllu::recording::segment_numbers(&path) {
-        let _ = fs::remove_file(ayllu::recording::segment_path(&path, n));
-    }
+    remove_recording(&path);
 }
 
 /// The recorder always on while the node accepts `rate` values a second for `secs` seconds
 /// (module docs): prints what was written and dropped, and checks the kept window replays.
 fn sustained(secs: u64, rate: u64) {
     let path = std::env::temp_dir().join(format!("ayllu-sustained-{}.mcap", std::process::id()));
-    let mut node = NodeCore::new(NodeId(1));
-    let options = RecordOptions::default().keep_last(StdDuration::from_secs(2));
-    let mut recorder = Recorder::start(&mut node, &path, options).unwrap();
-    classes(&mut node);
-    node.create("Src", "A").unwrap();
-    node.create("Dst", "D0").unwrap();
-    connect(&mut node, ("A", "Out"), ("D0", "In"), ConnectionKind::Normal);
-    let port = node.port("A", "Out").unwrap();
+    let (mut node, mut recorder, port) = recorded_hop_node(&path, StdDuration::from_secs(2));
     // Each write is accepted twice (A.Out, then D0.In): half as many writes as values.
     let writes_per_sec = rate / 2;
     let step_ns = 1_000_000_000 / writes_per_sec.max(1);
@@ -279,14 +282,18 @@ fn sustained(secs: u64, rate: u64) {
             );
             println!(
                 "goal (1,000,000 values a second for 10 s, 0 dropped, the file replays): {}",
-                verdict(dropped == 0 && checked.is_ok() && 2 * writes >= rate * secs * 95 / 100 && rate >= 1_000_000)
+                verdict(
+                    dropped == 0
+                        && checked.is_ok()
+                        && 2 * writes >= rate * secs * 95 / 100
+                        && rate >= 1_000_000
+                        && secs >= 10
+                )
             );
         }
         Err(e) => println!("  the recording does not open: {e}"),
     }
-    for n in ayllu::recording::segment_numbers(&path) {
-        let _ = fs::remove_file(ayllu::recording::segment_path(&path, n));
-    }
+    remove_recording(&path);
 }
 
 fn benches(c: &mut Criterion) {

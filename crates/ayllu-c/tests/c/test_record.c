@@ -23,10 +23,20 @@ static void twice(ay_ctx *ctx, void *user) {
     OK(ay_ctx_write_float(ctx, out_, 2.0 * x + 0.25));
 }
 
+/* Define class Twice on `node` and create T, its process `twice`. */
+static void define_twice(ay_node *node) {
+    ay_class *c = NULL;
+    OK(ay_class_new("Twice", &c));
+    OK(ay_class_port_float(c, "In", 0.0, AY_PORT_NORMAL, 0, 0, &in_));
+    OK(ay_class_port_float(c, "Out", 0.0, AY_PORT_NORMAL, 0, 0, &out_));
+    OK(ay_class_on_write(c, "Twice", "In", twice, NULL));
+    OK(ay_node_define(node, c));
+    OK(ay_node_create(node, "Twice", "T"));
+}
+
 int main(void) {
     ay_clock *clock = NULL;
     ay_node *node = NULL;
-    ay_class *c = NULL;
     uint64_t written = 0, checked = 0;
     char path[512], stem[480];
     const char *dir = getenv("TMPDIR");
@@ -41,12 +51,7 @@ int main(void) {
     FAILS(ay_node_record(node, NULL, 0), AY_ERR_NULL, "path");
     OK(ay_node_record(node, path, 0));
     FAILS(ay_node_record(node, path, 0), AY_ERR_TRANSPORT, "already");
-    OK(ay_class_new("Twice", &c));
-    OK(ay_class_port_float(c, "In", 0.0, AY_PORT_NORMAL, 0, 0, &in_));
-    OK(ay_class_port_float(c, "Out", 0.0, AY_PORT_NORMAL, 0, 0, &out_));
-    OK(ay_class_on_write(c, "Twice", "In", twice, NULL));
-    OK(ay_node_define(node, c));
-    OK(ay_node_create(node, "Twice", "T"));
+    define_twice(node);
     for (i = 0; i < 200; i++) {
         OK(ay_clock_set(clock, i * 0.01));
         OK(ay_node_write_float(node, "T", "In", sin(i * 0.1) / 3.0));
@@ -86,12 +91,7 @@ int main(void) {
     OK(ay_node_open_manual(3, "mem://c-record", clock, &node));
     FAILS(ay_node_record_last(node, path, 0, -1.0), AY_ERR_PERIOD, "negative");
     OK(ay_node_record_last(node, path, 0, 2.0));
-    OK(ay_class_new("Twice", &c));
-    OK(ay_class_port_float(c, "In", 0.0, AY_PORT_NORMAL, 0, 0, &in_));
-    OK(ay_class_port_float(c, "Out", 0.0, AY_PORT_NORMAL, 0, 0, &out_));
-    OK(ay_class_on_write(c, "Twice", "In", twice, NULL));
-    OK(ay_node_define(node, c));
-    OK(ay_node_create(node, "Twice", "T"));
+    define_twice(node);
     for (i = 0; i < 1000; i++) {
         OK(ay_clock_set(clock, 2.0 + i * 0.01));
         OK(ay_node_write_float(node, "T", "In", sin(i * 0.1) / 3.0));
