@@ -134,18 +134,16 @@ struct Fields<'a> {
 /// Append journal entry number `seq` as one CDR message (header included) to `out`, and say
 /// its topic.
 pub fn encode_into(seq: u64, entry: &Entry, out: &mut Vec<u8>) -> Topic {
+    let at = entry.at;
     let f = match &entry.event {
         Event::Write { behavior, class, port, value } => {
-            Fields { event: "write", behavior, name: port_name(class, *port), index: *port, value: Some(value), int: 0 }
+            let item = JournalItem::Value { at, write: true, behavior, class, port: *port, value };
+            return encode_item(seq, item, out);
         }
-        Event::Accepted { behavior, class, port, value } => Fields {
-            event: "accepted",
-            behavior,
-            name: port_name(class, *port),
-            index: *port,
-            value: Some(value),
-            int: 0,
-        },
+        Event::Accepted { behavior, class, port, value } => {
+            let item = JournalItem::Value { at, write: false, behavior, class, port: *port, value };
+            return encode_item(seq, item, out);
+        }
         Event::Run { behavior, process, native } => {
             Fields { event: "run", behavior, name: process, int: i64::from(*native), ..Fields::default() }
         }
