@@ -19,6 +19,7 @@
 //! * Entries carry the node's time when they were made (after the call moved it), in the
 //!   order the core made them.
 
+use std::borrow::Cow;
 use std::sync::Arc;
 
 use crate::access::{Access, Limits};
@@ -219,26 +220,48 @@ pub enum Event {
     },
 }
 
-/// A value a port accepted or a write from outside, as the journal keeps it: the behavior by
-/// its place in the batch's name table ([`JournalBatch`]) rather than by its names, so that
-/// journaling it clones no `Arc` (each clone and drop is an atomic operation, and they were most
-/// of what the journal cost a hop: docs/performance.md).
-#[derive(Clone, Debug)]
-struct Compact {
-    at: Instant,
-    /// Index into the batch's `names`.
-    name: u32,
-    port: u16,
-    /// A write from outside ([`Event::Write`]); else a value accepted ([`Event::Accepted`]).
-    write: bool,
-    value: Value,
+/// What a [`Record`] stands for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u8)]
+enum Kind {
+    /// A value a port accepted ([`Event::Accepted`]).
+    Accepted,
+    /// A write from outside ([`Event::Write`]).
+    Write,
+    /// A write from outside that its port accepted as written (the plain path's, where the
+    /// merge stores the value itself): two entries, [`Event::Write`] then [`Event::Accepted`],
+    /// in one record.
+    WriteAccepted,
+    /// A whole entry, `entries[payload]`.
+    Entry,
 }
 
-/// One journaled record: compact, or a whole entry.
-#[derive(Clone, Debug)]
-enum Record {
-    Compact(Compact),
-    Entry(Entry),
+/// How a [`Record`]'s value is held: scalars in `payload` itself, shared values (text, bytes,
+/// vectors: an `Arc`) in the batch's `shared`, at index `payload`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u8)]
+enum Held {
+    Bool,
+    Int,
+    Float,
+    Shared,
+}
+
+/// One journaled record, 24 bytes and `Copy`: a value names its behavior by its place in the
+/// batch's name table and holds a scalar in place, so that journaling it clones no `Arc` (each
+/// clone and drop is an atomic operation), and a batch is emptied without dropping anything
+/// but its shared values. Smaller records are fewer cache lines for the node to write and the
+/// writer's core to read (docs/performance.md, "Issue 36").
+#[derive(Clone, Copy, Debug)]
+struct Record {
+    at: Instant,
+    /// A scalar's bits, or an index into `shared` (values) or `entries` ([`Kind::Entry`]).
+    payload: u64,
+    /// Index into the batch's `names` (values only).
+    name: u32,
+    port: u16,
+    kind: Kind,
+    held: Held,
 }
 
 /// What [`NodeCore::take_journal_batch`] takes: the entries journaled, with the names of the
@@ -248,11 +271,19 @@ enum Record {
 #[derive(Clone, Debug, Default)]
 pub struct JournalBatch {
     records: Vec<Record>,
+    /// The entries that are not values, in the order they were journaled.
+    entries: Vec<Entry>,
+    /// The values that are not scalars.
+    shared: Vec<Value>,
     names: Vec<(Arc<str>, Arc<BehaviorClass>)>,
+    /// How many entries the records stand for (a [`Kind::WriteAccepted`] record is two).
+    len: usize,
+    /// The entries the journal lost, as its [`Event::Gap`] entries in this batch say.
+    journal_lost: u64,
 }
 
 /// One entry of a [`JournalBatch`], borrowed.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub enum JournalItem<'a> {
     /// [`Event::Write`] or [`Event::Accepted`], by reference.
     Value {
@@ -266,8 +297,8 @@ pub enum JournalItem<'a> {
         class: &'a Arc<BehaviorClass>,
         /// The port's handle.
         port: u16,
-        /// The value.
-        value: &'a Value,
+        /// The value (a scalar is kept in the batch's record, so it comes out owned).
+        value: Cow<'a, Value>,
     },
     /// Any other entry.
     Entry(&'a Entry),
@@ -292,17 +323,18 @@ impl JournalItem<'_> {
 
     /// The entry as an owned [`Entry`] (cloning the names a value entry refers to).
     pub fn to_entry(&self) -> Entry {
-        match *self {
+        match self {
             JournalItem::Value { at, write, behavior, class, port, value } => {
-                let (behavior, class, value) = (behavior.clone(), class.clone(), value.clone());
-                let event = if write {
+                let (behavior, class, value, port) =
+                    (Arc::clone(behavior), Arc::clone(class), value.clone().into_owned(), *port);
+                let event = if *write {
                     Event::Write { behavior, class, port, value }
                 } else {
                     Event::Accepted { behavior, class, port, value }
                 };
-                Entry { at, event }
+                Entry { at: *at, event }
             }
-            JournalItem::Entry(e) => e.clone(),
+            JournalItem::Entry(e) => (*e).clone(),
         }
     }
 }
@@ -310,56 +342,98 @@ impl JournalItem<'_> {
 impl JournalBatch {
     /// How many entries it holds.
     pub fn len(&self) -> usize {
-        self.records.len()
+        self.len
     }
 
     /// Whether it holds none.
     pub fn is_empty(&self) -> bool {
-        self.records.is_empty()
+        self.len == 0
     }
 
-    /// How many entries it can hold before it allocates.
+    /// How many records it can hold before it allocates (a record is one entry or two).
     pub fn capacity(&self) -> usize {
         self.records.capacity()
+    }
+
+    /// How many entries the journal lost before or among these, as the gaps it put in the
+    /// batch say ([`Event::Gap`]).
+    pub fn journal_lost(&self) -> u64 {
+        self.journal_lost
     }
 
     /// Forget every entry, keeping the buffers.
     pub fn clear(&mut self) {
         self.records.clear();
+        self.entries.clear();
+        self.shared.clear();
         self.names.clear();
+        self.len = 0;
+        self.journal_lost = 0;
     }
 
-    /// Entry `i`, borrowed.
-    pub fn get(&self, i: usize) -> Option<JournalItem<'_>> {
-        Some(match self.records.get(i)? {
-            Record::Compact(c) => {
-                let (behavior, class) = self.names.get(c.name as usize).map(|(n, k)| (n, k))?;
-                JournalItem::Value { at: c.at, write: c.write, behavior, class, port: c.port, value: &c.value }
-            }
-            Record::Entry(e) => JournalItem::Entry(e),
-        })
+    /// The first entry, borrowed.
+    pub fn first(&self) -> Option<JournalItem<'_>> {
+        self.items().next()
     }
 
     /// The entries in order, borrowed.
     pub fn items(&self) -> impl Iterator<Item = JournalItem<'_>> {
-        (0..self.records.len()).filter_map(|i| self.get(i))
+        self.records.iter().flat_map(move |r| {
+            let (first, second) = self.expand(r);
+            first.into_iter().chain(second)
+        })
     }
 
-    /// Put `entry` before all the others (a recorder marks a hole this way).
-    pub fn push_front(&mut self, entry: Entry) {
-        self.records.insert(0, Record::Entry(entry));
+    /// The one or two entries record `r` stands for.
+    fn expand<'a>(&'a self, r: &Record) -> (Option<JournalItem<'a>>, Option<JournalItem<'a>>) {
+        if r.kind == Kind::Entry {
+            return (self.entries.get(r.payload as usize).map(JournalItem::Entry), None);
+        }
+        let Some((behavior, class)) = self.names.get(r.name as usize) else { return (None, None) };
+        let value = match r.held {
+            Held::Bool => Cow::Owned(Value::Bool(r.payload != 0)),
+            Held::Int => Cow::Owned(Value::Int(r.payload as i64)),
+            Held::Float => Cow::Owned(Value::Float(f64::from_bits(r.payload))),
+            Held::Shared => match self.shared.get(r.payload as usize) {
+                Some(v) => Cow::Borrowed(v),
+                None => return (None, None),
+            },
+        };
+        let item = |write: bool, value: Cow<'a, Value>| JournalItem::Value {
+            at: r.at,
+            write,
+            behavior,
+            class,
+            port: r.port,
+            value,
+        };
+        match r.kind {
+            Kind::WriteAccepted => (Some(item(true, value.clone())), Some(item(false, value))),
+            kind => (Some(item(kind == Kind::Write, value)), None),
+        }
     }
 
     /// Append `other`'s entries, leaving it empty.
     pub fn append(&mut self, other: &mut JournalBatch) {
-        let offset = self.names.len() as u32;
+        let names = self.names.len() as u32;
+        let (entries, shared) = (self.entries.len() as u64, self.shared.len() as u64);
         self.names.append(&mut other.names);
+        self.entries.append(&mut other.entries);
+        self.shared.append(&mut other.shared);
         self.records.extend(other.records.drain(..).map(|mut r| {
-            if let Record::Compact(c) = &mut r {
-                c.name += offset;
+            match (r.kind, r.held) {
+                (Kind::Entry, _) => r.payload += entries,
+                (_, Held::Shared) => {
+                    r.payload += shared;
+                    r.name += names;
+                }
+                _ => r.name += names,
             }
             r
         }));
+        self.len += other.len;
+        self.journal_lost += other.journal_lost;
+        other.clear();
     }
 }
 
@@ -380,45 +454,66 @@ impl Journal {
         Journal { batch: JournalBatch::default(), bound: Vec::new(), generation: 1, capacity: capacity.max(1), lost: 0 }
     }
 
-    /// Whether `record` may be kept (counting the loss if not), after a gap entry if entries
-    /// were lost before it.
+    /// Whether `n` more entries may be kept (counting the loss if not), after a gap entry if
+    /// entries were lost before them.
     #[inline]
-    fn room(&mut self, at: Instant) -> bool {
-        if self.batch.records.len() >= self.capacity {
-            self.lost += 1;
+    fn room(&mut self, at: Instant, n: usize) -> bool {
+        if self.batch.len + n > self.capacity {
+            self.lost += n as u64;
             return false;
         }
         if self.lost > 0 {
-            self.batch.records.push(Record::Entry(Entry { at, event: Event::Gap { lost: self.lost } }));
-            self.lost = 0;
-            if self.batch.records.len() >= self.capacity {
-                self.lost = 1;
+            let lost = std::mem::take(&mut self.lost);
+            self.push_record(at, Event::Gap { lost });
+            self.batch.journal_lost += lost;
+            if self.batch.len + n > self.capacity {
+                self.lost = n as u64;
                 return false;
             }
         }
         true
     }
 
+    fn push_record(&mut self, at: Instant, event: Event) {
+        let payload = self.batch.entries.len() as u64;
+        self.batch.entries.push(Entry { at, event });
+        self.batch.records.push(Record { at, payload, name: 0, port: 0, kind: Kind::Entry, held: Held::Int });
+        self.batch.len += 1;
+    }
+
     #[inline]
     pub(crate) fn push(&mut self, at: Instant, event: Event) {
-        if self.room(at) {
-            self.batch.records.push(Record::Entry(Entry { at, event }));
+        if self.room(at, 1) {
+            self.push_record(at, event);
         }
     }
 
     /// Journal a value port `port` of the behavior in slot `b` (id `id`, named `behavior`, of
-    /// class `class`) accepted, or a write from outside into it.
+    /// class `class`) accepted, or a write from outside into it, or both
+    /// ([`JournalValue::WriteAccepted`]).
     #[inline]
     pub(crate) fn push_value(
         &mut self,
         at: Instant,
-        write: bool,
+        what: JournalValue,
         (b, id): (u32, u64),
         (behavior, class): (&Arc<str>, &Arc<BehaviorClass>),
         port: u16,
         value: &Value,
     ) {
-        if !self.room(at) {
+        let (kind, n) = match what {
+            JournalValue::Accepted => (Kind::Accepted, 1),
+            JournalValue::Write => (Kind::Write, 1),
+            JournalValue::WriteAccepted if self.batch.len + usize::from(self.lost > 0) + 2 > self.capacity => {
+                // At the capacity's edge (a gap to make first counted) the journal keeps what
+                // the general path would: the write if it fits, then its acceptance is lost.
+                self.push_value(at, JournalValue::Write, (b, id), (behavior, class), port, value);
+                self.lost += 1;
+                return;
+            }
+            JournalValue::WriteAccepted => (Kind::WriteAccepted, 2),
+        };
+        if !self.room(at, n) {
             return;
         }
         let b = b as usize;
@@ -434,6 +529,16 @@ impl Journal {
             self.bound[b] = (id, self.generation, ix);
             ix
         };
+        let (held, payload) = match value {
+            Value::Bool(v) => (Held::Bool, u64::from(*v)),
+            Value::Int(v) => (Held::Int, *v as u64),
+            Value::Float(v) => (Held::Float, v.to_bits()),
+            shared => {
+                self.batch.shared.push(shared.clone());
+                (Held::Shared, self.batch.shared.len() as u64 - 1)
+            }
+        };
+        self.batch.len += n;
         let records = &mut self.batch.records;
         records.reserve(1);
         // Written in place rather than pushed: a pushed record was built on the stack and then
@@ -443,13 +548,7 @@ impl Journal {
         // whole before the length counts it.
         unsafe {
             let len = records.len();
-            records.as_mut_ptr().add(len).write(Record::Compact(Compact {
-                at,
-                name,
-                port,
-                write,
-                value: value.clone(),
-            }));
+            records.as_mut_ptr().add(len).write(Record { at, payload, name, port, kind, held });
             records.set_len(len + 1);
         }
     }
@@ -457,7 +556,7 @@ impl Journal {
     /// The batch so far, leaving an empty one (`out`'s buffers, if it was empty).
     fn take(&mut self, out: &mut JournalBatch) {
         if out.is_empty() {
-            out.names.clear();
+            out.clear();
             std::mem::swap(out, &mut self.batch);
         } else {
             out.append(&mut self.batch);
@@ -465,6 +564,33 @@ impl Journal {
         // The next batch has its own name table.
         self.generation += 1;
     }
+}
+
+/// Journal a value (out of line: writes and hops are the hot path, and with the journal off
+/// only the check that calls this remains on it).
+#[cold]
+#[inline(never)]
+pub(crate) fn journal_value(
+    j: &mut Journal,
+    now: Instant,
+    what: JournalValue,
+    behavior_at: (u32, u64),
+    names: (&Arc<str>, &Arc<BehaviorClass>),
+    p: u16,
+    value: &Value,
+) {
+    j.push_value(now, what, behavior_at, names, p, value);
+}
+
+/// Which entries [`Journal::push_value`] makes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum JournalValue {
+    /// A value a port accepted.
+    Accepted,
+    /// A write from outside (its acceptance, if any, journaled on its own).
+    Write,
+    /// A write from outside and the same value accepted by the port written (the plain path).
+    WriteAccepted,
 }
 
 impl NodeCore {

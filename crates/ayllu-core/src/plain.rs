@@ -10,12 +10,15 @@
 //! What it promises: the same outcome as the general path, bit for bit (values, suppliers,
 //! times, counters, wave marks, the order of the wave), and no allocation. The flag `plain`
 //! is kept up to date wherever triggers or windows change (creation, `add_process`, a window
-//! opening in `deliver`, `disconnect`), and checked against the port in debug builds; the
-//! journal (the flight recorder's tap) sends every write down the general path, which is how
-//! the tests below compare the two.
+//! opening in `deliver`, `disconnect`), and checked against the port in debug builds. The
+//! journal (the flight recorder's tap) records here what the general path would record, in
+//! the same order: a write from outside and its acceptance as one record (the merge stores the
+//! value itself), each hop's acceptance. The tests below compare the two paths, journals
+//! included, on nodes whose `general_only` switch keeps them off this one.
 
 use crate::address::{ConnectionId, Source};
 use crate::connection::ConnectionKind;
+use crate::journal::{journal_value, JournalValue};
 use crate::node::{NodeCore, PortRef, PortState};
 use crate::port::PortKind;
 use crate::value::Value;
@@ -51,6 +54,9 @@ impl NodeCore {
     /// (`None`: whichever lives there, as for a process writing its own behavior's port).
     #[inline(always)]
     pub(crate) fn write_plain_at(&mut self, b: u32, p: u16, id: Option<u64>, value: &Value) -> bool {
+        if !self.plain_allowed() {
+            return false;
+        }
         let Some(beh) = self.behaviors.get_mut(b as usize).and_then(Option::as_mut) else { return false };
         let Some(ps) = beh.ports.get_mut(usize::from(p)) else { return false };
         if id.is_some_and(|id| id != beh.id) || !ps.plain || value.ty() != ps.cell.value.ty() {
@@ -61,6 +67,12 @@ impl NodeCore {
         ps.cell.accept_normal(self.now, value, Source::internal(self.id));
         ps.visited = self.wave;
         ps.accepted += 1;
+        if let Some(j) = self.journal.as_deref_mut() {
+            // A write from outside is journaled with its acceptance (the general path makes
+            // the two entries in a row); a process's write was journaled by its `Ctx`.
+            let what = if id.is_some() { JournalValue::WriteAccepted } else { JournalValue::Accepted };
+            journal_value(j, self.now, what, (b, beh.id), (&beh.name, &beh.class), p, value);
+        }
         // The port now holds `value` itself, so its edges carry the argument: no copy of it.
         // Leaf hops are taken here; the first edge that needs more hands the rest of the wave
         // to the general loop at exactly that edge (same order, same checks).
@@ -93,6 +105,9 @@ impl NodeCore {
     /// having changed nothing, when `deliver` must take the hop.
     #[inline(always)]
     pub(crate) fn hop_plain(&mut self, b: u32, p: u16, from: Source, value: &Value) -> bool {
+        if !self.plain_allowed() {
+            return false;
+        }
         let Some(beh) = self.behaviors.get_mut(b as usize).and_then(Option::as_mut) else { return false };
         let Some(ps) = beh.ports.get_mut(usize::from(p)) else { return false };
         if !ps.plain || !ps.out.is_empty() || ps.visited == self.wave || value.ty() != ps.cell.value.ty() {
@@ -102,17 +117,31 @@ impl NodeCore {
         ps.cell.accept_normal(self.now, value, from);
         ps.visited = self.wave;
         ps.accepted += 1;
+        if let Some(j) = self.journal.as_deref_mut() {
+            journal_value(j, self.now, JournalValue::Accepted, (b, beh.id), (&beh.name, &beh.class), p, value);
+        }
+        true
+    }
+
+    /// Whether the plain path may be taken: always, but in the tests that compare it with the
+    /// general one.
+    #[inline(always)]
+    fn plain_allowed(&self) -> bool {
+        #[cfg(test)]
+        if self.general_only {
+            return false;
+        }
         true
     }
 }
 
 #[cfg(test)]
 mod tests {
-    //! The plain path against the general one: the same operations on two nodes, one with the
-    //! journal on (every write and hop takes the general path) and one without (plain ports
-    //! take the plain path), must leave the same node: every port's value, supplier, time,
-    //! windows, counters and acceptance count, every process's runs, the outgoing messages and
-    //! every result.
+    //! The plain path against the general one: the same operations on three nodes, one kept on
+    //! the general path (`general_only`), one on the plain path where it can be taken, and one
+    //! on the plain path with the journal on, must leave the same node: every port's value,
+    //! supplier, time, windows, counters and acceptance count, every process's runs, the
+    //! outgoing messages and every result; and the two journals must hold the same entries.
 
     use proptest::prelude::*;
 
@@ -289,18 +318,32 @@ mod tests {
     proptest! {
         #![proptest_config(ProptestConfig { cases: 300, ..ProptestConfig::default() })]
         #[test]
-        fn the_plain_path_leaves_the_node_the_general_path_leaves(ops in proptest::collection::vec(op(), 1..60)) {
-            let (mut general, mut plain) = (node(), node());
-            general.start_journal(64);
-            let (mut t_general, mut t_plain) = (Instant::ZERO, Instant::ZERO);
-            let mut taken = Vec::new();
+        fn the_plain_path_leaves_the_node_the_general_path_leaves(
+            ops in proptest::collection::vec(op(), 1..60),
+            capacity in 1usize..48,
+        ) {
+            let (mut general, mut plain, mut journaled) = (node(), node(), node());
+            general.general_only = true;
+            // A small journal fills within one operation at times: the two paths must lose the
+            // same entries at its edge.
+            general.start_journal(capacity);
+            journaled.start_journal(capacity);
+            let (mut t_general, mut t_plain, mut t_journaled) = (Instant::ZERO, Instant::ZERO, Instant::ZERO);
+            let (mut by_general, mut by_plain) = (Vec::new(), Vec::new());
             for op in &ops {
                 let a = apply(&mut general, &mut t_general, op);
                 let b = apply(&mut plain, &mut t_plain, op);
-                prop_assert_eq!(a, b, "result of {:?}", op);
-                prop_assert_eq!(state(&mut general), state(&mut plain), "after {:?}", op);
-                general.take_journal(&mut taken);
-                taken.clear();
+                let c = apply(&mut journaled, &mut t_journaled, op);
+                prop_assert_eq!(&a, &b, "result of {:?}", op);
+                prop_assert_eq!(&a, &c, "result of {:?} (journaled)", op);
+                let state_general = state(&mut general);
+                prop_assert_eq!(&state_general, &state(&mut plain), "after {:?}", op);
+                prop_assert_eq!(&state_general, &state(&mut journaled), "after {:?} (journaled)", op);
+                general.take_journal(&mut by_general);
+                journaled.take_journal(&mut by_plain);
+                prop_assert_eq!(format!("{by_general:?}"), format!("{by_plain:?}"), "journal of {:?}", op);
+                by_general.clear();
+                by_plain.clear();
             }
         }
     }

@@ -120,7 +120,8 @@ impl Ctx<'_> {
         if self.core.journal.is_some() {
             let recorded = value.clone();
             self.core.journal(|| Event::ProcessWrite { port: p.0, value: recorded });
-        } else if self.core.write_plain_at(self.b, p.0, None, &value) {
+        }
+        if self.core.write_plain_at(self.b, p.0, None, &value) {
             return Ok(());
         }
         self.core.write_internal(self.b, p.0, &value)

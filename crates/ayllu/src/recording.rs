@@ -65,8 +65,8 @@ pub struct RecordOptions {
     pub segment_bytes: u64,
     /// Journal entries the core holds between two drains, at most (default 65 536).
     pub journal_capacity: usize,
-    /// Entries waiting for the writer thread, at most (default 262 144: with entries of about
-    /// 150 bytes plus what their values hold, some 40 MB).
+    /// Entries waiting for the writer thread, at most (default 262 144: a value or a write is
+    /// a 24-byte record, other entries 72 bytes, plus what text, bytes and vectors hold).
     pub queue: usize,
     /// Keep only about the last this long (node time), deleting older segments: a rolling
     /// recording (see the module docs). `None` (the default): keep the beginning, stop at the
@@ -166,11 +166,10 @@ pub struct Recorder {
     thread: Option<JoinHandle<()>>,
     shared: Arc<Shared>,
     batch: JournalBatch,
-    /// Entries of batches dropped since the last one sent, to be reported as a gap.
-    dropped_since: u64,
+    /// The writer refused the batch held here: entries the journal loses meanwhile are the
+    /// writer's loss.
+    behind: bool,
     dropped_journal: u64,
-    /// Entries that may wait here for the writer, at most (the journal's capacity).
-    capacity: usize,
     /// Entries that may wait in the writer's queue, at most ([`RecordOptions::queue`]).
     queue_limit: u64,
     /// A rolling recorder's checkpoint interval, and when the next checkpoint is due.
@@ -280,9 +279,8 @@ impl Recorder {
             thread: Some(thread),
             shared,
             batch: JournalBatch::default(),
-            dropped_since: 0,
+            behind: false,
             dropped_journal: 0,
-            capacity: options.journal_capacity.max(1),
             queue_limit: options.queue.max(1) as u64,
             rolling: rolling.map(|every| (every, core.now() + every)),
         })
@@ -294,33 +292,45 @@ impl Recorder {
     }
 
     /// Hand what the core journaled since the last drain to the writer; never waits. While the
-    /// writer's queue is full the entries wait here, up to the journal's capacity; past it they
-    /// are dropped, counted, and the recording gets a gap.
+    /// writer's queue is full the batch it refused waits here and is offered again at the next
+    /// drain before anything more is taken, so what the node journals meanwhile waits in the
+    /// journal, up to its capacity; past it the journal loses entries, counts them (as the
+    /// writer's: `dropped_queue`) and marks the hole in the recording with a gap. Nothing is
+    /// copied while the writer is behind.
     pub fn drain(&mut self, core: &mut NodeCore) {
+        if !self.batch.is_empty() && !self.send() {
+            return;
+        }
         if self.batch.capacity() == 0 {
             if let Ok(empty) = self.recycled.try_recv() {
                 self.batch = empty;
             }
         }
-        let before = self.batch.len();
         core.take_journal_batch(&mut self.batch);
-        for i in before..self.batch.len() {
-            if let Some(Event::Gap { lost }) = self.batch.get(i).as_ref().and_then(JournalItem::event) {
-                self.dropped_journal += lost;
-            }
+        self.count_lost(0);
+        if self.batch.is_empty() || self.send() {
+            self.checkpoint(core);
         }
-        if self.batch.is_empty() {
-            return self.checkpoint(core);
+    }
+
+    /// Count what the journal lost before or among the entries just taken (the batch's losses
+    /// beyond `before`, those of entries it held already): the writer's loss if it was behind
+    /// (the recorder was not taking), else the journal's.
+    fn count_lost(&mut self, before: u64) {
+        let lost = self.batch.journal_lost() - before;
+        if self.behind {
+            self.shared.dropped_queue.fetch_add(lost, Ordering::Relaxed);
+        } else {
+            self.dropped_journal += lost;
         }
+    }
+
+    /// Offer the batch to the writer: `false` if its queue is full (the batch stays here).
+    fn send(&mut self) -> bool {
         let Some(queue) = &self.queue else {
             self.batch.clear();
-            return;
+            return true;
         };
-        if self.dropped_since > 0 {
-            let at = self.batch.get(0).map_or(core.now(), |e| e.at());
-            self.batch.push_front(Entry { at, event: Event::Gap { lost: self.dropped_since } });
-            self.dropped_since = 0;
-        }
         let batch = Batch { entries: std::mem::take(&mut self.batch), checkpoint: None };
         let n = batch.entries.len() as u64;
         // Counted before it is sent: the writer subtracts it once written, maybe at once.
@@ -329,22 +339,20 @@ impl Recorder {
         if sent.is_err() {
             self.shared.queued.fetch_sub(n, Ordering::AcqRel);
         }
-        match sent.map_err(|e| match e {
-            TrySendError::Full(b) => TrySendError::Full(b.entries),
-            TrySendError::Disconnected(b) => TrySendError::Disconnected(b.entries),
-        }) {
-            Ok(()) => self.checkpoint(core),
-            Err(TrySendError::Full(batch)) if batch.len() <= self.capacity => self.batch = batch,
-            Err(TrySendError::Full(mut batch)) => {
-                let first = batch.get(0);
-                let gap = u64::from(matches!(first.as_ref().and_then(JournalItem::event), Some(Event::Gap { .. })));
-                let lost = batch.len() as u64 - gap + if gap > 0 { self.gap_lost(&batch) } else { 0 };
-                self.dropped_since += lost;
-                self.shared.dropped_queue.fetch_add(batch.len() as u64 - gap, Ordering::Relaxed);
-                batch.clear();
-                self.batch = batch;
+        match sent {
+            Ok(()) => {
+                self.behind = false;
+                true
             }
-            Err(TrySendError::Disconnected(_)) => self.queue = None,
+            Err(TrySendError::Full(batch)) => {
+                self.batch = batch.entries;
+                self.behind = true;
+                false
+            }
+            Err(TrySendError::Disconnected(_)) => {
+                self.queue = None;
+                true
+            }
         }
     }
 
@@ -355,7 +363,7 @@ impl Recorder {
     fn checkpoint(&mut self, core: &NodeCore) {
         let Some((every, due)) = self.rolling else { return };
         let asked = self.shared.want_checkpoint.load(Ordering::Relaxed);
-        if (core.now() < due && !asked) || !self.batch.is_empty() || self.dropped_since > 0 {
+        if (core.now() < due && !asked) || !self.batch.is_empty() {
             return;
         }
         let Some(queue) = &self.queue else { return };
@@ -363,14 +371,6 @@ impl Recorder {
         if queue.try_send(batch).is_ok() {
             self.shared.want_checkpoint.store(false, Ordering::Relaxed);
             self.rolling = Some((every, core.now() + every));
-        }
-    }
-
-    /// The entries a batch's leading gap already stood for.
-    fn gap_lost(&self, batch: &JournalBatch) -> u64 {
-        match batch.get(0).as_ref().and_then(JournalItem::event) {
-            Some(Event::Gap { lost }) => *lost,
-            _ => 0,
         }
     }
 
@@ -393,14 +393,12 @@ impl Recorder {
     /// Drain `core` a last time, stop its journal, close the files and say what was recorded.
     /// This waits for the writer to write what is queued.
     pub fn finish(mut self, core: &mut NodeCore) -> RecordStats {
+        let before = self.batch.journal_lost();
         core.take_journal_batch(&mut self.batch);
+        self.count_lost(before);
         core.stop_journal();
         if let Some(queue) = &self.queue {
-            let mut batch = std::mem::take(&mut self.batch);
-            if self.dropped_since > 0 {
-                let at = batch.get(0).map_or(core.now(), |e| e.at());
-                batch.push_front(Entry { at, event: Event::Gap { lost: self.dropped_since } });
-            }
+            let batch = std::mem::take(&mut self.batch);
             if !batch.is_empty() {
                 self.shared.queued.fetch_add(batch.len() as u64, Ordering::AcqRel);
                 let _ = queue.send(Batch { entries: batch, checkpoint: None });
@@ -596,6 +594,7 @@ impl SegmentWriter {
     }
 
     fn write_with(&mut self, entry: JournalItem<'_>, data: &mut Vec<u8>) {
+        let at = entry.at();
         let seq = self.seq;
         self.seq += 1;
         if self.capped {
@@ -635,13 +634,13 @@ impl SegmentWriter {
             // One entry larger than a whole segment (a huge value): it is left out, and the
             // recording says so where it was.
             self.shared.dropped_cap.fetch_add(1, Ordering::Relaxed);
-            let gap = Entry { at: entry.at(), event: Event::Gap { lost: 1 } };
+            let gap = Entry { at, event: Event::Gap { lost: 1 } };
             self.seq -= 1;
             return self.write(JournalItem::Entry(&gap));
         }
         let topic_ix = Topic::ALL.iter().position(|t| *t == topic).unwrap_or(0);
         let Some(seg) = self.current.as_mut() else { return };
-        let time = self.epoch_ns.saturating_add(entry.at().as_nanos());
+        let time = self.epoch_ns.saturating_add(at.as_nanos());
         let header = mcap::records::MessageHeader {
             channel_id: seg.channels[topic_ix],
             sequence: seq as u32,

@@ -23,6 +23,7 @@
 //! * [`encode_into`] appends to the caller's buffer and allocates nothing for the hot events
 //!   once the buffer has grown to the largest entry.
 
+use std::borrow::Cow;
 use std::sync::Arc;
 
 use ayllu_core::{BehaviorClass, Duration, Entry, Event, Instant, JournalItem, Value};
@@ -137,11 +138,13 @@ pub fn encode_into(seq: u64, entry: &Entry, out: &mut Vec<u8>) -> Topic {
     let at = entry.at;
     let f = match &entry.event {
         Event::Write { behavior, class, port, value } => {
-            let item = JournalItem::Value { at, write: true, behavior, class, port: *port, value };
+            let item =
+                JournalItem::Value { at, write: true, behavior, class, port: *port, value: Cow::Borrowed(value) };
             return encode_item(seq, item, out);
         }
         Event::Accepted { behavior, class, port, value } => {
-            let item = JournalItem::Value { at, write: false, behavior, class, port: *port, value };
+            let item =
+                JournalItem::Value { at, write: false, behavior, class, port: *port, value: Cow::Borrowed(value) };
             return encode_item(seq, item, out);
         }
         Event::Run { behavior, process, native } => {
@@ -177,7 +180,7 @@ pub fn encode_item(seq: u64, item: JournalItem<'_>, out: &mut Vec<u8>) -> Topic 
                 behavior,
                 name: port_name(class, port),
                 index: port,
-                value: Some(value),
+                value: Some(&value),
                 int: 0,
             };
             write(seq, at, &f, "", out);

@@ -176,6 +176,9 @@ pub struct NodeCore {
     pub(crate) wave: u64,
     /// The flight recorder's tap (crate::journal); `None`, and then free, unless started.
     pub(crate) journal: Option<Box<Journal>>,
+    /// Tests only: every write and hop takes the general path, to compare the plain one with.
+    #[cfg(test)]
+    pub(crate) general_only: bool,
     pub(crate) behaviors: Vec<Option<Behavior>>,
     pub(crate) id: NodeId,
     /// Behaviors removed, wrapping at 16 bits: the epoch of `newest_seq`'s resolved ports
@@ -291,6 +294,8 @@ impl NodeCore {
             limits: Limits::default(),
             request_buckets: HashMap::new(),
             journal: None,
+            #[cfg(test)]
+            general_only: false,
             txns: crate::transaction::Transactions::default(),
         }
     }

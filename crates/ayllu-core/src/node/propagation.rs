@@ -11,15 +11,12 @@
 //! scalar propagates without allocating; the common local hop is taken without a stack
 //! frame, and the unchecked fast path is `crate::plain`'s.
 
-use std::sync::Arc;
-
 use crate::address::{ConnectionId, Source};
 use crate::arbitration::{Origin, WindowKind};
-use crate::behavior::BehaviorClass;
 use crate::connection::ConnectionKind;
 use crate::counters::DropCause;
 use crate::error::Error;
-use crate::journal::Journal;
+use crate::journal::{journal_value, JournalValue};
 use crate::message::{Message, Outgoing, PortMessage};
 use crate::time::Instant;
 use crate::value::Value;
@@ -42,7 +39,7 @@ impl NodeCore {
     pub fn write(&mut self, now: Instant, port: PortRef, value: impl Into<Value>) -> Result<(), Error> {
         self.advance(now);
         let value = value.into();
-        if self.journal.is_none() && self.write_plain(port, &value) {
+        if self.write_plain(port, &value) {
             return Ok(());
         }
         self.resolve(port)?;
@@ -95,7 +92,7 @@ impl NodeCore {
         port.visited = wave;
         port.accepted += 1;
         if let Some(j) = self.journal.as_deref_mut() {
-            journal_accepted(j, now, (b, id), &beh.name, &beh.class, p, &port.cell.value);
+            journal_value(j, now, JournalValue::Accepted, (b, id), (&beh.name, &beh.class), p, &port.cell.value);
         }
         port.queue_triggered(&mut self.pending, &mut beh.processes, b, id);
         // A port with nowhere to send has nothing to block: only real blocks are counted.
@@ -138,7 +135,7 @@ impl NodeCore {
             let value = port.cell.value.clone();
             next += 1;
             let from = Source::connection(me, ConnectionId(edge.id));
-            if edge.kind == ConnectionKind::Normal && self.journal.is_none() && self.hop_plain(db, dp, from, &value) {
+            if edge.kind == ConnectionKind::Normal && self.hop_plain(db, dp, from, &value) {
                 if last {
                     return;
                 }
@@ -296,7 +293,7 @@ impl NodeCore {
         port.accepted += 1;
         if let Some(j) = self.journal.as_deref_mut() {
             let beh = self.behaviors[b as usize].as_ref().expect("the caller's live behavior");
-            journal_accepted(j, now, (b, beh.id), &beh.name, &beh.class, p, &port.cell.value);
+            journal_value(j, now, JournalValue::Accepted, (b, beh.id), (&beh.name, &beh.class), p, &port.cell.value);
         }
         if port.trigger_bits != 0 {
             let beh = self.behaviors[b as usize].as_mut().expect("the caller's live behavior");
@@ -322,23 +319,7 @@ impl NodeCore {
         let now = self.now;
         let Some(beh) = self.behaviors.get(port.b as usize).and_then(Option::as_ref) else { return };
         if let Some(j) = self.journal.as_deref_mut() {
-            j.push_value(now, true, (port.b, beh.id), (&beh.name, &beh.class), port.port.0, value);
+            j.push_value(now, JournalValue::Write, (port.b, beh.id), (&beh.name, &beh.class), port.port.0, value);
         }
     }
-}
-
-/// Journal a value port `p` of behavior `behavior` accepted (out of line: propagation is the
-/// hot path, and with the journal off only the check that calls this remains).
-#[cold]
-#[inline(never)]
-fn journal_accepted(
-    j: &mut Journal,
-    now: Instant,
-    behavior_at: (u32, u64),
-    behavior: &Arc<str>,
-    class: &Arc<BehaviorClass>,
-    p: u16,
-    value: &Value,
-) {
-    j.push_value(now, false, behavior_at, (behavior, class), p, value);
 }

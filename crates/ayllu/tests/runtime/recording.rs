@@ -299,7 +299,14 @@ fn a_writer_that_cannot_keep_up_drops_counts_and_marks_the_hole() {
     let (seq, _) = rec.gap.expect("the hole is marked");
     let mut replay = Replay::new(&rec);
     replay.run_to_end().unwrap();
-    let before_gap = rec.entries[..seq as usize].iter().filter(|e| matches!(e.event, Event::Accepted { .. })).count();
-    assert_eq!(replay.checked(), before_gap);
-    assert_eq!(replay.checked(), 20, "the 20 writes of the first turn");
+    // The replay ends before the last input ahead of the hole (its consequences may be in it):
+    // every value accepted before that input is checked.
+    let last_input =
+        rec.entries[..seq as usize].iter().rposition(|e| matches!(e.event, Event::Write { .. } | Event::Poll)).unwrap();
+    let before = rec.entries[..last_input].iter().filter(|e| matches!(e.event, Event::Accepted { .. })).count();
+    assert_eq!(replay.checked(), before);
+    // The first turn's 20 writes were sent whole; the journal then kept what its capacity
+    // (100 entries) holds while the writer was behind, and lost the rest.
+    assert!(replay.checked() >= 20, "{}", replay.checked());
+    assert!(stats.dropped_queue > 0, "the writer was behind: {stats:?}");
 }
