@@ -557,6 +557,13 @@ impl Journal {
     fn take(&mut self, out: &mut JournalBatch) {
         if out.is_empty() {
             out.clear();
+            if out.records.capacity() == 0 {
+                // No emptied batch to swap in (a consumer on another thread has not handed one
+                // back): the next batch is made as large as this one at once rather than grown
+                // from nothing, a reallocation and a copy at every doubling.
+                out.records.reserve(self.batch.records.len());
+                out.names.reserve(self.batch.names.len());
+            }
             std::mem::swap(out, &mut self.batch);
         } else {
             out.append(&mut self.batch);

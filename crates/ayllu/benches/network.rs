@@ -39,7 +39,8 @@
 //! sockets) a fixed number of times, for `valgrind --tool=callgrind --toggle-collect=PATTERN`:
 //! `*lockstep_round_trips*` counts the instructions of 10 000 round trips; `*sender_turn*`
 //! and `*receiver_turn*` those of one side of 128 000 batched port messages (and
-//! `*lockstep_turns*` both). `callgrind rtt` or `callgrind flow` runs only that part
+//! `*lockstep_turns*` both). `callgrind rtt` or `callgrind flow` runs only that part, and a
+//! number among the arguments is the batches' MTU (`callgrind flow 8192`; default 1472)
 //! (callgrind's call counts include calls made while collection is off: read instructions,
 //! not calls, across parts). Timings on this kind of machine move by tens of percent between
 //! runs; instruction counts do not.
@@ -542,12 +543,12 @@ fn lockstep_round_trips(a: &mut Node, b: &mut Node, p: PortRef, s: PortRef, roun
 }
 
 /// The single-threaded runs for callgrind (see the module docs).
-fn callgrind_mode(rtt: bool, flow: bool) {
+fn callgrind_mode(rtt: bool, flow: bool, mtu: usize) {
     if rtt {
         callgrind_round_trips();
     }
     if flow {
-        callgrind_batches();
+        callgrind_batches(mtu);
     }
 }
 
@@ -568,13 +569,15 @@ fn callgrind_round_trips() {
     println!("instructions per round trip = Ir of lockstep_round_trips / {ROUND_TRIPS}");
 }
 
-fn callgrind_batches() {
+fn callgrind_batches(mtu: usize) {
     const TURNS: i64 = 2_000;
-    let (mut tx, mut rx, handles) = batch_pair(BATCH_PORTS, DEFAULT_MTU);
+    let (mut tx, mut rx, handles) = batch_pair(BATCH_PORTS, mtu);
     lockstep_turns(&mut tx, &mut rx, &handles, TURNS);
     let accepted: u64 = (0..BATCH_PORTS).map(|i| rx.why("D", &format!("p{i:02}")).expect("port").accepted).sum();
     let sent = tx.stats().sent;
-    println!("callgrind mode: {TURNS} turns of {BATCH_PORTS} ports: {sent} port messages sent, {accepted} accepted");
+    println!(
+        "callgrind mode: {TURNS} turns of {BATCH_PORTS} ports at MTU {mtu}: {sent} port messages sent, {accepted} accepted"
+    );
     println!("instructions per port message = Ir of lockstep_turns / {accepted}");
 }
 
@@ -1044,7 +1047,9 @@ fn main() {
     // `rtt` or `flow` runs only that part; nothing (or anything else) runs both.
     let only = |part: &str| args.iter().any(|a| a == "rtt" || a == "flow") && !args.iter().any(|a| a == part);
     if args.iter().any(|a| a == "callgrind") {
-        return callgrind_mode(!only("rtt"), !only("flow"));
+        // A number among the arguments is the batches' MTU (default: the default MTU).
+        let mtu = args.iter().find_map(|a| a.parse().ok()).unwrap_or(DEFAULT_MTU);
+        return callgrind_mode(!only("rtt"), !only("flow"), mtu);
     }
     let began = StdInstant::now();
     cpu_count(); // before any pinning

@@ -242,10 +242,20 @@ impl Paced {
     }
 }
 
+/// What a paced run does after each 256 writes.
+enum Drain<'a> {
+    /// Nothing: the recorder is off.
+    Nothing,
+    /// Take the journal's batch and empty it on the node's thread (the journal's own cost).
+    Journal(ayllu::JournalBatch),
+    /// Drain the recorder, as a node's loop does.
+    Recorder(&'a mut Recorder),
+}
+
 /// `rate` values a second (each write is accepted twice: A.Out, then D0.In) for `secs` seconds
-/// of wall time: 256 writes, then a drain of `recorder` if there is one (as a node's loop
-/// does), then a wait for the wall clock to reach the next batch's node time.
-fn paced(node: &mut NodeCore, port: PortRef, mut recorder: Option<&mut Recorder>, secs: u64, rate: u64) -> Paced {
+/// of wall time: 256 writes, then `drain`, then a wait for the wall clock to reach the next
+/// batch's node time.
+fn paced(node: &mut NodeCore, port: PortRef, mut drain: Drain<'_>, secs: u64, rate: u64) -> Paced {
     let writes_per_sec = rate / 2;
     let step_ns = 1_000_000_000 / writes_per_sec.max(1);
     let start = std::time::Instant::now();
@@ -257,11 +267,16 @@ fn paced(node: &mut NodeCore, port: PortRef, mut recorder: Option<&mut Recorder>
             writes += 1;
             node.write(Instant::from_nanos(writes * step_ns), port, black_box(writes as i64)).unwrap();
         }
-        if let Some(r) = recorder.as_deref_mut() {
-            r.drain(node);
+        match &mut drain {
+            Drain::Nothing => {}
+            Drain::Journal(taken) => {
+                node.take_journal_batch(taken);
+                taken.clear();
+            }
+            Drain::Recorder(r) => r.drain(node),
         }
         busy += t0.elapsed();
-        if let Some(r) = recorder.as_deref() {
+        if let Drain::Recorder(r) = &drain {
             behind_max = behind_max.max(r.stats().waiting);
         }
         // Paced: the next batch is due when the wall clock reaches its node time.
@@ -275,14 +290,18 @@ fn paced(node: &mut NodeCore, port: PortRef, mut recorder: Option<&mut Recorder>
 
 /// The recorder always on while the node accepts `rate` values a second for `secs` seconds
 /// (module docs): prints what was written and dropped, the node thread's time per write beside
-/// the same paced loop with the recorder off (run just before, for a third of the time), and
-/// checks the kept window replays.
+/// the same paced loop with the recorder off and with the journal alone (run just before, each
+/// for a third of the time), and checks the kept window replays.
 fn sustained(secs: u64, rate: u64) {
     let (mut plain_node, plain_port) = fan_node(1);
-    let plain = paced(&mut plain_node, plain_port, None, secs.div_ceil(3), rate);
+    let plain = paced(&mut plain_node, plain_port, Drain::Nothing, secs.div_ceil(3), rate);
+    let (mut journaled_node, journaled_port) = fan_node(1);
+    journaled_node.start_journal(65_536);
+    let journaled =
+        paced(&mut journaled_node, journaled_port, Drain::Journal(Default::default()), secs.div_ceil(3), rate);
     let path = std::env::temp_dir().join(format!("ayllu-sustained-{}.mcap", std::process::id()));
     let (mut node, mut recorder, port) = recorded_hop_node(&path, StdDuration::from_secs(2));
-    let run = paced(&mut node, port, Some(&mut recorder), secs, rate);
+    let run = paced(&mut node, port, Drain::Recorder(&mut recorder), secs, rate);
     let Paced { writes, behind_max, wall, .. } = run;
     let busy = run.busy;
     let stats = recorder.finish(&mut node);
@@ -302,11 +321,12 @@ fn sustained(secs: u64, rate: u64) {
         stats.deleted
     );
     let verdict = |ok: bool| if ok { "met" } else { "NOT met" };
-    let (recorded_ns, plain_ns) = (run.per_write_ns(), plain.per_write_ns());
+    let (recorded_ns, journaled_ns, plain_ns) = (run.per_write_ns(), journaled.per_write_ns(), plain.per_write_ns());
     println!(
         "  node thread per write (+ hop, journal, hand-over), paced: {recorded_ns:.1} ns recorded ({dropped} dropped), \
-         {plain_ns:.1} ns with the recorder off ({:.1}x)",
-        recorded_ns / plain_ns
+         {journaled_ns:.1} ns with the journal alone, {plain_ns:.1} ns with the recorder off ({:.1}x, {:.1}x)",
+        recorded_ns / plain_ns,
+        journaled_ns / plain_ns
     );
     println!(
         "goal (the recorded hop within 3x the hop without it, while the writer keeps up): {} ({:.1}x)",

@@ -35,7 +35,7 @@ use std::fs::File;
 use std::io::{BufWriter, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::mpsc::{sync_channel, Receiver, RecvTimeoutError, SyncSender, TrySendError};
+use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TryRecvError, TrySendError};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration as StdDuration, Instant as StdInstant, SystemTime, UNIX_EPOCH};
@@ -51,6 +51,14 @@ use crate::recording_format::{Topic, METADATA, PROFILE, VERSION};
 
 /// A chunk is closed and written at least this often, so a crash loses little.
 pub const FLUSH_INTERVAL: StdDuration = StdDuration::from_millis(500);
+
+/// How long the writer sleeps between looks at its queue while there is work.
+const WRITER_NAP_MIN: StdDuration = StdDuration::from_millis(1);
+
+/// How long the writer sleeps between looks at its queue at most, once idle (doubling from
+/// [`WRITER_NAP_MIN`]): at 1.5 M entries a second a burst after an idle spell queues some
+/// 24 000 entries before the writer looks, a tenth of the queue's default bound.
+const WRITER_NAP_MAX: StdDuration = StdDuration::from_millis(16);
 
 /// The smallest segment accepted (a segment holds its header, schemas and summary).
 pub const MIN_SEGMENT_BYTES: u64 = 64 * 1024;
@@ -256,12 +264,13 @@ impl Recorder {
             runs: VecDeque::from([Run { first: 0, start: core.now() }]),
             sizes: BTreeMap::new(),
             buf: Vec::with_capacity(1024),
+            unreported: 0,
         };
         writer.current = Some(writer.open(0, writer.segment_budget(options.max_bytes))?);
         shared.segments.store(1, Ordering::Relaxed);
         // The channel's own bound only backs up `Shared::queued`, which is the real one.
         let (tx, rx) = sync_channel(1024);
-        let (recycle, recycled) = sync_channel(4);
+        let (recycle, recycled) = sync_channel(16);
         let base = core.sequence_base();
         let thread = std::thread::Builder::new()
             .name("ayllu-recorder".into())
@@ -480,6 +489,9 @@ struct SegmentWriter {
     sizes: BTreeMap<u64, u64>,
     /// The message being encoded: reused, so that an entry costs no allocation.
     buf: Vec<u8>,
+    /// Entries written and not yet added to `Shared::written`: added once a batch, not once an
+    /// entry (an atomic operation per entry on a line the node's thread also touches).
+    unreported: u64,
 }
 
 /// A run of segments: the first one's number and the node time it starts at.
@@ -540,27 +552,39 @@ impl SegmentWriter {
         self.current = None;
     }
 
+    /// Add the entries written since the last report to the shared count.
+    fn report_written(&mut self) {
+        if self.unreported > 0 {
+            self.shared.written.fetch_add(std::mem::take(&mut self.unreported), Ordering::Relaxed);
+        }
+    }
+
+    /// The writer's loop. It is never woken by the node: it sleeps, then takes every batch
+    /// queued meanwhile, and sleeps again (a millisecond while there is work, up to
+    /// [`WRITER_NAP_MAX`] while idle). Woken at every batch, it was placed by the scheduler on the
+    /// node's own core whenever the other was busy (a waker's core is preferred), and its
+    /// encoding was then counted in the node's loop: on a loaded 2-core host the recorded hop
+    /// cost 10-40x the plain one where it costs 2-3x with the writer beside it
+    /// (docs/performance.md).
     fn run(mut self, rx: Receiver<Batch>, recycle: SyncSender<JournalBatch>) {
+        let mut nap = WRITER_NAP_MIN;
         loop {
-            match rx.recv_timeout(FLUSH_INTERVAL) {
-                Ok(Batch { entries: mut batch, checkpoint }) => {
-                    let n = batch.len() as u64;
-                    for item in batch.items() {
-                        self.write(item);
+            let mut worked = false;
+            loop {
+                match rx.try_recv() {
+                    Ok(batch) => {
+                        worked = true;
+                        self.write_batch(batch, &recycle);
                     }
-                    self.shared.queued.fetch_sub(n, Ordering::AcqRel);
-                    batch.clear();
-                    // Back to the recorder for the journal to fill again (dropped if it has enough).
-                    if batch.capacity() > 0 {
-                        let _ = recycle.try_send(batch);
-                    }
-                    if let Some(snapshot) = checkpoint {
-                        self.start_run(&snapshot);
+                    Err(TryRecvError::Empty) => break,
+                    Err(TryRecvError::Disconnected) => {
+                        self.report_written();
+                        self.close_segment();
+                        return;
                     }
                 }
-                Err(RecvTimeoutError::Timeout) => {}
-                Err(RecvTimeoutError::Disconnected) => break,
             }
+            self.report_written();
             if let Some(seg) = self.current.as_mut() {
                 if seg.last_flush.elapsed() >= FLUSH_INTERVAL {
                     seg.last_flush = StdInstant::now();
@@ -569,8 +593,29 @@ impl SegmentWriter {
                     }
                 }
             }
+            nap = if worked { WRITER_NAP_MIN } else { (nap * 2).min(WRITER_NAP_MAX) };
+            std::thread::sleep(nap);
         }
-        self.close_segment();
+    }
+
+    /// Write one batch's entries, hand the emptied batch back, and start a run at its
+    /// checkpoint if it carries one.
+    fn write_batch(&mut self, batch: Batch, recycle: &SyncSender<JournalBatch>) {
+        let Batch { entries: mut batch, checkpoint } = batch;
+        let n = batch.len() as u64;
+        for item in batch.items() {
+            self.write(item);
+        }
+        self.report_written();
+        self.shared.queued.fetch_sub(n, Ordering::AcqRel);
+        batch.clear();
+        // Back to the recorder for the journal to fill again (dropped if it has enough).
+        if batch.capacity() > 0 {
+            let _ = recycle.try_send(batch);
+        }
+        if let Some(snapshot) = checkpoint {
+            self.start_run(&snapshot);
+        }
     }
 
     /// Room kept free in a segment for what closing it writes: the chunk being built and
@@ -648,9 +693,7 @@ impl SegmentWriter {
             publish_time: time,
         };
         match seg.mcap.write_to_known_channel(&header, data) {
-            Ok(()) => {
-                self.shared.written.fetch_add(1, Ordering::Relaxed);
-            }
+            Ok(()) => self.unreported += 1,
             Err(e) => self.fail(e),
         }
     }
