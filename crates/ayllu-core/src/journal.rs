@@ -491,7 +491,7 @@ impl Journal {
     /// Journal a value port `port` of the behavior in slot `b` (id `id`, named `behavior`, of
     /// class `class`) accepted, or a write from outside into it, or both
     /// ([`JournalValue::WriteAccepted`]).
-    #[inline]
+    #[inline(always)]
     pub(crate) fn push_value(
         &mut self,
         at: Instant,
@@ -505,11 +505,7 @@ impl Journal {
             JournalValue::Accepted => (Kind::Accepted, 1),
             JournalValue::Write => (Kind::Write, 1),
             JournalValue::WriteAccepted if self.batch.len + usize::from(self.lost > 0) + 2 > self.capacity => {
-                // At the capacity's edge (a gap to make first counted) the journal keeps what
-                // the general path would: the write if it fits, then its acceptance is lost.
-                self.push_value(at, JournalValue::Write, (b, id), (behavior, class), port, value);
-                self.lost += 1;
-                return;
+                return self.push_split(at, (b, id), (behavior, class), port, value);
             }
             JournalValue::WriteAccepted => (Kind::WriteAccepted, 2),
         };
@@ -553,6 +549,23 @@ impl Journal {
         }
     }
 
+    /// A write and its acceptance at the capacity's edge (a gap to make first counted): the
+    /// journal keeps what the general path would, the write if it fits, then its acceptance is
+    /// lost.
+    #[cold]
+    #[inline(never)]
+    fn push_split(
+        &mut self,
+        at: Instant,
+        behavior_at: (u32, u64),
+        names: (&Arc<str>, &Arc<BehaviorClass>),
+        port: u16,
+        value: &Value,
+    ) {
+        self.push_value(at, JournalValue::Write, behavior_at, names, port, value);
+        self.lost += 1;
+    }
+
     /// The batch so far, leaving an empty one (`out`'s buffers, if it was empty).
     fn take(&mut self, out: &mut JournalBatch) {
         if out.is_empty() {
@@ -574,8 +587,9 @@ impl Journal {
 }
 
 /// Journal a value (out of line: writes and hops are the hot path, and with the journal off
-/// only the check that calls this remains on it).
-#[cold]
+/// only the check that calls this remains on it). Not `#[cold]`: with a recorder always on,
+/// this is as hot as the hop, and [`Journal::push_value`] is inlined into it (one call a
+/// value, not two).
 #[inline(never)]
 pub(crate) fn journal_value(
     j: &mut Journal,

@@ -35,8 +35,9 @@
 //! journal drops most entries), and replays the kept window bit for bit (`ayllu replay
 //! check`). `AYLLU_SUSTAINED_SECS` and `AYLLU_SUSTAINED_RATE` change the run.
 //!
-//! `propagation callgrind [N]` skips Criterion and makes N (default 100 000) `normal_hop`
-//! writes in `callgrind_normal_hops`, for instruction counts that a noisy machine cannot move:
+//! `propagation callgrind [N] [journaled]` skips Criterion and makes N (default 100 000)
+//! `normal_hop` writes in `callgrind_normal_hops` (with the journal on, taken every 256
+//! writes, if `journaled`), for instruction counts that a noisy machine cannot move:
 //! `valgrind --tool=callgrind --toggle-collect='*callgrind_normal_hops*' BINARY callgrind`,
 //! collected instructions ÷ N = instructions per write + hop.
 
@@ -413,21 +414,33 @@ fn median_ns(dir: &std::path::Path, name: &str, since: SystemTime) -> Option<f64
     rest[..end].trim().parse().ok()
 }
 
-/// N writes through one Normal hop, alone in a function so callgrind can collect just them.
+/// N writes through one Normal hop, alone in a function so callgrind can collect just them;
+/// with the journal on, its batch is taken and emptied every 256 writes (as
+/// `normal_hop_journaled` does).
 #[inline(never)]
 fn callgrind_normal_hops(node: &mut NodeCore, port: PortRef, n: u64) {
+    let mut taken = ayllu::JournalBatch::default();
     for t in 1..=n {
         node.write(Instant::from_nanos(t * 1_000), port, black_box(t as i64)).unwrap();
+        if t.is_multiple_of(256) && node.journaling() {
+            node.take_journal_batch(&mut taken);
+            taken.clear();
+        }
     }
 }
 
 fn main() {
     let mut args = std::env::args().skip(1).filter(|a| !a.starts_with("--"));
     if args.next().as_deref() == Some("callgrind") {
-        let n = args.next().and_then(|a| a.parse().ok()).unwrap_or(100_000);
+        let rest: Vec<String> = args.collect();
+        let n = rest.iter().find_map(|a| a.parse().ok()).unwrap_or(100_000);
+        let journaled = rest.iter().any(|a| a == "journaled");
         let (mut node, port) = fan_node(1);
+        if journaled {
+            node.start_journal(65_536);
+        }
         callgrind_normal_hops(&mut node, port, n);
-        println!("{n} writes through one Normal hop");
+        println!("{n} writes through one Normal hop{}", if journaled { ", journaled" } else { "" });
         return;
     }
     // Files written by Criterion in this run are at least as new as this (minus fs granularity).
