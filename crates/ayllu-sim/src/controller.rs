@@ -784,8 +784,9 @@ const REFUSED_AFTER: f64 = 0.3;
 /// would not go there, and a claim would only keep a free peer away): its eligibility is the
 /// apparent height (or `Sought`'s), times [`HOLD_BONUS`] while this robot claims the target;
 /// the layer holds the robot (`Engaged`, to the layers below and `SEEK`) unless a peer offered
-/// more this cycle; and it offers its eligibility (`Local`) twice per claim period (at once on
-/// a first sight) unless a peer offered more within [`QUIET_PERIODS`]: a robot that would lose
+/// more this cycle; and it offers its eligibility (`Local`) [`OFFERS`] times per claim period
+/// (at once on a first sight; [`CHALLENGED_OFFERS`] while a peer competes) unless a peer
+/// offered more within [`QUIET_PERIODS`]: a robot that would lose
 /// the comparison gains nothing by broadcasting, and BLE's claims are unchanged (the select is
 /// the core's, [`NodeCore::ble_join`]).
 fn seek_observer_class(claim_hz: f64) -> Result<BehaviorClass, Error> {
