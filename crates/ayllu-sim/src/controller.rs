@@ -717,9 +717,9 @@ pub fn build_planner(
 /// `BleSeek`: how much more eligible a robot is for the target it already claims. A peer must
 /// see the target 1.1 times as large (about nine tenths of the distance) to take it: a claim
 /// is not given up for a marginal trade, but a clearly closer robot takes over. Measured (20
-/// seeds x 600 s of issue 37's room): 1.5 cost 0.02-0.03 of A_w against 1.1 — a holder that
-/// sees its target from 4 m does not observe it (2 m), and kept a peer at 2.5 m away; 1.0
-/// (no bonus) was level with 1.1 within noise, 2.0 worse by 0.05.
+/// seeds x 600 s of issue 37's room): 1.5 cost up to 0.02 of A_w against 1.1 (likely because a
+/// holder that sees its target from 4 m does not observe it, 2 m, and kept a peer at 2.5 m
+/// away); 1.0 (no bonus) was level with 1.1 within noise, 2.0 worse by 0.03.
 pub const HOLD_BONUS: f64 = 1.1;
 /// `BleSeek`: how much better another reported target must score (priority / (1 m +
 /// distance)) to replace the search under way: a search is not dropped for a marginally better
@@ -728,8 +728,8 @@ pub const HOLD_BONUS: f64 = 1.1;
 pub const SEARCH_BONUS: f64 = 1.5;
 /// `BleSeek`: a robot seeking a target it does not see is this eligible for it, as a share of
 /// the apparent height the target would have at the distance it was told: a report counts as
-/// a sight from where the robot is. Measured: 0.5 (a report half as sure) and 0.8 0.005-0.01
-/// lower, within the spread; 1.0 kept because a robot told of a target is as able to reach it.
+/// a sight from where the robot is. Measured: 0.5 (a report half as sure) up to 0.01 lower as
+/// is, under loss and at a 4 m range; 1.0 kept: a robot told of a target is as able to reach it.
 pub const SEEK_WEIGHT: f64 = 1.0;
 /// `BleSeek`: eligibility offers per claim period while nobody competes for the target: one
 /// lost broadcast does not lose the claim (the select needs an offer within the cycle).
@@ -737,7 +737,7 @@ pub const OFFERS: f64 = 2.0;
 /// `BleSeek`: eligibility offers per claim period while a peer competes (offered within
 /// [`QUIET_PERIODS`]): a competitor that missed every offer of a cycle claims too, and both
 /// robots then keep away from the target. Measured: 0.01-0.02 more A_w under 20 % loss than
-/// two offers, for 0.1-0.2 more messages per robot per second.
+/// two offers, for 0.2-0.3 more messages per robot per second.
 pub const CHALLENGED_OFFERS: f64 = 4.0;
 /// `BleSeek`: a robot that holds a target it sees leaves it for a reported one only if that
 /// one is worth this many times more (priority): a small gain is not worth the trip.
