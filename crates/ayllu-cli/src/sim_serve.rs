@@ -12,7 +12,8 @@
 //! a [`BodyHost`] that puts every body behind ROS 2 topics, here because `ayllu_ros2` depends on
 //! `ayllu_sim`. `sim robot` is the robot's side ([`ayllu_sim::served_robot`], the robot's
 //! [`ayllu_sim::served_radio::RadioLink`] applying the scenario's radio), its controller built by
-//! [`ayllu_sim::controller::build`] unchanged.
+//! [`ayllu_sim::controller::build_in`] unchanged (BLE-seek's pose fed from the body link,
+//! [`ayllu_sim::served_robot::connect_pose`]).
 //!
 //! Node ids (docs/cli.md): controller of robot K = node K (1..=N, as in the in-process
 //! simulator); its body on the server = node [`BODY_BASE`] + K.
@@ -28,7 +29,8 @@ use std::time::{Duration as StdDuration, Instant as StdInstant};
 
 use ayllu::stdlib::{SONAR, VISION};
 use ayllu::{MonotonicClock, Node, NodeId, PortRef};
-use ayllu_sim::controller::{build, Brain, Controller, ControllerConfig};
+use ayllu_sim::classes::SharedClasses;
+use ayllu_sim::controller::{build_in, Brain, Controller, ControllerConfig};
 use ayllu_sim::radio::RadioConfig;
 use ayllu_sim::scenario::{priorities, Scenario};
 use ayllu_sim::scenario_file;
@@ -143,7 +145,7 @@ pub struct RobotArgs {
 fn parse_distributed_controller(s: &str) -> Result<Controller, String> {
     match Controller::parse(s) {
         Some(c) => distributed(c),
-        None => Err(format!("`{s}` is not a controller (ble, local, random, forcefield)")),
+        None => Err(format!("`{s}` is not a controller (ble, ble-lean, ble-seek, local, random, forcefield)")),
     }
 }
 
@@ -154,9 +156,6 @@ fn distributed(c: Controller) -> Result<Controller, String> {
             .into()),
         Controller::Planner => Err("planner is not available in distributed mode: its base station exists \
              only in-process (use `sim run` or `sim cmommt` for it)"
-            .into()),
-        Controller::BleSeek => Err("BLE-seek is not available in distributed mode: its robots are told their \
-             pose by the in-process simulator, which a robot process is not (use `sim run` or `sim sweep` for it)"
             .into()),
         c => Ok(c),
     }
@@ -366,20 +365,31 @@ pub fn robot(args: &RobotArgs) -> Result<(), Fail> {
         return Err(Fail::usage(format!("--id must be a robot number from 1 to {MAX_ROBOTS}, got {k}")));
     }
     // Without a scenario: no radio model (real UDP as it is), the tunables from the arguments.
-    let (targets, cfg, radio, seed, controller) = match &args.scenario {
+    // The camera's size constant (focal x target height): how BLE-seek turns a sighting into a
+    // place, as in-process (`controller::build_in`); the lab's without a scenario.
+    let (targets, cfg, radio, seed, controller, target_size) = match &args.scenario {
         Some(path) => {
             let s = read_scenario(path)?;
             let controller = args.controller.unwrap_or(s.controller);
-            (s.world.targets.len(), s.controllers, s.radio, s.seed, controller)
+            let size = s.world.focal * s.world.target_height;
+            (s.world.targets.len(), s.controllers, s.radio, s.seed, controller, size)
         }
         None => {
             let cfg =
                 ControllerConfig { claim_hz: args.claim_hz, wander_seed: args.seed, ..ControllerConfig::default() };
             let radio = RadioConfig { loss: 0.0, delay: 0.0, jitter: 0.0, range: None, partitions: Vec::new() };
-            (args.targets as usize, cfg, radio, args.seed, args.controller.unwrap_or(Controller::Ble))
+            let lab = WorldConfig::lab(&[]);
+            let size = lab.focal * lab.target_height;
+            (args.targets as usize, cfg, radio, args.seed, args.controller.unwrap_or(Controller::Ble), size)
         }
     };
     let controller = distributed(controller).map_err(Fail::usage)?;
+    if controller == Controller::BleSeek && args.ros2.is_some() {
+        // The ROS 2 body publishes odometry to its own topics, not the body link's pose.
+        return Err(Fail::usage(
+            "BLE-seek needs the body link's pose, which a ROS 2 body does not carry: run it without --ros2",
+        ));
+    }
     let prios = priorities(targets);
     let transport = open_transport(&args.udp, args.id, &format!("robot-{k}"))?;
     let (transport, link) = RadioLink::new(transport, &radio, seed);
@@ -394,7 +404,9 @@ pub fn robot(args: &RobotArgs) -> Result<(), Fail> {
         // the motors sent to the body on the server (as the C library's ayInitSimBody does).
         None => ayllu_sim::served_robot::install(node.core_mut(), targets)?,
     }
-    let brain = build(node.core_mut(), controller, &prios, &cfg)?;
+    let brain = build_in(node.core_mut(), controller, &prios, target_size, &cfg, &mut SharedClasses::new())?;
+    // BLE-seek's robots localize: the server's pose on the body link, as in-process.
+    ayllu_sim::served_robot::connect_pose(node.core_mut(), &brain)?;
     // Our word to the server, for the metrics (the drive when it changes, the radio counts four
     // times a second), and its word on whom this robot hears: written and read by the node's
     // own loop, as for a C or Python robot (ayllu_sim::served_robot, "What a robot reports").

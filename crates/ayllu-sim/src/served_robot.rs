@@ -58,7 +58,7 @@ use ayllu_core::{
 };
 
 use crate::body::Body;
-use crate::controller::{named_chain_drive, Brain};
+use crate::controller::{named_chain_drive, Brain, SEEK};
 use crate::radio::wire_len;
 use crate::scenario::priorities;
 use crate::served_radio::LinkHandle;
@@ -76,23 +76,26 @@ pub fn body_node(robot: u32) -> NodeId {
 pub const LINK: &str = "LINK";
 
 /// The class of [`LINK`]: `Reach` (vector, one entry per robot, 1.0 reachable), `Alive` (int,
-/// 1 until killed), `Drive`, `Sent`, `Bytes` (ints). Both ends create it; it has no process.
+/// 1 until killed), `Pose` (vector `[x, y, theta]`, the robot's pose: its odometry on a known
+/// map, as the in-process simulator writes it to the controllers that localize), `Drive`,
+/// `Sent`, `Bytes` (ints). Both ends create it; it has no process.
 pub fn link_class() -> Result<BehaviorClass, Error> {
     let mut c = BehaviorClass::new("Link");
     c.port(PortSpec::new("Reach", Value::vector(&[])))?;
     c.port(PortSpec::new("Alive", 1i64))?;
+    c.port(PortSpec::new("Pose", Value::vector(&[])))?;
     for p in ["Drive", "Sent", "Bytes"] {
         c.port(PortSpec::new(p, 0i64))?;
     }
     Ok(c)
 }
 
-/// On a body node (the server's, node `BODY_BASE + K`): create [`LINK`] and send its `Reach`
-/// and `Alive` to robot K's controller node.
+/// On a body node (the server's, node `BODY_BASE + K`): create [`LINK`] and send its `Reach`,
+/// `Alive` and `Pose` to robot K's controller node.
 pub fn install_body_link(core: &mut NodeCore, robot: u32) -> Result<(), Error> {
     core.define(link_class()?)?;
     core.create("Link", LINK)?;
-    for port in ["Reach", "Alive"] {
+    for port in ["Reach", "Alive", "Pose"] {
         core.connect(
             &Endpoint::local(LINK, port),
             &Endpoint::node(NodeId(robot), LINK, port),
@@ -142,6 +145,21 @@ pub fn install(core: &mut NodeCore, targets: usize) -> Result<(), Error> {
         core.connect(
             &Endpoint::local(LINK, port),
             &Endpoint::node(body_node(robot), LINK, port),
+            ConnectionKind::Normal,
+            ConnectOptions::default(),
+        )?;
+    }
+    Ok(())
+}
+
+/// On a served robot's controller node whose controller localizes (`BleSeek`: [`Brain::Seek`]):
+/// feed the pose the server sends on the body link (`LINK.Pose`, every sensing tick) to the
+/// port the in-process simulator writes it to (`SEEK.Pose`). Nothing for other brains.
+pub fn connect_pose(core: &mut NodeCore, brain: &Brain) -> Result<(), Error> {
+    if let Brain::Seek { .. } = brain {
+        core.connect(
+            &Endpoint::local(LINK, "Pose"),
+            &Endpoint::local(SEEK, "Pose"),
             ConnectionKind::Normal,
             ConnectOptions::default(),
         )?;

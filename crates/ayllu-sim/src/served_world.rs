@@ -274,6 +274,9 @@ struct ServedBody {
     controller: NodeId,
     /// `LINK.Reach`, `Alive`, `Drive`, `Sent`, `Bytes` (crate::served_robot).
     link: [PortRef; 5],
+    /// `LINK.Pose`: the robot's true pose, sent with its reachability (odometry on a known map,
+    /// which BLE-seek's robots use as they do in-process).
+    pose: PortRef,
     plug: Box<dyn BodyLink>,
 }
 
@@ -294,7 +297,8 @@ impl ServedBody {
             core.port(LINK, "Sent")?,
             core.port(LINK, "Bytes")?,
         ];
-        Ok(ServedBody { node, body, rotate, translate, controller: NodeId(k), link, plug })
+        let pose = core.port(LINK, "Pose")?;
+        Ok(ServedBody { node, body, rotate, translate, controller: NodeId(k), link, pose, plug })
     }
 
     /// An int the robot reports on `LINK` (0 until it has).
@@ -302,12 +306,15 @@ impl ServedBody {
         self.node.core().read(self.link[port]).ok().and_then(|v| v.as_int()).unwrap_or(0).max(0) as u64
     }
 
-    /// Tell the robot who it hears now and whether it is alive.
-    fn tell(&mut self, reach: &[f64], alive: bool) -> Result<(), ServeError> {
+    /// Tell the robot who it hears now, whether it is alive, and where it is.
+    fn tell(&mut self, reach: &[f64], alive: bool, pose: &Pose) -> Result<(), ServeError> {
         let now = self.node.now();
         let core = self.node.core_mut();
         core.write(now, self.link[0], ayllu::Value::vector(reach))?;
         core.write(now, self.link[1], i64::from(alive))?;
+        if alive {
+            core.write(now, self.pose, ayllu::Value::vector(&[pose.x, pose.y, pose.theta]))?;
+        }
         Ok(())
     }
 
@@ -696,7 +703,7 @@ impl ServedWorld {
             if sense {
                 // Who robot i hears now: alive, in range, on its side of every partition.
                 reach_row(&self.scenario.radio, t, &stations, i, &mut self.reach);
-                b.tell(&self.reach, alive)?;
+                b.tell(&self.reach, alive, &self.world.robots[i].pose)?;
                 if alive {
                     let now = b.node.now();
                     b.body.sense(b.node.core_mut(), now, &mut self.world, i)?;

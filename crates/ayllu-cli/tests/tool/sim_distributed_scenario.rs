@@ -1,20 +1,21 @@
 //! The distributed mode means what the in-process simulator means: one scenario file, with
 //! radio loss and a kill, run by `ayllu sim serve --scenario` and three `ayllu sim robot
-//! --scenario` processes on loopback, for BLE, Local and ForceField (the three teams at once,
-//! to keep the test short).
+//! --scenario` processes on loopback, for BLE, Local, ForceField and BLE-seek (the four teams at
+//! once, to keep the test short; BLE-seek's robots are told their pose over the body link).
 //!
 //! Checks, for each controller, on the server's lines and the robots':
 //! * the kill happened: the server announced it at the scenario's instant, robot 2's process
 //!   reported itself killed and exited 0 well before the run's end, and the metrics judged it
 //!   (a recovery time, or a task left unrecovered);
-//! * the radio model was applied to the real traffic: the robots that talk (BLE, ForceField)
+//! * the radio model was applied to the real traffic: the robots that talk (BLE, ForceField,
+//!   BLE-seek)
 //!   lost part of what their peers sent them, at about the scenario's rate;
 //! * the metrics are the in-process ones: switches per minute above 0 (reported drives);
 //!   messages and bytes per robot per second within a factor of two of in-process (0 for Local);
 //! * A_w falls within the in-process spread for the same scenario (wander seeds 1..=8, the
 //!   world's seed fixed), widened by [`SLACK`] for real processes on a real clock.
 //!
-//! Bounded: 30 s of world time on the real clock, all three teams together; the whole test
+//! Bounded: 30 s of world time on the real clock, all four teams together; the whole test
 //! takes about 40 s.
 
 use crate::common;
@@ -178,10 +179,13 @@ fn check(team: &mut Team, started: Instant) {
     );
 }
 
+/// The teams run at once.
+const TEAMS: [&str; 4] = ["BLE", "Local", "ForceField", "BLE-seek"];
+
 #[test]
-fn ble_local_and_forcefield_with_loss_and_a_kill_match_in_process() {
+fn ble_local_forcefield_and_ble_seek_with_loss_and_a_kill_match_in_process() {
     // The in-process references first, so they do not compete with the real-time processes.
-    for c in ["BLE", "Local", "ForceField"] {
+    for c in TEAMS {
         assert!(Controller::parse(c).is_some());
         in_process(c);
     }
@@ -189,7 +193,7 @@ fn ble_local_and_forcefield_with_loss_and_a_kill_match_in_process() {
         PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("sim_distributed_scenario-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("scratch folder");
     let started = Instant::now();
-    let mut teams: Vec<Team> = ["BLE", "Local", "ForceField"].into_iter().map(|c| start(c, &dir)).collect();
+    let mut teams: Vec<Team> = TEAMS.into_iter().map(|c| start(c, &dir)).collect();
     for team in &mut teams {
         check(team, started);
     }

@@ -3,10 +3,12 @@
 //! targets): the orderings of the comparison table on a few seeds, and the base station's
 //! failure as a scenario event.
 //!
-//! * With the base station working: Planner > BLE-seek > BLE > ForceField on mean A_w, and
-//!   messages per robot per second BLE > BLE-lean > BLE-seek. Measured (seeds 1..=4 of 200 s):
-//!   Planner 0.774, BLE-seek 0.696, BLE 0.648, ForceField 0.469; messages 35.2, 6.1, 3.6 (and
-//!   ForceField 2.9: BLE-seek costs more than the force field, less than twice as much).
+//! * With the base station working: Planner > BLE-seek > BLE > ForceField on mean A_w, BLE-seek
+//!   within 8 % of the Planner, and messages per robot per second BLE > BLE-lean > BLE-seek.
+//!   Measured (seeds 1..=4 of 200 s): Planner 0.774, BLE-seek 0.725 (93.7 %; the BLE-seek of
+//!   before the hold bonus fell to 1.1 had 0.696, 89.9 %, and fails the check), BLE 0.648,
+//!   ForceField 0.469; messages 35.2, 6.1, 3.7 (and ForceField 2.9: BLE-seek costs more than the
+//!   force field, less than 1.5 times as much).
 //! * The base station killed early (at 20 s): BLE-seek > Planner (0.455), whose robots fall
 //!   back to their observer chains; cut off by the radio instead, the Planner loses as much
 //!   (0.455).
@@ -78,12 +80,14 @@ fn the_comparison_tables_orderings_hold_on_a_few_seeds() {
          ({field_msgs:.1}); base station killed at 20 s: Planner {orphaned:.3}, cut off: {cut_off:.3}"
     );
     assert!(planner > seek, "the Planner with its base station leads: {planner:.3} vs BLE-seek {seek:.3}");
+    // Over 20 seeds of 600 s the gap is under 5 %; four short runs are noisier, hence 8 %.
+    assert!(seek >= 0.92 * planner, "BLE-seek within 8 % of the Planner: {seek:.3} vs {planner:.3}");
     assert!(seek > ble, "BLE-seek beats the paper's BLE: {seek:.3} vs {ble:.3}");
     assert!(ble > field, "BLE beats the force field: {ble:.3} vs {field:.3}");
     assert!(ble_msgs > lean_msgs && lean_msgs > seek_msgs, "messages: {ble_msgs:.1} > {lean_msgs:.1} > {seek_msgs:.1}");
     assert!(
-        seek_msgs < 2.0 * field_msgs,
-        "BLE-seek's messages {seek_msgs:.1} within twice ForceField's {field_msgs:.1}"
+        seek_msgs < 1.5 * field_msgs,
+        "BLE-seek's messages {seek_msgs:.1} under 1.5 times ForceField's {field_msgs:.1}"
     );
     assert!(orphaned < seek, "without its base station the Planner falls below BLE-seek: {orphaned:.3} vs {seek:.3}");
     assert!(cut_off < seek, "cut off, as killed: {cut_off:.3} vs {seek:.3}");
@@ -131,7 +135,7 @@ fn the_planner_loses_its_base_station_at_the_instant_and_a_partition_can_heal() 
 }
 
 /// The issue's criteria on `examples/sim/ble_seek.toml` as written (20 seeds x 600 s, every
-/// case): about 3 minutes in release. Prints the table; checks what the docs claim of it.
+/// case): about 2 minutes in release. Prints the table; checks what the docs claim of it.
 #[test]
 #[ignore = "the full 20-seed study: cargo test --release -p ayllu-sim --test simulator ble_seek:: -- --ignored"]
 fn the_issue_37_table_holds_on_20_seeds() {
@@ -151,21 +155,24 @@ fn the_issue_37_table_holds_on_20_seeds() {
         let (seek, seek_msgs) = a_w(i, "BLE-seek");
         let (ble, ble_msgs) = a_w(i, "BLE");
         let (_, lean_msgs) = a_w(i, "BLE-lean");
-        // At or above the paper's BLE (a tie within 0.01 in the large held-out room).
-        assert!(seek > ble - 0.01, "{}: BLE-seek {seek:.3}, BLE {ble:.3}", cell.title);
+        let (_, field_msgs) = a_w(i, "ForceField");
+        assert!(seek > ble, "{}: BLE-seek {seek:.3}, BLE {ble:.3}", cell.title);
         assert!(seek_msgs < lean_msgs && lean_msgs < ble_msgs, "{}: messages", cell.title);
+        // Not at most ForceField's (docs/cmommt.md: missed by 0.6-1.0 a robot a second), but
+        // under 1.5 times as many.
+        assert!(seek_msgs < 1.5 * field_msgs, "{}: messages {seek_msgs:.1} vs {field_msgs:.1}", cell.title);
     }
-    // Where the base station fails, or the room is large and the range short, BLE-seek is above
-    // the Planner; at a 4 m range level with it; in the paper's setting within 5 % of it.
-    for cell in [4, 5, 7] {
+    // Where the radio reaches everyone (as is, two robots killed, 20 % loss, the paper's
+    // setting): within 5 % of the Planner.
+    for cell in [0, 1, 2, 6] {
+        let (seek, _) = a_w(cell, "BLE-seek");
+        let (planner, _) = a_w(cell, "Planner");
+        assert!(seek >= 0.95 * planner, "{}: BLE-seek {seek:.3}, Planner {planner:.3}", out.cells[cell].title);
+    }
+    // Where the base station fails or the range is short (4 m; the large room's 5 m): above it.
+    for cell in [3, 4, 5, 7] {
         let (seek, _) = a_w(cell, "BLE-seek");
         let (planner, _) = a_w(cell, "Planner");
         assert!(seek > planner, "{}: BLE-seek {seek:.3}, Planner {planner:.3}", out.cells[cell].title);
     }
-    let (seek, _) = a_w(3, "BLE-seek");
-    let (planner, _) = a_w(3, "Planner");
-    assert!(seek > planner - 0.01, "4 m range: BLE-seek {seek:.3}, Planner {planner:.3}");
-    let (seek, _) = a_w(6, "BLE-seek");
-    let (planner, _) = a_w(6, "Planner");
-    assert!(seek >= 0.95 * planner, "paper setting: BLE-seek {seek:.3}, Planner {planner:.3}");
 }

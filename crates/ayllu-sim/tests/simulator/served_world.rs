@@ -13,21 +13,24 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use ayllu::{Node, NodeId};
-use ayllu_sim::controller::{build, Controller, ControllerConfig};
+use ayllu::{Node, NodeId, Value};
+use ayllu_sim::controller::{build, Controller, ControllerConfig, SEEK};
 use ayllu_sim::scenario::{priorities, Scenario};
 use ayllu_sim::served_robot::{self, LINK};
 use ayllu_sim::served_world::{Event, ServeConfig, ServeError, ServedWorld};
 
 const TARGETS: usize = 2;
 
-/// Robot 1's controller (BLE) on its own node, run on a thread until `stop`, reporting its drive
-/// as `ayllu sim robot` does. Returns its address and the thread.
-fn robot(stop: Arc<AtomicBool>) -> (String, std::thread::JoinHandle<()>) {
+/// Robot 1's controller (`controller`) on its own node, run on a thread until `stop`, reporting
+/// its drive as `ayllu sim robot` does, its pose fed from the body link as `ayllu sim robot`
+/// feeds it. Returns its address and the thread, which ends with the robot's last
+/// `SEEK.Pose` (BLE-seek; empty for other controllers).
+fn robot(controller: Controller, stop: Arc<AtomicBool>) -> (String, std::thread::JoinHandle<Vec<f64>>) {
     let mut node = Node::open(NodeId(1), "udp://127.0.0.1:0").expect("the robot's node binds");
     served_robot::install(node.core_mut(), TARGETS).expect("the served body");
-    let brain = build(node.core_mut(), Controller::Ble, &priorities(TARGETS), &ControllerConfig::default())
-        .expect("the controller");
+    let brain =
+        build(node.core_mut(), controller, &priorities(TARGETS), &ControllerConfig::default()).expect("the controller");
+    served_robot::connect_pose(node.core_mut(), &brain).expect("the pose wired");
     let address = node.address().expect("a UDP node has an address");
     let thread = std::thread::spawn(move || {
         let end = Instant::now() + Duration::from_secs(60);
@@ -36,6 +39,10 @@ fn robot(stop: Arc<AtomicBool>) -> (String, std::thread::JoinHandle<()>) {
             node.write(LINK, "Drive", i64::from(drive)).expect("LINK.Drive");
             node.run_for(Duration::from_millis(20));
         }
+        match node.read(SEEK, "Pose") {
+            Ok(Value::Vector(p)) => p.to_vec(),
+            _ => Vec::new(),
+        }
     });
     (address, thread)
 }
@@ -43,7 +50,7 @@ fn robot(stop: Arc<AtomicBool>) -> (String, std::thread::JoinHandle<()>) {
 #[test]
 fn a_world_served_on_loopback_drives_an_in_process_robot_and_reports_its_metrics() {
     let stop = Arc::new(AtomicBool::new(false));
-    let (address, thread) = robot(Arc::clone(&stop));
+    let (address, thread) = robot(Controller::Ble, Arc::clone(&stop));
     let scenario = Scenario::sized(Controller::Random, 1, TARGETS, 7).duration(3.0);
     let mut config = ServeConfig::new(scenario, vec![format!("udp://127.0.0.1:0?peer={address}")]);
     config.status_every = Duration::from_millis(500);
@@ -97,6 +104,38 @@ fn a_world_served_on_loopback_drives_an_in_process_robot_and_reports_its_metrics
     let robot = serde_json::to_value(&statuses[0].robots[0]).expect("JSON");
     let robot_keys: Vec<&String> = robot.as_object().expect("an object").keys().collect();
     assert_eq!(robot_keys, ["id", "x", "y", "theta", "translate", "rotate", "linked", "alive", "drive"]);
+}
+
+/// BLE-seek's robots localize (docs/cmommt.md, "BLE-seek"): served, the pose comes over the
+/// body link (`LINK.Pose`, every sensing tick) to `SEEK.Pose`, as the in-process simulator
+/// writes it. The robot's last pose is the world's, within what the robot moves between a
+/// status and the end of its thread.
+#[test]
+fn a_served_ble_seek_robot_is_told_its_pose_over_the_body_link() {
+    let stop = Arc::new(AtomicBool::new(false));
+    let (address, thread) = robot(Controller::BleSeek, Arc::clone(&stop));
+    let scenario = Scenario::sized(Controller::BleSeek, 1, TARGETS, 7).duration(3.0);
+    let mut config = ServeConfig::new(scenario, vec![format!("udp://127.0.0.1:0?peer={address}")]);
+    config.status_every = Duration::from_millis(500);
+    let mut world = ServedWorld::open(config).expect("the world opens");
+    let mut last = None;
+    let done = world
+        .run(|e| -> Result<(), ServeError> {
+            if let Event::Status(s) = e {
+                last = Some(s.robots[0].clone());
+            }
+            Ok(())
+        })
+        .expect("the run");
+    stop.store(true, Ordering::Release);
+    let pose = thread.join().expect("the robot's thread");
+    assert!(!done.stopped, "{done:?}");
+    let last = last.expect("statuses");
+    assert!(last.linked && last.alive, "{last:?}");
+    assert_eq!(pose.len(), 3, "SEEK.Pose never written: {pose:?}");
+    // At most 0.4 m/s for the world's last tick and the link's delay: well under 0.5 m.
+    let off = (pose[0] - last.x).hypot(pose[1] - last.y);
+    assert!(off < 0.5, "the robot's pose {pose:?} vs the world's ({}, {}): {off:.2} m", last.x, last.y);
 }
 
 #[test]
