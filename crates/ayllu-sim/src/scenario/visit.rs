@@ -3,7 +3,8 @@
 //!
 //! Promise: a visit reads only the tick's shared state ([`Tick`]) and writes only its own
 //! robot's node, command, drive and outbox, so the visits of a tick may be grouped in any
-//! blocks on any number of threads, and loading ahead is a hint: neither changes an outcome.
+//! blocks on any number of threads and made in either order, and loading ahead is a hint:
+//! none of these changes an outcome.
 
 use ayllu_core::{Error, Instant, NodeCore, Outgoing, PortRef, Value};
 
