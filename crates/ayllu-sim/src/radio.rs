@@ -159,6 +159,29 @@ impl Ord for InFlight {
     }
 }
 
+/// A station's due messages ([`Radio::due`]): the short way when only unlisted broadcasts
+/// reach it, else merged with its listed ones.
+enum Due<A, B> {
+    Broadcasts(A),
+    Merged(B),
+}
+
+impl<'a, A, B> Iterator for Due<A, B>
+where
+    A: Iterator<Item = (NodeId, &'a Message)>,
+    B: Iterator<Item = (NodeId, &'a Message)>,
+{
+    type Item = (NodeId, &'a Message);
+
+    #[inline]
+    fn next(&mut self) -> Option<Self::Item> {
+        match self {
+            Due::Broadcasts(a) => a.next(),
+            Due::Merged(b) => b.next(),
+        }
+    }
+}
+
 /// The simulated radio: routes the nodes' outgoing messages with loss, delay, jitter, range and
 /// partitions, seeded, on virtual time.
 pub struct Radio {
@@ -464,6 +487,19 @@ impl Radio {
         let mut list = self.due_to(station).peekable();
         while let Some(this) = list.next() {
             deliver(this, list.peek().copied());
+        }
+    }
+
+    /// Station `station`'s messages among those set aside by [`Radio::take_due`], as
+    /// [`Radio::deliver_due`] hands them over (the same messages in the same order), for a
+    /// receiver that takes them all in one call (`NodeCore::receive_all_shared`).
+    pub fn due(&self, station: usize) -> impl Iterator<Item = (NodeId, &Message)> + '_ {
+        if self.listed(station).is_empty() {
+            // Unlisted broadcasts only (BLE's open radio): no merge to make.
+            let broadcasts = self.broadcasts.iter().filter(move |b| b.reaches(station));
+            Due::Broadcasts(broadcasts.map(|b| self.emission(b.slot as usize)))
+        } else {
+            Due::Merged(self.due_to(station))
         }
     }
 

@@ -150,21 +150,13 @@ fn visit_one(
     let (now, radio) = (tick.now, tick.radio);
     let i = base + k;
     let alive = tick.world.robots[i].alive;
-    // A broadcast reaches its receivers as one shared message: nothing copied. In a
-    // small team the next message's slot loads while this one is applied.
-    if alive && tick.ahead {
-        radio.deliver_due(i, |from, msg| r.core.receive_shared(now, from, msg));
-    } else if alive {
-        radio.deliver_due_ahead(i, |(from, msg), next| {
-            if let Some((f, m)) = next {
-                r.core.prefetch_receive(f, m);
-            }
-            r.core.receive_shared(now, from, msg);
-        });
-    }
     if !alive {
         return Ok(());
     }
+    // A broadcast reaches its receivers as one shared message: nothing copied. The node takes
+    // its messages in one call, each one's sequence-table slot loading while the one before
+    // is applied.
+    r.core.receive_all_shared(now, &mut radio.due(i));
     if tick.sense {
         r.body.write_senses(&mut r.core, now, tick.world, i, sweep)?;
         if let Brain::Follow { pose, .. } | Brain::Seek { pose, .. } = r.brain {
