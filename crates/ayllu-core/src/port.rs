@@ -364,7 +364,45 @@ impl PortCell {
             self.accept_normal(now, m, from);
             return Ok(());
         }
+        if let Some(outcome) = self.merge_held_number(now, m, from) {
+            return outcome;
+        }
         self.merge_any(now, m, from, priority)
+    }
+
+    /// A number offered to a Max or Min port that holds one (an eligibility into BLE's `Best`,
+    /// most of what aggregating ports are offered: each broadcast reaches every peer), inlined
+    /// into the receive path: a call to [`PortCell::merge_any`], which saves and restores the
+    /// registers its every arm needs, was most of this case's cost. The `Max | Min` arm of
+    /// `merge_any` with what `check` and `expire` decide for this case (not NaN, nothing to
+    /// release) taken first: the same comparisons on the same values, so the same outcome.
+    /// `None`: not this case, for `merge_any` to merge.
+    #[inline(always)]
+    fn merge_held_number(&mut self, now: Instant, m: &Value, from: Source) -> Option<Result<(), DropCause>> {
+        let better = match self.kind {
+            PortKind::Max => Ordering::Greater,
+            PortKind::Min => Ordering::Less,
+            _ => return None,
+        };
+        let holds = !self.empty && now < self.release_at();
+        let (Value::Float(x), Value::Float(c)) = (m, &mut self.value) else { return None };
+        if !holds || x.is_nan() {
+            return None;
+        }
+        match x.total_cmp(c) {
+            ord if ord == better => {
+                *c = *x;
+                self.supplier = Some(from);
+            }
+            Ordering::Equal => {
+                if self.supplier.is_none_or(|s| from < s) {
+                    self.supplier = Some(from);
+                }
+            }
+            _ => return Some(Err(DropCause::Absorbed)),
+        }
+        self.accepted(now);
+        Some(Ok(()))
     }
 
     /// The Normal merge of a value already known to be of the port's type (rule S3: `c := m`).
@@ -378,30 +416,8 @@ impl PortCell {
 
     #[inline(never)]
     fn merge_any(&mut self, now: Instant, m: &Value, from: Source, priority: i32) -> Result<(), DropCause> {
-        // A number offered to a Max or Min port that holds one (an eligibility into BLE's
-        // `Best`, most of what aggregating ports are offered): the `Max | Min` arm below with
-        // what `check` and `expire` decide for this case (not NaN, nothing to release) taken
-        // first. The same comparisons on the same values, so the same outcome.
-        let holds = !self.empty && now < self.release_at();
-        if let (PortKind::Max | PortKind::Min, Value::Float(x), Value::Float(c)) = (self.kind, m, &mut self.value) {
-            if holds && !x.is_nan() {
-                let better = if self.kind == PortKind::Max { Ordering::Greater } else { Ordering::Less };
-                match x.total_cmp(c) {
-                    ord if ord == better => {
-                        *c = *x;
-                        self.supplier = Some(from);
-                    }
-                    Ordering::Equal => {
-                        if self.supplier.is_none_or(|s| from < s) {
-                            self.supplier = Some(from);
-                        }
-                    }
-                    _ => return Err(DropCause::Absorbed),
-                }
-                self.accepted(now);
-                return Ok(());
-            }
-        }
+        // (A number offered to a Max or Min port that holds one was merged by
+        // `merge_held_number` before this call.)
         self.check(m)?;
         self.expire(now);
         match self.kind {

@@ -165,17 +165,32 @@ impl SeqTable {
     /// The home slot of `key` in a table of `mask + 1` slots.
     #[inline(always)]
     fn home(&self, key: &IncomingKey, mask: usize) -> usize {
-        self.hasher.hash_one(key) as usize & mask
+        self.hash(key) as usize & mask
+    }
+
+    /// What `key` hashes to in this table (its hasher is seeded once, when the table is made,
+    /// and never changes, so a hash stays good through inserts, growth and clearing): for a
+    /// caller that both hints a lookup ([`SeqTable::prefetch_hashed`]) and makes it
+    /// ([`SeqTable::get_hashed`]), which then hashes once.
+    #[inline(always)]
+    pub(crate) fn hash(&self, key: &IncomingKey) -> u64 {
+        self.hasher.hash_one(key)
     }
 
     /// The entry of `key`, if there is one: this runs for every message received.
     #[inline(always)]
     pub(crate) fn get(&self, key: &IncomingKey) -> Option<&SeqEntry> {
+        self.get_hashed(key, self.hash(key))
+    }
+
+    /// [`SeqTable::get`] with the key's [`SeqTable::hash`] already made.
+    #[inline(always)]
+    pub(crate) fn get_hashed(&self, key: &IncomingKey, hash: u64) -> Option<&SeqEntry> {
         if self.slots.is_empty() {
             return None;
         }
         let mask = self.slots.len() - 1;
-        let mut i = self.home(key, mask);
+        let mut i = hash as usize & mask;
         loop {
             let entry = &self.slots[i];
             if entry.key == *key {
@@ -205,12 +220,17 @@ impl SeqTable {
     /// that a lookup a little later finds the line on its way.
     #[inline(always)]
     pub(crate) fn prefetch(&self, key: &IncomingKey) {
+        self.prefetch_hashed(self.hash(key));
+    }
+
+    /// [`SeqTable::prefetch`] of the key whose [`SeqTable::hash`] is `hash`.
+    #[inline(always)]
+    pub(crate) fn prefetch_hashed(&self, hash: u64) {
         if self.slots.is_empty() {
             return;
         }
-        let home = self.home(key, self.slots.len() - 1);
-        // `home` is in bounds: masked by the length, a power of two.
-        crate::prefetch::line(&self.slots[home]);
+        // In bounds: masked by the length, a power of two.
+        crate::prefetch::line(&self.slots[hash as usize & (self.slots.len() - 1)]);
     }
 
     /// Add `entry`, whose key the table does not hold (the caller looked it up first).

@@ -113,7 +113,32 @@ struct InFlight {
 struct Emission {
     from: NodeId,
     message: Option<Message>,
+    /// The receivers, when listed (`everyone == 0`).
     to: Vec<usize>,
+    /// Not 0: the receivers are every station below `everyone` but the sender, unlisted (a
+    /// broadcast to a group of every station on an open, lossless radio with none dead, BLE's
+    /// eligibility at every tick: writing and sorting a list of all the others per emission
+    /// was most of the radio's work per delivery).
+    everyone: usize,
+    /// The sender's station, which an unlisted broadcast does not reach.
+    from_station: usize,
+}
+
+/// An unlisted broadcast set aside by `Radio::take_due`: where it stands in delivery order
+/// (its index in `Radio::due`), the slot of its emission, whom it reaches.
+#[derive(Clone, Copy)]
+struct Broadcast {
+    at: u32,
+    slot: u32,
+    everyone: u32,
+    from_station: u32,
+}
+
+impl Broadcast {
+    #[inline]
+    fn reaches(&self, station: usize) -> bool {
+        station < self.everyone as usize && station != self.from_station as usize
+    }
 }
 
 impl PartialEq for InFlight {
@@ -134,6 +159,29 @@ impl Ord for InFlight {
     }
 }
 
+/// A station's due messages ([`Radio::due`]): the short way when only unlisted broadcasts
+/// reach it, else merged with its listed ones.
+enum Due<A, B> {
+    Broadcasts(A),
+    Merged(B),
+}
+
+impl<'a, A, B> Iterator for Due<A, B>
+where
+    A: Iterator<Item = (NodeId, &'a Message)>,
+    B: Iterator<Item = (NodeId, &'a Message)>,
+{
+    type Item = (NodeId, &'a Message);
+
+    #[inline]
+    fn next(&mut self) -> Option<Self::Item> {
+        match self {
+            Due::Broadcasts(a) => a.next(),
+            Due::Merged(b) => b.next(),
+        }
+    }
+}
+
 /// The simulated radio: routes the nodes' outgoing messages with loss, delay, jitter, range and
 /// partitions, seeded, on virtual time.
 pub struct Radio {
@@ -146,12 +194,15 @@ pub struct Radio {
     free: Vec<usize>,
     /// Emissions set aside by `take_due`, in delivery order.
     due: Vec<usize>,
-    /// The same deliveries by receiver: station `s`'s are the emissions (`parked` indices)
-    /// `by_station[starts[s]..starts[s + 1]]`, in delivery order (a counting sort of the
-    /// receiver lists, made once in `take_due`), so that handing one station its messages
-    /// reads only its own.
+    /// The same deliveries by receiver, for the emissions whose receivers are listed: station
+    /// `s`'s are the emissions at `due[k]` for each `k` in `by_station[starts[s]..starts[s +
+    /// 1]]`, in delivery order (a counting sort of the receiver lists, made once in
+    /// `take_due`), so that handing one station its messages reads only its own.
     starts: Vec<u32>,
     by_station: Vec<u32>,
+    /// The unlisted broadcasts among them, in delivery order: every station they reach
+    /// walks this one short list, merged with its listed ones by position in `due`.
+    broadcasts: Vec<Broadcast>,
     /// Members of each group, by station index in increasing order.
     groups: Vec<(Arc<str>, Vec<usize>)>,
     /// Emissions per station (a group message counts once).
@@ -179,6 +230,7 @@ impl Radio {
             due: Vec::new(),
             starts: Vec::new(),
             by_station: Vec::new(),
+            broadcasts: Vec::new(),
             groups: Vec::new(),
             sent: vec![0; stations],
             bytes: vec![0; stations],
@@ -234,11 +286,13 @@ impl Radio {
         let src = stations[from];
         let t = now.as_secs_f64();
         let slot = self.free.pop().unwrap_or_else(|| {
-            self.parked.push(Emission { from: src.node, message: None, to: Vec::new() });
+            self.parked.push(Emission { from: src.node, message: None, to: Vec::new(), everyone: 0, from_station: 0 });
             self.parked.len() - 1
         });
         // Taken out so that `reaches` can borrow the radio; put back below.
         let mut to = std::mem::take(&mut self.parked[slot].to);
+        // Not 0: every station below it but the sender hears this, unlisted.
+        let mut everyone = 0;
         match &out.to {
             Destination::Node(id) => {
                 if let Some(i) = stations.iter().position(|s| s.node == *id) {
@@ -251,7 +305,13 @@ impl Radio {
                 // Teams have a handful of groups: a scan beats hashing the name.
                 if let Some(gi) = self.groups.iter().position(|(name, _)| name == g) {
                     let members = std::mem::take(&mut self.groups[gi].1);
-                    if self.config.loss == 0.0 && self.open() && all_alive {
+                    let every_station = members.len() == stations.len()
+                        && members.last().is_some_and(|&last| last + 1 == stations.len());
+                    if self.config.loss == 0.0 && self.open() && all_alive && every_station {
+                        // Nothing to draw, nothing to cut, and the group is every station
+                        // (sorted and distinct, so 0..n): every other station, unlisted.
+                        everyone = stations.len();
+                    } else if self.config.loss == 0.0 && self.open() && all_alive {
                         // Nothing to draw, nothing to cut: the members (sorted) around the
                         // sender, as the pass below would keep them.
                         let k = members.partition_point(|&i| i < from);
@@ -282,7 +342,8 @@ impl Radio {
                 }
             }
         }
-        if to.is_empty() {
+        // An unlisted broadcast reaches `everyone - 1` stations.
+        if to.is_empty() && everyone <= 1 {
             self.parked[slot].to = to;
             self.free.push(slot);
             return;
@@ -290,7 +351,7 @@ impl Radio {
         let delay = self.config.delay + self.config.jitter * self.rng.f64();
         let at = now + Duration::from_nanos((delay * 1e9) as u64);
         self.order += 1;
-        self.parked[slot] = Emission { from: src.node, message: Some(out.message), to };
+        self.parked[slot] = Emission { from: src.node, message: Some(out.message), to, everyone, from_station: from };
         self.queue.push(Reverse(InFlight { at, order: self.order, slot }));
     }
 
@@ -318,7 +379,8 @@ impl Radio {
     /// independent nodes, so only the order at each receiver matters.
     pub fn deliver_shared(&mut self, now: Instant, mut deliver: impl FnMut(usize, NodeId, &Message)) {
         self.take_due(now);
-        for station in 0..self.starts.len().saturating_sub(1) {
+        let unlisted = self.broadcasts.iter().map(|b| b.everyone as usize).max().unwrap_or(0);
+        for station in 0..self.starts.len().saturating_sub(1).max(unlisted) {
             self.deliver_due(station, |from, message| deliver(station, from, message));
         }
         self.release_due();
@@ -330,11 +392,21 @@ impl Radio {
         self.release_due();
         while self.queue.peek().is_some_and(|Reverse(m)| m.at <= now) {
             let Reverse(m) = self.queue.pop().expect("peeked");
+            let e = &self.parked[m.slot];
+            if e.everyone > 0 {
+                self.broadcasts.push(Broadcast {
+                    at: self.due.len() as u32,
+                    slot: m.slot as u32,
+                    everyone: e.everyone as u32,
+                    from_station: e.from_station as u32,
+                });
+            }
             self.due.push(m.slot);
         }
-        // Counting sort by receiver: count, prefix sums, then place (stable: delivery order
-        // is kept within each station). Receivers are indices into the callers' station
-        // lists: as many as the radio was made for, unless a caller passed a longer list.
+        // Counting sort of the listed receivers: count, prefix sums, then place (stable:
+        // delivery order is kept within each station). Receivers are indices into the callers'
+        // station lists: as many as the radio was made for, unless a caller passed a longer
+        // list.
         let (due, parked) = (&self.due, &self.parked);
         let starts = &mut self.starts;
         starts.clear();
@@ -356,9 +428,9 @@ impl Radio {
         self.by_station.resize(total as usize, 0);
         // `starts[s]` serves as station s's next free place while placing: afterwards it is
         // station s + 1's start, so everything shifts back by one.
-        for &e in due {
+        for (k, &e) in due.iter().enumerate() {
             for &s in &parked[e].to {
-                self.by_station[starts[s] as usize] = e as u32;
+                self.by_station[starts[s] as usize] = k as u32;
                 starts[s] += 1;
             }
         }
@@ -373,10 +445,16 @@ impl Radio {
     /// beforehand to start loading what they will touch in its node — with a hundred nodes or
     /// more, most of a delivery's cost is fetching the receiving node from memory.
     pub fn deliver_due(&self, station: usize, mut deliver: impl FnMut(NodeId, &Message)) {
-        let (Some(&start), Some(&end)) = (self.starts.get(station), self.starts.get(station + 1)) else { return };
-        for &e in &self.by_station[start as usize..end as usize] {
-            let e = &self.parked[e as usize];
-            deliver(e.from, e.message.as_ref().expect("parked while due"));
+        if self.listed(station).is_empty() {
+            // Unlisted broadcasts only (BLE's open radio): one short list, no merge.
+            for b in self.broadcasts.iter().filter(|b| b.reaches(station)) {
+                let (from, message) = self.emission(b.slot as usize);
+                deliver(from, message);
+            }
+            return;
+        }
+        for (from, message) in self.due_to(station) {
+            deliver(from, message);
         }
     }
 
@@ -388,15 +466,79 @@ impl Radio {
         station: usize,
         mut deliver: impl FnMut((NodeId, &Message), Option<(NodeId, &Message)>),
     ) {
-        let (Some(&start), Some(&end)) = (self.starts.get(station), self.starts.get(station + 1)) else { return };
-        let message = |e: u32| {
-            let e = &self.parked[e as usize];
-            (e.from, e.message.as_ref().expect("parked while due"))
-        };
-        let mut list = self.by_station[start as usize..end as usize].iter().map(|&e| message(e)).peekable();
+        if self.listed(station).is_empty() {
+            // Unlisted broadcasts only: one pass, each message handed over once the one after
+            // it is known.
+            let mut held: Option<(NodeId, &Message)> = None;
+            for b in &self.broadcasts {
+                if b.reaches(station) {
+                    let this = self.emission(b.slot as usize);
+                    if let Some(before) = held {
+                        deliver(before, Some(this));
+                    }
+                    held = Some(this);
+                }
+            }
+            if let Some(last) = held {
+                deliver(last, None);
+            }
+            return;
+        }
+        let mut list = self.due_to(station).peekable();
         while let Some(this) = list.next() {
             deliver(this, list.peek().copied());
         }
+    }
+
+    /// Station `station`'s messages among those set aside by [`Radio::take_due`], as
+    /// [`Radio::deliver_due`] hands them over (the same messages in the same order), for a
+    /// receiver that takes them all in one call (`NodeCore::receive_all_shared`).
+    pub fn due(&self, station: usize) -> impl Iterator<Item = (NodeId, &Message)> + '_ {
+        if self.listed(station).is_empty() {
+            // Unlisted broadcasts only (BLE's open radio): no merge to make.
+            let broadcasts = self.broadcasts.iter().filter(move |b| b.reaches(station));
+            Due::Broadcasts(broadcasts.map(|b| self.emission(b.slot as usize)))
+        } else {
+            Due::Merged(self.due_to(station))
+        }
+    }
+
+    /// The sender and message of the emission in `slot`, which is due.
+    #[inline]
+    fn emission(&self, slot: usize) -> (NodeId, &Message) {
+        let e = &self.parked[slot];
+        (e.from, e.message.as_ref().expect("parked while due"))
+    }
+
+    /// Station `station`'s listed messages: their places in `due`, in order.
+    #[inline]
+    fn listed(&self, station: usize) -> &[u32] {
+        match (self.starts.get(station), self.starts.get(station + 1)) {
+            (Some(&start), Some(&end)) => &self.by_station[start as usize..end as usize],
+            _ => &[],
+        }
+    }
+
+    /// Station `station`'s messages among those set aside, in delivery order: its listed ones
+    /// merged with the unlisted broadcasts that reach it, by their place in `due`.
+    #[inline]
+    fn due_to(&self, station: usize) -> impl Iterator<Item = (NodeId, &Message)> + '_ {
+        let mut listed = self.listed(station).iter().copied().peekable();
+        let mut broadcasts = self.broadcasts.iter().filter(move |b| b.reaches(station)).peekable();
+        std::iter::from_fn(move || {
+            // An emission is listed or unlisted, never both: their places differ.
+            let listed_first = match (listed.peek(), broadcasts.peek()) {
+                (Some(&k), Some(b)) => k < b.at,
+                (Some(_), None) => true,
+                (None, Some(_)) => false,
+                (None, None) => return None,
+            };
+            Some(if listed_first {
+                self.emission(self.due[listed.next().expect("peeked") as usize])
+            } else {
+                self.emission(broadcasts.next().expect("peeked").slot as usize)
+            })
+        })
     }
 
     /// Free the emissions set aside by [`Radio::take_due`]: every receiver of theirs counts as
@@ -404,14 +546,16 @@ impl Radio {
     pub fn release_due(&mut self) {
         for &slot in &self.due {
             let e = &mut self.parked[slot];
-            self.delivered += e.to.len() as u64;
+            self.delivered += if e.everyone > 0 { e.everyone as u64 - 1 } else { e.to.len() as u64 };
             e.to.clear();
+            e.everyone = 0;
             e.message = None;
             self.free.push(slot);
         }
         self.due.clear();
         self.starts.clear();
         self.by_station.clear();
+        self.broadcasts.clear();
     }
 }
 
@@ -488,6 +632,70 @@ mod tests {
         assert!(!x.is_empty());
         assert_eq!(x, y);
         assert_eq!((a.delivered, a.cut), (b.delivered, b.cut));
+    }
+
+    /// A broadcast to a group of every station, which the open lossless radio hands over
+    /// without listing its receivers, reaches whom the listed route reaches, in the same
+    /// order at every station, interleaved as before with messages whose receivers are listed
+    /// (unicast ones here), whether handed over plainly or one ahead.
+    #[test]
+    fn an_unlisted_broadcast_reaches_whom_a_listed_one_reaches() {
+        let stations: Vec<Station> =
+            (0..6).map(|i| Station { node: NodeId(i as u32 + 1), x: i as f64, y: 0.0, alive: true }).collect();
+        let peers: Arc<str> = Arc::from("Peers");
+        let build = || {
+            let mut r = Radio::new(RadioConfig::default(), stations.len(), 9);
+            for i in 0..stations.len() {
+                r.set_groups(i, std::slice::from_ref(&peers));
+            }
+            r
+        };
+        // `a` lists every receiver (`send` does not know that all are alive); `b` does not.
+        let (mut a, mut b) = (build(), build());
+        for (k, from) in [0, 3, 5, 1, 5, 2, 4, 0].into_iter().enumerate() {
+            let now = Instant::from_nanos(k as u64 * 700_000);
+            let control = |id: u64| Message::Control(ControlMessage { id, body: ControlBody::List });
+            let group = || Outgoing { to: Destination::Group(peers.clone()), message: control(k as u64) };
+            let unicast =
+                || Outgoing { to: Destination::Node(NodeId((k % 6) as u32 + 1)), message: control(100 + k as u64) };
+            a.send(now, from, group(), &stations);
+            b.send_all_alive(now, from, group(), &stations);
+            a.send(now, from, unicast(), &stations);
+            b.send_all_alive(now, from, unicast(), &stations);
+        }
+        let id = |m: &Message| match m {
+            Message::Control(c) => c.id,
+            Message::Port(_) => unreachable!("only control messages sent"),
+        };
+        let heard = |r: &Radio, station: usize| {
+            let mut got = Vec::new();
+            r.deliver_due(station, |from, m| got.push((from.0, id(m))));
+            let mut ahead = Vec::new();
+            r.deliver_due_ahead(station, |(from, m), next| {
+                ahead.push((from.0, id(m), next.map(|(f, n)| (f.0, id(n)))));
+            });
+            let plain: Vec<_> = ahead.iter().map(|&(f, m, _)| (f, m)).collect();
+            assert_eq!(plain, got, "station {station}: one ahead hands over the same messages");
+            let nexts: Vec<_> = ahead.iter().map(|&(.., n)| n).collect();
+            let want: Vec<_> = got.iter().skip(1).map(|&x| Some(x)).chain([None]).take(got.len()).collect();
+            assert_eq!(nexts, want, "station {station}: each with the one that follows");
+            got
+        };
+        for t in [2_000_000, 4_000_000, 1_000_000_000] {
+            a.take_due(Instant::from_nanos(t));
+            b.take_due(Instant::from_nanos(t));
+            for station in (0..stations.len()).rev() {
+                let got = heard(&a, station);
+                assert_eq!(heard(&b, station), got, "station {station} at {t} ns");
+                let own = |&(from, m): &(u32, u64)| from == station as u32 + 1 && m < 100;
+                assert!(!got.iter().any(own), "a sender does not hear its own broadcast");
+            }
+            a.release_due();
+            b.release_due();
+        }
+        assert!(a.delivered > 0);
+        assert_eq!((a.delivered, a.cut, a.lost), (b.delivered, b.cut, b.lost));
+        assert_eq!(b.parked.iter().filter(|e| !e.to.is_empty()).count(), 0, "nothing stays listed");
     }
 
     /// Each station gets every other sender's messages in (time, send) order, whatever order

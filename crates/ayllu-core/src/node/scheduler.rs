@@ -103,7 +103,10 @@ impl NodeCore {
         if !self.deferred.is_empty() && self.deferred_due == Instant::MAX {
             self.deferred_due = now + RETRIGGER_INTERVAL;
         }
-        self.flush_requests();
+        // Most polls have no request of their own waiting: no call for them.
+        if !self.requests.is_empty() {
+            self.flush_requests();
+        }
     }
 
     /// Run the processes triggered so far (most calls find none: checked here, inlined; a

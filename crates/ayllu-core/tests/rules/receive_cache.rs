@@ -192,3 +192,44 @@ fn messages_after_a_recreation_reach_the_new_port_every_time() {
     }
     assert_eq!(n.why("A", "In").unwrap().accepted, 8);
 }
+
+/// `receive_all_shared` (one call for a batch, each key hashed once for the hint and the
+/// lookup) leaves a node exactly as one `receive_shared` a message does: the same values, the
+/// same counts by cause (stale, unknown, absorbed), through re-pointed connection ids, stale
+/// messages, several senders and connections, and a control request among them.
+#[test]
+fn a_batch_is_received_as_its_messages_one_by_one() {
+    let on = |conn: u64, seq: u64, behavior: &str, port: &str, v: i64| match message(seq, behavior, port, v) {
+        Message::Port(m) => Message::Port(PortMessage { conn: ConnectionId(conn), ..m }),
+        control => control,
+    };
+    let batches: Vec<Vec<(NodeId, Message)>> = vec![
+        vec![(PEER, on(1, 1, "A", "In", 1)), (NodeId(7), on(1, 1, "B", "In", 2)), (PEER, on(2, 1, "A", "Other", 3))],
+        vec![
+            (PEER, on(1, 2, "A", "In", 4)),
+            (PEER, on(1, 2, "A", "In", 5)),
+            (PEER, on(1, 3, "B", "Other", 6)),
+            (NodeId(7), on(1, 1, "B", "In", 7)),
+            (PEER, Message::Control(ControlMessage { id: 1, body: ControlBody::List })),
+            (NodeId(7), on(3, 1, "Nobody", "In", 8)),
+            (NodeId(7), on(1, 2, "B", "Nowhere", 9)),
+        ],
+        vec![],
+        vec![(NodeId(8), on(5, 9, "A", "In", 10))],
+    ];
+    let (mut one, mut all) = (node(), node());
+    for (t, batch) in batches.iter().enumerate() {
+        for (from, m) in batch {
+            one.receive_shared(at(t as u64 + 1), *from, m);
+        }
+        all.receive_all_shared(at(t as u64 + 1), &mut batch.iter().map(|(from, m)| (*from, m)));
+        for (behavior, port) in [("A", "In"), ("A", "Other"), ("B", "In"), ("B", "Other")] {
+            assert_eq!(read(&all, behavior, port), read(&one, behavior, port), "{behavior}.{port} after batch {t}");
+        }
+        assert_eq!(format!("{:?}", all.counters()), format!("{:?}", one.counters()), "after batch {t}");
+        let (a, b): (Vec<_>, Vec<_>) =
+            (std::iter::from_fn(|| all.pop_outgoing()).collect(), std::iter::from_fn(|| one.pop_outgoing()).collect());
+        assert_eq!(a, b, "answers after batch {t}");
+    }
+    assert!(one.counters().get(DropCause::Stale) > 0 && one.counters().get(DropCause::UnknownBehavior) > 0);
+}

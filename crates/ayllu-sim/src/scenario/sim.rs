@@ -292,6 +292,13 @@ impl Sim {
             chain_only: matches!(self.scenario.controller, Controller::Ble | Controller::BleLean | Controller::Local),
             centralized: self.scenario.controller == Controller::Centralized,
             ahead: self.look_ahead,
+            // One thread walks the team forth and back in turn: a tick starts with the nodes
+            // the last one ended with, still in the cache, where a walk in the same order
+            // each tick would find the least recently used ones first, evicted whenever the
+            // team's nodes outgrow the cache (a 1000-robot team: docs/performance.md). The
+            // visits are independent (crate::scenario::visit), so their order changes no
+            // outcome; the threads keep the blocks' order.
+            backward: self.workers.is_none() && self.tick % 2 == 1,
         };
         let blocks = match &self.workers {
             None => 1,

@@ -3,7 +3,8 @@
 //!
 //! Promise: a visit reads only the tick's shared state ([`Tick`]) and writes only its own
 //! robot's node, command, drive and outbox, so the visits of a tick may be grouped in any
-//! blocks on any number of threads, and loading ahead is a hint: neither changes an outcome.
+//! blocks on any number of threads and made in either order, and loading ahead is a hint:
+//! none of these changes an outcome.
 
 use ayllu_core::{Error, Instant, NodeCore, Outgoing, PortRef, Value};
 
@@ -65,16 +66,19 @@ pub(super) struct Tick<'a> {
     pub(super) centralized: bool,
     /// Load each robot's messages ahead of its visit ([`LOOK_AHEAD_TEAM`]).
     pub(super) ahead: bool,
+    /// Visit the robots from the last to the first (see [`visit`]).
+    pub(super) backward: bool,
 }
 
-/// Visit robots `base..base + robots.len()` in turn: each one's deliveries, its sonar sweep
-/// (`sweep` for room) and senses, the oracle's word (Centralized), pose (Planner), its node's run, then its motors. Its outgoing
-/// messages go to `outbox` (robot index first) for the radio, in order. In a large team, what a
-/// robot's messages will touch in its node loads ahead of its visit, in two stages, so that the
-/// loads of each stage overlap one another and the visits between: two visits ahead, the
-/// sequence-table slots its messages look up; one visit ahead, the ports those slots name (by
-/// then the slots are in cache). A small team's nodes stay in cache from tick to tick: there
-/// the hints would only cost.
+/// Visit robots `base..base + robots.len()` in turn (from the last to the first if
+/// `tick.backward`): each one's deliveries, its sonar sweep (`sweep` for room) and senses, the
+/// oracle's word (Centralized), pose (Planner), its node's run, then its motors. Its outgoing
+/// messages go to `outbox` (robot index first) for the radio, in robot order either way. In a
+/// large team, what a robot's messages will touch in its node loads ahead of its visit, in two
+/// stages, so that the loads of each stage overlap one another and the visits between: two
+/// visits ahead, the sequence-table slots its messages look up; one visit ahead, the ports
+/// those slots name (by then the slots are in cache). A small team's nodes stay in cache from
+/// tick to tick: there the hints would only cost.
 pub(super) fn visit(
     tick: &Tick<'_>,
     base: usize,
@@ -84,60 +88,99 @@ pub(super) fn visit(
     outbox: &mut Vec<(usize, Outgoing)>,
     sweep: &mut SonarScratch,
 ) -> Result<(), Error> {
-    let (now, radio) = (tick.now, tick.radio);
+    let radio = tick.radio;
+    let n = robots.len();
+    // The robot visited `j`-th, if there is one.
+    let nth = |j: usize| (j < n).then(|| if tick.backward { n - 1 - j } else { j });
+    let first_out = outbox.len();
     if tick.ahead {
-        load_slots(radio, robots, base, 0);
-        load_slots(radio, robots, base, 1);
-        load_ports(radio, robots, base, 0);
-    }
-    for k in 0..robots.len() {
-        if tick.ahead {
-            load_slots(radio, robots, base, k + 2);
-            load_ports(radio, robots, base, k + 1);
-        }
-        let i = base + k;
-        let alive = tick.world.robots[i].alive;
-        let r = &mut robots[k];
-        // A broadcast reaches its receivers as one shared message: nothing copied. In a
-        // small team the next message's slot loads while this one is applied.
-        if alive && tick.ahead {
-            radio.deliver_due(i, |from, msg| r.core.receive_shared(now, from, msg));
-        } else if alive {
-            radio.deliver_due_ahead(i, |(from, msg), next| {
-                if let Some((f, m)) = next {
-                    r.core.prefetch_receive(f, m);
-                }
-                r.core.receive_shared(now, from, msg);
-            });
-        }
-        if !alive {
-            continue;
-        }
-        if tick.sense {
-            r.body.write_senses(&mut r.core, now, tick.world, i, sweep)?;
-            if let Brain::Follow { pose, .. } | Brain::Seek { pose, .. } = r.brain {
-                // Localization: the robot knows where it is (as odometry on a map would).
-                let p = tick.world.robots[i].pose;
-                r.core.write(now, pose, Value::vector(&[p.x, p.y, p.theta]))?;
+        for j in [0, 1] {
+            if let Some(k) = nth(j) {
+                load_slots(radio, robots, base, k);
             }
         }
-        if tick.centralized {
-            steer(tick, i, r)?;
+        if let Some(k) = nth(0) {
+            load_ports(radio, robots, base, k);
         }
-        // The next tick comes at its time whatever is due: no `poll_at` scan.
-        r.core.run_due(now);
-        while let Some(out) = r.core.pop_outgoing() {
-            outbox.push((i, out));
-        }
-        commands[k] = r.body.command(&r.core);
-        // Ble and Local build a bare chain: a robot that saw no target lately has no driver,
-        // and neither its brain nor its ports need reading.
-        drives[k] = if tick.chain_only && chain_quiet(now, r.body.latest_seen()) {
-            0
-        } else {
-            r.brain.drive_seen(&r.core, r.body.seen())
-        };
     }
+    // Backward, the visits go on past an error so that the one returned is the first in robot
+    // order, as a forward walk (or the threads, block by block) returns it.
+    let mut failed = None;
+    for j in 0..n {
+        let k = nth(j).expect("j < n");
+        if tick.ahead {
+            if let Some(k2) = nth(j + 2) {
+                load_slots(radio, robots, base, k2);
+            }
+            if let Some(k1) = nth(j + 1) {
+                load_ports(radio, robots, base, k1);
+            }
+        }
+        match visit_one(tick, base, k, &mut robots[k], &mut commands[k], &mut drives[k], outbox, sweep) {
+            Ok(()) => {}
+            Err(e) if tick.backward => failed = Some(e),
+            Err(e) => return Err(e),
+        }
+    }
+    if tick.backward {
+        // The radio takes the messages in robot order, each robot's in its own order: the
+        // robots' runs were pushed last first, so reverse the whole, then each robot's run.
+        let sent = &mut outbox[first_out..];
+        sent.reverse();
+        for run in sent.chunk_by_mut(|a, b| a.0 == b.0) {
+            run.reverse();
+        }
+    }
+    failed.map_or(Ok(()), Err)
+}
+
+/// The visit of robot `base + k` (see [`visit`]).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn visit_one(
+    tick: &Tick<'_>,
+    base: usize,
+    k: usize,
+    r: &mut RobotNode,
+    command: &mut Command,
+    drive: &mut u32,
+    outbox: &mut Vec<(usize, Outgoing)>,
+    sweep: &mut SonarScratch,
+) -> Result<(), Error> {
+    let (now, radio) = (tick.now, tick.radio);
+    let i = base + k;
+    let alive = tick.world.robots[i].alive;
+    if !alive {
+        return Ok(());
+    }
+    // A broadcast reaches its receivers as one shared message: nothing copied. The node takes
+    // its messages in one call, each one's sequence-table slot loading while the one before
+    // is applied.
+    r.core.receive_all_shared(now, &mut radio.due(i));
+    if tick.sense {
+        r.body.write_senses(&mut r.core, now, tick.world, i, sweep)?;
+        if let Brain::Follow { pose, .. } | Brain::Seek { pose, .. } = r.brain {
+            // Localization: the robot knows where it is (as odometry on a map would).
+            let p = tick.world.robots[i].pose;
+            r.core.write(now, pose, Value::vector(&[p.x, p.y, p.theta]))?;
+        }
+    }
+    if tick.centralized {
+        steer(tick, i, r)?;
+    }
+    // The next tick comes at its time whatever is due: no `poll_at` scan.
+    r.core.run_due(now);
+    while let Some(out) = r.core.pop_outgoing() {
+        outbox.push((i, out));
+    }
+    *command = r.body.command(&r.core);
+    // Ble and Local build a bare chain: a robot that saw no target lately has no driver,
+    // and neither its brain nor its ports need reading.
+    *drive = if tick.chain_only && chain_quiet(now, r.body.latest_seen()) {
+        0
+    } else {
+        r.brain.drive_seen(&r.core, r.body.seen())
+    };
     Ok(())
 }
 
