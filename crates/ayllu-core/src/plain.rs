@@ -39,21 +39,33 @@ impl PortState {
 }
 
 impl NodeCore {
-    /// The fast path of [`NodeCore::write`] with the journal off: a plain port
-    /// ([`PortState::is_plain`]) and a value of its type. The handle is resolved once, the
-    /// merge is the Normal one, and nothing can refuse the value or block its propagation, so
-    /// this is exactly what `write_internal` does for such a port. Returns `false`, having
-    /// changed nothing, when the general path must take the write (a stale handle included,
-    /// so that its error is the general path's).
+    /// The fast path of [`NodeCore::write`]: a plain port ([`PortState::is_plain`]) and a value
+    /// of its type. The handle is resolved once, the merge is the Normal one, and nothing can
+    /// refuse the value or block its propagation, so this is exactly what `write_internal`
+    /// does for such a port. Returns `false`, having changed nothing, when the general path must
+    /// take the write (a stale handle included, so that its error is the general path's).
     #[inline(always)]
     pub(crate) fn write_plain(&mut self, port: PortRef, value: &Value) -> bool {
-        self.write_plain_at(port.b, port.port.0, Some(port.id), value)
+        let (b, p, id) = (port.b, port.port.0, Some(port.id));
+        if self.journal.is_none() {
+            self.write_plain_at::<false>(b, p, id, value)
+        } else {
+            self.write_plain_at::<true>(b, p, id, value)
+        }
     }
 
     /// [`NodeCore::write_plain`] into port `p` of the behavior in slot `b`, if its id is `id`
     /// (`None`: whichever lives there, as for a process writing its own behavior's port).
+    /// `JOURNAL`: whether the journal runs (checked once by the caller, so that the path with
+    /// the journal off is compiled without its checks).
     #[inline(always)]
-    pub(crate) fn write_plain_at(&mut self, b: u32, p: u16, id: Option<u64>, value: &Value) -> bool {
+    pub(crate) fn write_plain_at<const JOURNAL: bool>(
+        &mut self,
+        b: u32,
+        p: u16,
+        id: Option<u64>,
+        value: &Value,
+    ) -> bool {
         if !self.plain_allowed() {
             return false;
         }
@@ -67,11 +79,13 @@ impl NodeCore {
         ps.cell.accept_normal(self.now, value, Source::internal(self.id));
         ps.visited = self.wave;
         ps.accepted += 1;
-        if let Some(j) = self.journal.as_deref_mut() {
-            // A write from outside is journaled with its acceptance (the general path makes
-            // the two entries in a row); a process's write was journaled by its `Ctx`.
-            let what = if id.is_some() { JournalValue::WriteAccepted } else { JournalValue::Accepted };
-            journal_value(j, self.now, what, (b, beh.id), (&beh.name, &beh.class), p, value);
+        if JOURNAL {
+            if let Some(j) = self.journal.as_deref_mut() {
+                // A write from outside is journaled with its acceptance (the general path makes
+                // the two entries in a row); a process's write was journaled by its `Ctx`.
+                let what = if id.is_some() { JournalValue::WriteAccepted } else { JournalValue::Accepted };
+                journal_value(j, self.now, what, (b, beh.id), (&beh.name, &beh.class), p, value);
+            }
         }
         // The port now holds `value` itself, so its edges carry the argument: no copy of it.
         // Leaf hops are taken here; the first edge that needs more hands the rest of the wave
@@ -87,7 +101,9 @@ impl NodeCore {
             };
             let from = Source::connection(me, ConnectionId(edge.id));
             match edge.local {
-                Some((db, dp)) if edge.kind == ConnectionKind::Normal && self.hop_plain(db, dp, from, value) => {
+                Some((db, dp))
+                    if edge.kind == ConnectionKind::Normal && self.hop_plain::<JOURNAL>(db, dp, from, value) =>
+                {
                     next += 1
                 }
                 _ => {
@@ -100,11 +116,11 @@ impl NodeCore {
 
     /// One Normal hop into local port (b, p) by the fast path: a plain port
     /// ([`PortState::is_plain`]) that passes nothing on, not yet written in this wave, taking a
-    /// value of its type, with the journal off. Then nothing can refuse the value and nothing
-    /// follows from it, so this is exactly what `deliver` does for it. Returns `false`,
-    /// having changed nothing, when `deliver` must take the hop.
+    /// value of its type. Then nothing can refuse the value and nothing follows from it, so
+    /// this is exactly what `deliver` does for it. Returns `false`, having changed nothing,
+    /// when `deliver` must take the hop. `JOURNAL` as for [`NodeCore::write_plain_at`].
     #[inline(always)]
-    pub(crate) fn hop_plain(&mut self, b: u32, p: u16, from: Source, value: &Value) -> bool {
+    pub(crate) fn hop_plain<const JOURNAL: bool>(&mut self, b: u32, p: u16, from: Source, value: &Value) -> bool {
         if !self.plain_allowed() {
             return false;
         }
@@ -117,10 +133,22 @@ impl NodeCore {
         ps.cell.accept_normal(self.now, value, from);
         ps.visited = self.wave;
         ps.accepted += 1;
-        if let Some(j) = self.journal.as_deref_mut() {
-            journal_value(j, self.now, JournalValue::Accepted, (b, beh.id), (&beh.name, &beh.class), p, value);
+        if JOURNAL {
+            if let Some(j) = self.journal.as_deref_mut() {
+                journal_value(j, self.now, JournalValue::Accepted, (b, beh.id), (&beh.name, &beh.class), p, value);
+            }
         }
         true
+    }
+
+    /// [`NodeCore::hop_plain`] where the journal was not checked yet (the general loop).
+    #[inline(always)]
+    pub(crate) fn hop_plain_checked(&mut self, b: u32, p: u16, from: Source, value: &Value) -> bool {
+        if self.journal.is_none() {
+            self.hop_plain::<false>(b, p, from, value)
+        } else {
+            self.hop_plain::<true>(b, p, from, value)
+        }
     }
 
     /// Whether the plain path may be taken: always, but in the tests that compare it with the

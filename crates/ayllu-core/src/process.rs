@@ -117,11 +117,14 @@ impl Ctx<'_> {
     /// the port refused the value (type mismatch, NaN into an ordered port).
     pub fn write(&mut self, p: Port, value: impl Into<Value>) -> Result<(), DropCause> {
         let value = value.into();
-        if self.core.journal.is_some() {
+        let plain = if self.core.journal.is_some() {
             let recorded = value.clone();
             self.core.journal(|| Event::ProcessWrite { port: p.0, value: recorded });
-        }
-        if self.core.write_plain_at(self.b, p.0, None, &value) {
+            self.core.write_plain_at::<true>(self.b, p.0, None, &value)
+        } else {
+            self.core.write_plain_at::<false>(self.b, p.0, None, &value)
+        };
+        if plain {
             return Ok(());
         }
         self.core.write_internal(self.b, p.0, &value)

@@ -294,6 +294,10 @@ fn paced(node: &mut NodeCore, port: PortRef, mut drain: Drain<'_>, secs: u64, ra
 /// the same paced loop with the recorder off and with the journal alone (run just before, each
 /// for a third of the time), and checks the kept window replays.
 fn sustained(secs: u64, rate: u64) {
+    if secs == 0 || rate == 0 {
+        println!("sustained: not run (AYLLU_SUSTAINED_SECS or AYLLU_SUSTAINED_RATE is 0)");
+        return;
+    }
     let (mut plain_node, plain_port) = fan_node(1);
     let plain = paced(&mut plain_node, plain_port, Drain::Nothing, secs.div_ceil(3), rate);
     let (mut journaled_node, journaled_port) = fan_node(1);

@@ -135,7 +135,7 @@ impl NodeCore {
             let value = port.cell.value.clone();
             next += 1;
             let from = Source::connection(me, ConnectionId(edge.id));
-            if edge.kind == ConnectionKind::Normal && self.hop_plain(db, dp, from, &value) {
+            if edge.kind == ConnectionKind::Normal && self.hop_plain_checked(db, dp, from, &value) {
                 if last {
                     return;
                 }
