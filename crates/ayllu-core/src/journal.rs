@@ -716,6 +716,45 @@ mod tests {
         assert_eq!(names, ["b"]);
     }
 
+    /// Batches appended keep each value (scalars in their records, text in the shared side
+    /// vector, whose indices are offset) and each other entry (in the entries side vector).
+    #[test]
+    fn appended_batches_keep_their_values_and_entries() {
+        let mut node = NodeCore::new(NodeId(1));
+        let mut c = BehaviorClass::new("C");
+        c.port(PortSpec::new("N", 0i64)).unwrap();
+        c.port(PortSpec::new("T", "")).unwrap();
+        node.define(c).unwrap();
+        node.create("C", "x").unwrap();
+        node.start_journal(1_000);
+        let (n, t) = (node.port("x", "N").unwrap(), node.port("x", "T").unwrap());
+        let mut batch = JournalBatch::default();
+        for k in 0..3i64 {
+            let at = Instant::from_millis(k as u64 + 1);
+            node.write(at, t, Value::text(&format!("t{k}"))).unwrap();
+            node.write(at, n, k).unwrap();
+            node.warn(format!("w{k}"));
+            node.take_journal_batch(&mut batch);
+        }
+        let seen: Vec<String> = batch
+            .items()
+            .map(|item| match item {
+                JournalItem::Value { write, value, .. } => format!("{}{:?}", if write { "W" } else { "A" }, value),
+                JournalItem::Entry(e) => format!("{:?}", e.event),
+            })
+            .collect();
+        let mut want = Vec::new();
+        for k in 0..3 {
+            want.push(format!("W{:?}", Value::text(&format!("t{k}"))));
+            want.push(format!("A{:?}", Value::text(&format!("t{k}"))));
+            want.push(format!("W{:?}", Value::Int(k)));
+            want.push(format!("A{:?}", Value::Int(k)));
+            want.push(format!("{:?}", Event::Warn(format!("w{k}"))));
+        }
+        assert_eq!(seen, want);
+        assert_eq!(batch.len(), want.len());
+    }
+
     /// Batches appended keep each value's names (the appended table is offset).
     #[test]
     fn appended_batches_keep_their_names() {
