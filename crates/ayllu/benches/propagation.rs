@@ -307,8 +307,7 @@ fn sustained(secs: u64, rate: u64) {
     let path = std::env::temp_dir().join(format!("ayllu-sustained-{}.mcap", std::process::id()));
     let (mut node, mut recorder, port) = recorded_hop_node(&path, StdDuration::from_secs(2));
     let run = paced(&mut node, port, Drain::Recorder(&mut recorder), secs, rate);
-    let Paced { writes, behind_max, wall, .. } = run;
-    let busy = run.busy;
+    let Paced { writes, busy, behind_max, wall } = run;
     let stats = recorder.finish(&mut node);
     let dropped = stats.dropped_queue + stats.dropped_journal + stats.dropped_cap;
     println!();
