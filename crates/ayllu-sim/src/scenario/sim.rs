@@ -254,7 +254,8 @@ impl Sim {
         // Messages due now are set aside before anyone sends, so that what is sent this tick
         // arrives at a later tick whatever the delay (as if every robot ran at once).
         self.radio.take_due(now);
-        let sense = self.tick.is_multiple_of(u64::from(self.scenario.sense_every.max(1)));
+        let sense_every = u64::from(self.scenario.sense_every.max(1));
+        let sense = self.tick.is_multiple_of(sense_every);
         if sense {
             self.world.index();
         }
@@ -296,9 +297,15 @@ impl Sim {
             // the last one ended with, still in the cache, where a walk in the same order
             // each tick would find the least recently used ones first, evicted whenever the
             // team's nodes outgrow the cache (a 1000-robot team: docs/performance.md). The
-            // visits are independent (crate::scenario::visit), so their order changes no
-            // outcome; the threads keep the blocks' order.
-            backward: self.workers.is_none() && self.tick % 2 == 1,
+            // turn comes every `sense_every` ticks, not every tick, so that the ticks that
+            // sense (and the stdlib's 10 Hz processes, which run on the same ticks at the
+            // default 2) alternate too: what only those ticks touch (ranges, sightings, the
+            // motor processes' ports) is then found again before a whole team's worth of
+            // every-tick state has passed through the cache, where flipping every tick sent
+            // every sensing tick the same way. The visits are independent
+            // (crate::scenario::visit), so their order changes no outcome; the threads keep
+            // the blocks' order.
+            backward: self.workers.is_none() && (self.tick / sense_every) % 2 == 1,
         };
         let blocks = match &self.workers {
             None => 1,
