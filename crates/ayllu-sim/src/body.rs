@@ -15,11 +15,19 @@ use crate::classes::SharedClasses;
 use crate::world::{Command, Sighting, SonarScratch, World, WorldConfig};
 
 /// The port handles of one robot's body on its node.
+// In declaration order (`repr(C)`): what every tick reads (the motor ports' handles and
+// `latest`) first, with the sonar's handle, in 64 bytes, so that a tick that does not sense
+// reads one line of the body, which a simulator's visit (`RobotNode`) places at the start of
+// a line; what only a sensing tick reads after it.
+#[repr(C)]
 pub struct Body {
-    vision: Vec<(PortRef, PortRef)>,
-    ranges: PortRef,
     rotate: PortRef,
     translate: PortRef,
+    /// The latest of `seen`, kept beside the port handles that every tick reads: most ticks
+    /// it alone says that no observer layer can drive.
+    latest: Option<Instant>,
+    ranges: PortRef,
+    vision: Vec<(PortRef, PortRef)>,
     sightings: Vec<Sighting>,
     sonar: Vec<f64>,
     /// The sonar sweep's noise, drawn by [`Body::observe`] (a pair of uniforms a pair of
@@ -27,10 +35,10 @@ pub struct Body {
     draws: Vec<(f64, f64)>,
     /// When this body last wrote each target's VISION ports (`None`: never).
     seen: Vec<Option<Instant>>,
-    /// The latest of `seen`, kept beside the port handles that every tick reads: most ticks
-    /// it alone says that no observer layer can drive.
-    latest: Option<Instant>,
 }
+
+// What every tick reads fills the first line exactly (see the layout note above).
+const _: () = assert!(std::mem::offset_of!(Body, vision) == 64);
 
 impl Body {
     /// Define and create VISION, SONAR and BASE on `core` for `targets` targets.

@@ -55,6 +55,9 @@ pub struct Sim {
     /// Whether robots' messages are loaded ahead of their visits (a large team,
     /// [`LOOK_AHEAD_TEAM`]); a hint that changes no outcome.
     pub(super) look_ahead: bool,
+    /// Whether any robot's brain takes its pose (Planner, BLE-seek): the visits of the others
+    /// need not read their brains on a sensing tick.
+    localize: bool,
     /// The threads beside the caller's that visit the robots (`Sim::set_threads`).
     workers: Option<Workers>,
     /// Each block's outgoing messages of the tick, kept for their capacity.
@@ -134,6 +137,7 @@ impl Sim {
         };
         let frame_every = scenario.frame_every();
         let n = scenario.robots;
+        let localize = robots.iter().any(|r| matches!(r.brain, Brain::Follow { .. } | Brain::Seek { .. }));
         let mut sim = Sim {
             meter: Meter::new(&prios, n),
             kills_done: vec![false; scenario.kills.len()],
@@ -158,6 +162,7 @@ impl Sim {
             planner,
             last_coverage: (0, 0.0),
             look_ahead: n >= LOOK_AHEAD_TEAM,
+            localize,
             workers: None,
             outboxes: Vec::new(),
             sweeps: Vec::new(),
@@ -292,6 +297,7 @@ impl Sim {
             sense,
             chain_only: matches!(self.scenario.controller, Controller::Ble | Controller::BleLean | Controller::Local),
             centralized: self.scenario.controller == Controller::Centralized,
+            localize: self.localize,
             ahead: self.look_ahead,
             // One thread walks the team forth and back in turn: a tick starts with the nodes
             // the last one ended with, still in the cache, where a walk in the same order

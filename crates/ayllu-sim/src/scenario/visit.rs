@@ -64,6 +64,8 @@ pub(super) struct Tick<'a> {
     /// BLE and Local: a bare observer chain (see the drives below).
     pub(super) chain_only: bool,
     pub(super) centralized: bool,
+    /// Whether any robot's brain takes its pose (Planner, BLE-seek; see [`visit`]).
+    pub(super) localize: bool,
     /// Load each robot's messages ahead of its visit ([`LOOK_AHEAD_TEAM`]).
     pub(super) ahead: bool,
     /// Visit the robots from the last to the first (see [`visit`]).
@@ -159,10 +161,11 @@ fn visit_one(
     r.core.receive_all_shared(now, &mut radio.due(i));
     if tick.sense {
         r.body.write_senses(&mut r.core, now, tick.world, i, sweep)?;
-        if let Brain::Follow { pose, .. } | Brain::Seek { pose, .. } = r.brain {
+        // Only a team with localizing brains reads them here (a brain is a line of its own).
+        if let (true, Brain::Follow { pose, .. } | Brain::Seek { pose, .. }) = (tick.localize, &r.brain) {
             // Localization: the robot knows where it is (as odometry on a map would).
             let p = tick.world.robots[i].pose;
-            r.core.write(now, pose, Value::vector(&[p.x, p.y, p.theta]))?;
+            r.core.write(now, *pose, Value::vector(&[p.x, p.y, p.theta]))?;
         }
     }
     if tick.centralized {
@@ -197,6 +200,9 @@ fn steer(tick: &Tick<'_>, i: usize, r: &mut RobotNode) -> Result<(), Error> {
     Ok(())
 }
 
+// In declaration order (`repr(C)`): the node is a whole number of cache lines, so the body's
+// every-tick fields (`Body`'s first 64 bytes) start a line of their own.
+#[repr(C)]
 pub(super) struct RobotNode {
     pub(super) core: NodeCore,
     pub(super) body: Body,
