@@ -77,10 +77,15 @@ pub struct TransactionStatus {
     pub state: TransactionState,
 }
 
+// In declaration order (`repr(C)`), `held` boxed: every poll asks whether a part is held,
+// and that question is then one word at the front, which the node keeps among the fields every
+// visit reads (`NodeCore`'s layout note), where the inline `Option<Held>` put the answer in a
+// line of its own.
 #[derive(Clone, Debug, Default)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[repr(C)]
 pub(crate) struct Transactions {
-    held: Option<Held>,
+    held: Option<Box<Held>>,
     done: VecDeque<TransactionStatus>,
 }
 
@@ -181,7 +186,7 @@ impl NodeCore {
                 if let Err((i, e)) = self.validate_changes(&changes) {
                     return refuse(format!("change {} ({}): {e}", i + 1, changes[i].describe()));
                 }
-                self.txns.held = Some(Held { txn, from, changes, deadline: now + hold, switch_at: None });
+                self.txns.held = Some(Box::new(Held { txn, from, changes, deadline: now + hold, switch_at: None }));
                 answer("prepared")
             }
             ControlBody::Commit { txn, delay } => {

@@ -166,10 +166,12 @@ pub const MAX_WARNINGS: usize = 64;
 /// # Ok::<(), Error>(())
 /// ```
 // In declaration order (`repr(C)`) on whole cache lines (`align(64)`): what every visit of a
-// robot touches (a message received, a write, a poll) in the first seven lines, what only
-// structure operations, control requests and reports touch after them. A simulator steps
-// hundreds of nodes, each cold by the time its turn comes back: the compiler's order spread
-// the fields a message reads over eight lines of the node's eighteen.
+// robot touches (a message received, a poll, the outbox) in the first five lines, up to
+// whether a transaction is held (`txns`' first word); the propagation stack, used only by a
+// write that hops, and what only structure operations, control requests and reports touch
+// after them. A simulator steps hundreds of nodes, each cold by the time its turn comes
+// back: the compiler's order spread the fields a message reads over eight lines of the
+// node's eighteen, and the stack and an inline `Option<Held>` in the hot lines made seven.
 #[repr(C, align(64))]
 pub struct NodeCore {
     pub(crate) now: Instant,
@@ -194,7 +196,6 @@ pub struct NodeCore {
     newest_seq: SeqTable,
     access: Access,
     pending: VecDeque<(u32, u64, u16)>,
-    stack: Vec<Frame>,
     poll_epoch: u64,
     /// When the processes in `deferred` may run (`Instant::MAX` while there are none).
     deferred_due: Instant,
@@ -204,8 +205,11 @@ pub struct NodeCore {
     schedule: Schedule,
     outbox: VecDeque<Outgoing>,
     requests: Vec<Request>,
-    /// This node's part in transactions (crate::transaction).
+    /// This node's part in transactions (crate::transaction); whether a part is held is its
+    /// first word, the last every visit reads.
     pub(crate) txns: crate::transaction::Transactions,
+    /// Used by a write that propagates (a hop), not by every visit.
+    stack: Vec<Frame>,
     pub(crate) counters: Counters,
     limits: Limits,
     /// Behaviors removed while a process body ran, kept until it returns (see `Running`).
@@ -243,6 +247,11 @@ pub struct NodeCore {
     /// Control-request token buckets by sender: tokens left and when last refilled.
     request_buckets: HashMap<NodeId, (f64, Instant)>,
 }
+
+// Whether a transaction is held, the last field every visit reads, ends within the first
+// five lines (test builds carry `general_only` in front, one word more).
+#[cfg(not(test))]
+const _: () = assert!(std::mem::offset_of!(NodeCore, txns) + std::mem::size_of::<usize>() <= 5 * 64);
 
 impl NodeCore {
     /// An empty node at time zero: no classes, behaviors, connections or groups; open access
