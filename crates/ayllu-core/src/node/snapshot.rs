@@ -327,6 +327,11 @@ impl NodeCore {
         let mut periodic = Vec::with_capacity(s.schedule.periodic.len());
         for (b, pi, next_due, period, runs) in s.schedule.periodic {
             let p = core.process_state(b, pi).ok_or_else(|| format!("a schedule entry for no process ({b}, {pi})"))?;
+            // The entry's period is its process's (the trigger checked above): a damaged one,
+            // zero above all, would make every poll divide by it.
+            if !matches!(p.spec.trigger, Trigger::Periodic(q) if q == period) {
+                return Err(format!("a schedule entry for ({b}, {pi}) with another period than its process's"));
+            }
             periodic.push(Periodic { b, pi, next_due, period, runs, body: p.spec.body.clone() });
         }
         if periodic.windows(2).any(|w| (w[0].b, w[0].pi) >= (w[1].b, w[1].pi)) {

@@ -260,10 +260,19 @@ fn a_snapshot_of_another_version_or_with_a_dangling_index_is_refused() {
     let e = NodeCore::restore(serde_json::from_value(dangling).unwrap(), body).err().unwrap();
     assert!(e.contains("joins no port"), "{e}");
 
-    let mut schedule = json;
+    let mut schedule = json.clone();
     schedule["schedule"]["periodic"][0][1] = 77.into();
     let e = NodeCore::restore(serde_json::from_value(schedule).unwrap(), body).err().unwrap();
     assert!(e.contains("no process"), "{e}");
+
+    // A schedule entry's period of zero (found by `a_damaged_snapshot_is_refused_or_runs`:
+    // the next poll divided by it) or another than its process's is refused.
+    for nanos in [0u64, 1] {
+        let mut period = json.clone();
+        period["schedule"]["periodic"][0][3] = serde_json::json!({ "nanos": nanos });
+        let e = NodeCore::restore(serde_json::from_value(period).unwrap(), body).err().unwrap();
+        assert!(e.contains("another period"), "{e}");
+    }
 }
 
 /// Every number in `j`, as a path of keys and indices.
