@@ -9,8 +9,8 @@ use ayllu_core::{
     BleConfig, Change, ConnectionId, ConnectionKind, ControlBody, Duration, Endpoint, NodeId, PortMessage, Value,
 };
 use ayllu_wire::{
-    decode, encode_datagram, DatagramWriter, EncodeError, Key, ReceiverConfig, ReplayWindow, ReplyPart, WireMessage,
-    MAX_DATAGRAM_LEN,
+    decode, encode_datagram, DatagramWriter, EncodeError, Key, PortTemplates, ReceiverConfig, ReplayWindow, ReplyPart,
+    WireMessage, MAX_DATAGRAM_LEN,
 };
 use proptest::prelude::*;
 
@@ -295,6 +295,50 @@ proptest! {
             prop_assert_eq!(by_push.push(&wire), by_push_port.push_port(message, group.as_deref()));
         }
         prop_assert_eq!(by_push.finish(), by_push_port.finish());
+    }
+
+    /// `push_port_with` (the runtime's path: each connection's unchanging bytes from a
+    /// template) writes the bytes, and returns the errors, that `push_port` does, message after
+    /// message, while the templates are made, reused, taken over by another connection of the
+    /// same slot (ids 1, 257, 513), or stand no more: the same connection with other name
+    /// strings (equal text in another `Arc`, or other text), kind or priority. Every field is
+    /// drawn from a few choices, so all of these happen within a few messages.
+    #[test]
+    fn push_port_with_is_push_port(
+        mtu in 40usize..3000,
+        msgs in proptest::collection::vec(
+            (0usize..3, 0usize..4, 0usize..4, 0usize..3, 0usize..2, any::<u64>(), value(), proptest::option::weighted(0.1, name())),
+            0..40,
+        ),
+    ) {
+        let conns = [1u64, 257, 513];
+        // Two strings of one text (a name looked up again), another text, and an invalid name.
+        let names: [Arc<str>; 4] = [Arc::from("D"), Arc::from("D"), Arc::from("p07"), Arc::from("")];
+        let kinds = [
+            ConnectionKind::Normal,
+            ConnectionKind::Suppress(Duration::from_millis(5)),
+            ConnectionKind::Inhibit(Duration::ZERO),
+        ];
+        let mut templates = PortTemplates::new();
+        let mut by_push_port = DatagramWriter::new(7, NodeId(1), 1, None, mtu);
+        let mut by_template = by_push_port.clone();
+        for (c, b, p, k, priority, seq, value, group) in msgs {
+            let message = PortMessage {
+                conn: ConnectionId(conns[c]),
+                seq,
+                behavior: names[b].clone(),
+                port: names[p].clone(),
+                kind: kinds[k],
+                priority: priority as i32,
+                value,
+            };
+            let group = group.as_deref();
+            prop_assert_eq!(
+                by_push_port.push_port(&message, group),
+                by_template.push_port_with(&mut templates, &message, group)
+            );
+        }
+        prop_assert_eq!(by_push_port.finish(), by_template.finish());
     }
 
     #[test]

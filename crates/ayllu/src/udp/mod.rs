@@ -41,7 +41,7 @@ use std::collections::{BTreeMap, VecDeque};
 use std::net::{IpAddr, SocketAddr};
 
 use ayllu_core::{Instant, Message, NodeId};
-use ayllu_wire::{DatagramWriter, NameCache, ReceiverConfig, ReplyAssembler, WireMessage};
+use ayllu_wire::{DatagramWriter, NameCache, PortTemplates, ReceiverConfig, ReplyAssembler, WireMessage};
 
 use crate::admission::{Admission, Bucket};
 use crate::datagram::{DatagramSocket, OsSocket};
@@ -121,6 +121,8 @@ pub struct UdpTransport<S: DatagramSocket = OsSocket> {
     unflushed: u64,
     /// Buffers of sent datagrams, for the next ones.
     spare: Vec<Vec<u8>>,
+    /// What each connection's port messages share, encoded once (`ayllu_wire::PortTemplates`).
+    templates: PortTemplates,
     /// Scratch list of a message's destination addresses.
     route_buf: Vec<SocketAddr>,
     /// Names received recently (decoding allocates nothing for a name seen before).
@@ -247,6 +249,7 @@ impl<S: DatagramSocket> UdpTransport<S> {
             buf: vec![0u8; MAX_DATAGRAM + 1],
             unflushed: 0,
             spare: Vec::new(),
+            templates: PortTemplates::new(),
             route_buf: Vec::new(),
             names: NameCache::new(),
             decoded: Vec::new(),
@@ -294,7 +297,8 @@ impl<S: DatagramSocket> Transport for UdpTransport<S> {
         self.send_message(&out.to, &out.message)
     }
     fn send_all(&mut self, outbox: &mut VecDeque<ayllu_core::Outgoing>, tally: &mut SendTally) {
-        each_then_empty(outbox, |out| tally.add(self.send_message(&out.to, &out.message)));
+        let mut last = None;
+        each_then_empty(outbox, |out| tally.add(self.send_message_after(&out.to, &out.message, &mut last)));
     }
     fn flush(&mut self) {
         // Most calls (a node flushes twice a turn) have nothing to send.
