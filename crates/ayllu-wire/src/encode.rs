@@ -193,8 +193,6 @@ impl DatagramWriter {
         }
         let template = templates.get(message)?;
         let start = self.buf.len();
-        self.buf.extend_from_slice(template);
-        self.buf[start + SEQ_AT..start + SEQ_AT + 8].copy_from_slice(&message.seq.to_le_bytes());
         // A number is written here in one step (a call to `put_value` cost as much as the
         // rest of the message); every other value as `push_port` writes it.
         let number = match message.value {
@@ -202,6 +200,33 @@ impl DatagramWriter {
             Value::Float(x) => Some((value_type::FLOAT, x.to_bits().to_le_bytes())),
             _ => None,
         };
+        if let (Some((tag, bytes)), Some(block)) = (number, template.block()) {
+            // The usual message, whole in a block of fixed size: checked as `close_message`
+            // checks, made on the stack and copied in one piece of that size (no call).
+            let needed = template.len + 9;
+            let (available, alone) = (self.limit - start, self.limit - HEADER_LEN);
+            if needed > alone {
+                return Err(EncodeError::TooLarge { needed, available: alone });
+            }
+            if needed > available {
+                return Err(EncodeError::DoesNotFit { needed, available });
+            }
+            let mut m = *block;
+            m[1..3].copy_from_slice(&((needed - MESSAGE_HEADER_LEN) as u16).to_le_bytes());
+            m[SEQ_AT..SEQ_AT + 8].copy_from_slice(&message.seq.to_le_bytes());
+            m[template.len] = tag;
+            m[template.len + 1..needed].copy_from_slice(&bytes);
+            if self.buf.capacity() - start >= BLOCK {
+                self.buf.extend_from_slice(&m);
+                self.buf.truncate(start + needed);
+            } else {
+                self.buf.extend_from_slice(&m[..needed]);
+            }
+            self.messages += 1;
+            return Ok(());
+        }
+        self.buf.extend_from_slice(&template.bytes);
+        self.buf[start + SEQ_AT..start + SEQ_AT + 8].copy_from_slice(&message.seq.to_le_bytes());
         if let Some((tag, bytes)) = number {
             let mut field = [tag; 9];
             field[1..].copy_from_slice(&bytes);
@@ -445,7 +470,21 @@ struct PortTemplate {
     port: Arc<str>,
     kind: ConnectionKind,
     priority: i32,
+    /// The template's bytes.
     bytes: Vec<u8>,
+    /// Its length.
+    len: usize,
+    /// The same bytes at the start of a [`BLOCK`], when they leave room for a number there.
+    block: Option<[u8; BLOCK]>,
+}
+
+/// The bytes a usual port message (short names, a number) is written in at once.
+const BLOCK: usize = 64;
+
+impl PortTemplate {
+    fn block(&self) -> Option<&[u8; BLOCK]> {
+        self.block.as_ref()
+    }
 }
 
 impl PortTemplates {
@@ -460,7 +499,7 @@ impl PortTemplates {
     /// The template for `m`'s connection, made (and checked: the errors of
     /// [`DatagramWriter::push_port`]) if the slot holds none for it.
     #[inline(always)]
-    fn get(&mut self, m: &PortMessage) -> Result<&[u8], EncodeError> {
+    fn get(&mut self, m: &PortMessage) -> Result<&PortTemplate, EncodeError> {
         let i = (m.conn.0 as usize) % PortTemplates::SLOTS;
         let hit = matches!(self.slots.get(i), Some(Some(t))
             if t.conn == m.conn
@@ -472,7 +511,7 @@ impl PortTemplates {
             self.make(i, m)?;
         }
         match self.slots.get(i) {
-            Some(Some(t)) => Ok(&t.bytes),
+            Some(Some(t)) => Ok(t),
             _ => unreachable!("made just above"),
         }
     }
@@ -491,6 +530,12 @@ impl PortTemplates {
             port: m.port.clone(),
             kind: m.kind,
             priority: m.priority,
+            len: bytes.len(),
+            block: (bytes.len() + 9 <= BLOCK).then(|| {
+                let mut block = [0; BLOCK];
+                block[..bytes.len()].copy_from_slice(&bytes);
+                block
+            }),
             bytes,
         });
         Ok(())

@@ -307,13 +307,15 @@ proptest! {
     fn push_port_with_is_push_port(
         mtu in 40usize..3000,
         msgs in proptest::collection::vec(
-            (0usize..3, 0usize..4, 0usize..4, 0usize..3, 0usize..2, any::<u64>(), value(), proptest::option::weighted(0.1, name())),
+            (0usize..3, 0usize..5, 0usize..5, 0usize..3, 0usize..2, any::<u64>(), value(), proptest::option::weighted(0.1, name())),
             0..40,
         ),
     ) {
         let conns = [1u64, 257, 513];
-        // Two strings of one text (a name looked up again), another text, and an invalid name.
-        let names: [Arc<str>; 4] = [Arc::from("D"), Arc::from("D"), Arc::from("p07"), Arc::from("")];
+        // Two strings of one text (a name looked up again), other texts (one too long for the
+        // encoder's fixed block), and an invalid name.
+        let names: [Arc<str>; 5] =
+            [Arc::from("D"), Arc::from("D"), Arc::from("p07"), Arc::from("a_rather_long_behavior_name"), Arc::from("")];
         let kinds = [
             ConnectionKind::Normal,
             ConnectionKind::Suppress(Duration::from_millis(5)),
