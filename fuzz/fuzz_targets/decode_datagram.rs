@@ -5,11 +5,18 @@
 //! same bytes given a valid MAC are decoded by the keyed receiver, so the body decoders are
 //! reached behind authentication too; and whatever is accepted re-encodes, and the re-encoded
 //! datagram decodes to messages that encode to the same bytes (the encoder can send
-//! everything the decoder accepts, and the two agree).
+//! everything the decoder accepts, and the two agree). Decoding into places that hold an
+//! earlier datagram's port messages (`MessageSink::port_place`, as the UDP transport's inbox
+//! does) gives what `decode` gives, refusals included.
 #![no_main]
 
-use ayllu_core::NodeId;
-use ayllu_wire::{decode, encode_datagram, mac, ReceiverConfig, WireMessage, FLAG_AUTH, HEADER_LEN};
+use std::sync::Arc;
+
+use ayllu_core::{ConnectionId, ConnectionKind, NodeId, PortMessage, Value};
+use ayllu_wire::{
+    decode, decode_into, encode_datagram, mac, MessageSink, NameCache, ReceiverConfig, WireMessage, FLAG_AUTH,
+    HEADER_LEN,
+};
 use libfuzzer_sys::fuzz_target;
 
 const KEY: [u8; 32] = [0x42; 32];
@@ -21,9 +28,11 @@ fuzz_target!(|data: &[u8]| {
     let open = ReceiverConfig { team, key: None };
     let keyed = ReceiverConfig { team, key: Some(KEY) };
 
-    if let Ok(d) = decode(data, &open) {
+    let decoded = decode(data, &open);
+    if let Ok(d) = &decoded {
         check_reencodes(team, &d.messages);
     }
+    check_kept_places(data, &open, decoded.map(|d| d.messages));
     let _ = decode(data, &keyed);
 
     // The same bytes, authenticated: set AUTH and append a valid MAC.
@@ -47,4 +56,82 @@ fn check_reencodes(team: u32, messages: &[WireMessage]) {
     // Compare as bytes: floats (NaN payloads) compare exactly that way.
     let bytes2 = encode_datagram(team, NodeId(1), 1, None, &again.messages).expect("re-encodes again");
     assert_eq!(bytes, bytes2);
+}
+
+/// `data` decoded into places that hold an earlier datagram's port messages (names the input
+/// may spell or not) gives `expected`, `decode`'s outcome.
+fn check_kept_places(data: &[u8], config: &ReceiverConfig, expected: Result<Vec<WireMessage>, ayllu_wire::DropReason>) {
+    let earlier: Vec<WireMessage> = ["D", "p00", "x"]
+        .iter()
+        .enumerate()
+        .map(|(i, name)| {
+            WireMessage::Port(PortMessage {
+                conn: ConnectionId(i as u64),
+                seq: 1,
+                behavior: Arc::from(*name),
+                port: Arc::from(*name),
+                kind: ConnectionKind::Normal,
+                priority: 0,
+                value: Value::Int(0),
+            })
+        })
+        .collect();
+    let earlier = encode_datagram(config.team, NodeId(1), 1, None, &earlier).expect("encodes");
+    let mut names = NameCache::new();
+    let mut sink = Places::default();
+    decode_into(&earlier, config, &mut names, &mut sink).expect("decodes");
+    (sink.used, sink.got) = (0, Vec::new());
+    let got = decode_into(data, config, &mut names, &mut sink).map(|_| sink.got);
+    match (expected, got) {
+        (Ok(a), Ok(b)) => {
+            // As bytes: floats (NaN payloads) compare exactly that way.
+            let known = |m: &Vec<WireMessage>| -> Vec<WireMessage> {
+                m.iter().filter(|m| !matches!(m, WireMessage::Unknown { .. })).cloned().collect()
+            };
+            let (a, b) = (known(&a), known(&b));
+            assert_eq!(
+                encode_datagram(config.team, NodeId(1), 1, None, &a).expect("re-encodes"),
+                encode_datagram(config.team, NodeId(1), 1, None, &b).expect("re-encodes")
+            );
+        }
+        (a, b) => assert_eq!(a.err(), b.err()),
+    }
+}
+
+/// A sink that keeps its port messages' places from datagram to datagram.
+#[derive(Default)]
+struct Places {
+    places: Vec<PortMessage>,
+    used: usize,
+    got: Vec<WireMessage>,
+}
+
+impl Places {
+    fn keep(&mut self, message: PortMessage, group: Option<Arc<str>>) {
+        self.got.push(match group {
+            Some(group) => WireMessage::GroupPort { group, message: message.clone() },
+            None => WireMessage::Port(message.clone()),
+        });
+        match self.places.get_mut(self.used) {
+            Some(place) => *place = message,
+            None => self.places.push(message),
+        }
+        self.used += 1;
+    }
+}
+
+impl MessageSink for Places {
+    fn port(&mut self, message: PortMessage, group: Option<Arc<str>>) {
+        self.keep(message, group);
+    }
+    fn other(&mut self, message: WireMessage) {
+        self.got.push(message);
+    }
+    fn port_place(&mut self) -> Option<&mut PortMessage> {
+        self.places.get_mut(self.used)
+    }
+    fn port_placed(&mut self, group: Option<Arc<str>>) {
+        let message = self.places[self.used].clone();
+        self.keep(message, group);
+    }
 }

@@ -157,6 +157,14 @@ static inline ay_status ay_checked_(ay_status s, const char *what, const char *f
         ay_check_(ay_class_every_hz(ayClass_, #Name, (Rate), Name, ayUser_),           \
                   "ayInitProcess(" #Name ")");                                         \
     } while (0)
+/* A periodic process, `Rate` activations per second, activated only while port `Port` of its
+ * behavior holds a fresh value (D7.5): a due time at which `Port` is stale is skipped, not run. */
+#define ayInitProcessWhileFresh(Name, Rate, Port)                                      \
+    do {                                                                               \
+        extern void Name(ay_ctx *, void *);                                            \
+        ay_check_(ay_class_every_hz_while_fresh(ayClass_, #Name, (Rate), #Port, Name, ayUser_), \
+                  "ayInitProcessWhileFresh(" #Name ", " #Port ")");                    \
+    } while (0)
 /* A process run whenever port `Port` of its behavior accepts a value. */
 #define ayInitTriggeredProcess(Name, Port)                                             \
     do {                                                                               \

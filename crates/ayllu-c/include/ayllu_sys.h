@@ -376,6 +376,24 @@ ay_status ay_class_every_hz(ay_class *cls,
                             ay_process_fn body,
                             void *user);
 
+// Declare a periodic process `name` at `hz` activations per second that is activated only
+// while port `port` of its behavior holds a fresh value (rule S7, D7.5): the due times of
+// [`ay_class_every_hz`], without the runs that would find `port` stale (no run, not counted).
+// Ownership and threads as [`ay_class_every_hz`].
+//
+// Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_RATE` (zero, negative, NaN or infinite
+// `hz`), `AY_ERR_UNKNOWN` (the class has no port `port`; declare the port first),
+// `AY_ERR_INVALID` (empty or taken name).
+//
+// # Safety
+// As [`ay_class_every_hz`]; `port` is NULL or NUL-terminated.
+ay_status ay_class_every_hz_while_fresh(ay_class *cls,
+                                        const char *name,
+                                        double hz,
+                                        const char *port,
+                                        ay_process_fn body,
+                                        void *user);
+
 // Declare a process `name` that runs whenever port `port` of its behavior accepts a value
 // (from a connection or a process; rule S7). Ownership and threads as [`ay_class_every_hz`].
 //

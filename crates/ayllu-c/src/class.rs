@@ -441,6 +441,40 @@ pub unsafe extern "C" fn ay_class_every_hz(
     })
 }
 
+/// Declare a periodic process `name` at `hz` activations per second that is activated only
+/// while port `port` of its behavior holds a fresh value (rule S7, D7.5): the due times of
+/// [`ay_class_every_hz`], without the runs that would find `port` stale (no run, not counted).
+/// Ownership and threads as [`ay_class_every_hz`].
+///
+/// Errors: `AY_ERR_NULL`, `AY_ERR_HANDLE`, `AY_ERR_RATE` (zero, negative, NaN or infinite
+/// `hz`), `AY_ERR_UNKNOWN` (the class has no port `port`; declare the port first),
+/// `AY_ERR_INVALID` (empty or taken name).
+///
+/// # Safety
+/// As [`ay_class_every_hz`]; `port` is NULL or NUL-terminated.
+#[no_mangle]
+pub unsafe extern "C" fn ay_class_every_hz_while_fresh(
+    cls: *mut ay_class,
+    name: *const c_char,
+    hz: f64,
+    port: *const c_char,
+    body: ay_process_fn,
+    user: *mut c_void,
+) -> ay_status {
+    boundary("ay_class_every_hz_while_fresh", || {
+        let trigger = |c: &ay_class| {
+            let period = Duration::try_from_hz(hz)?;
+            // SAFETY: the C caller's promise on `port`.
+            let p = unsafe { text(port, "port") }?;
+            let handle = c.class.port_handle(register_name(p)).ok_or_else(|| {
+                Fail::new(ay_status::AY_ERR_UNKNOWN, format!("class {} has no port `{p}`", c.class.name()))
+            })?;
+            Ok(Trigger::PeriodicWhileFresh(period, handle))
+        };
+        declare_process(cls, name, trigger, body, user)
+    })
+}
+
 /// Declare a process `name` that runs whenever port `port` of its behavior accepts a value
 /// (from a connection or a process; rule S7). Ownership and threads as [`ay_class_every_hz`].
 ///

@@ -167,11 +167,11 @@ pub fn node_report_text(r: &NodeReport, peer: Option<&PeerInfo>) -> String {
             let _ = writeln!(out, "    {name:<14} monostable {}", if *high { "high" } else { "low" });
         }
         for p in &b.processes {
+            let port_name = |port: ayllu::Port| b.ports.get(usize::from(port.0)).map_or("?", |r| r.name.as_str());
             let trigger = match p.trigger {
                 Trigger::Periodic(d) => format!("every {d}"),
-                Trigger::OnWrite(port) => {
-                    format!("on write of {}", b.ports.get(usize::from(port.0)).map_or("?", |r| r.name.as_str()))
-                }
+                Trigger::PeriodicWhileFresh(d, port) => format!("every {d} while {} is fresh", port_name(port)),
+                Trigger::OnWrite(port) => format!("on write of {}", port_name(port)),
                 Trigger::OnMonostable(m) => {
                     format!("on {}", b.monostables.get(usize::from(m.0)).map_or("?", |(n, _)| n.as_str()))
                 }

@@ -57,6 +57,21 @@ pub enum Trigger {
     OnWrite(Port),
     /// Whenever this monostable rises or falls.
     OnMonostable(Mono),
+    /// As `Periodic`, at the same due times, but only while this port of the behavior holds
+    /// a fresh value (S4): a due time at which it does not is not an activation — the body
+    /// is not run and nothing is counted (D7.5). For a body that does nothing without that
+    /// port's value (the paper's observers: "no output when the target is not seen").
+    PeriodicWhileFresh(Duration, Port),
+}
+
+impl Trigger {
+    /// The period of a periodic trigger (`Periodic` or `PeriodicWhileFresh`).
+    pub fn period(&self) -> Option<Duration> {
+        match *self {
+            Trigger::Periodic(p) | Trigger::PeriodicWhileFresh(p, _) => Some(p),
+            Trigger::OnWrite(_) | Trigger::OnMonostable(_) => None,
+        }
+    }
 }
 
 /// A process body. It runs to completion; it must not block.
@@ -243,6 +258,22 @@ impl BehaviorClass {
         self.process(name, Trigger::Periodic(period), body)
     }
 
+    /// Declare a periodic process at `hz` activations per second that is activated only while
+    /// `port` holds a fresh value ([`Trigger::PeriodicWhileFresh`], D7.5): the same due times
+    /// as [`BehaviorClass::every_hz`], without the runs that would find the port stale. A rate
+    /// that is not finite and above zero is refused with [`Error::InvalidRate`], a port this
+    /// class did not declare with [`Error::UnknownPort`].
+    pub fn every_hz_while_fresh(
+        &mut self,
+        name: &str,
+        hz: f64,
+        port: Port,
+        body: impl Fn(&mut Ctx<'_>) + Send + Sync + 'static,
+    ) -> Result<(), Error> {
+        let period = Duration::try_from_hz(hz)?;
+        self.process(name, Trigger::PeriodicWhileFresh(period, port), body)
+    }
+
     /// Declare a process that runs when `port` accepts a value.
     pub fn on_write(
         &mut self,
@@ -308,10 +339,10 @@ pub(crate) fn validate_process(
         return Err(Error::DuplicateName { what: "process", name: format!("{behavior}.{}", spec.name) });
     }
     match spec.trigger {
-        Trigger::Periodic(p) if p.is_zero() => {
+        Trigger::Periodic(p) | Trigger::PeriodicWhileFresh(p, _) if p.is_zero() => {
             Err(Error::ZeroProcessPeriod { process: format!("{behavior}.{}", spec.name) })
         }
-        Trigger::OnWrite(Port(i)) if usize::from(i) >= n_ports => {
+        Trigger::OnWrite(Port(i)) | Trigger::PeriodicWhileFresh(_, Port(i)) if usize::from(i) >= n_ports => {
             Err(Error::UnknownPort { behavior: behavior.to_owned(), port: format!("#{i}") })
         }
         Trigger::OnMonostable(Mono(i)) if usize::from(i) >= n_monos => {

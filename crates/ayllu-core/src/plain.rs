@@ -2,7 +2,8 @@
 //!
 //! Most ports of a running team are Normal, trigger no process and never see a window. For
 //! such a *plain* port ([`PortState::is_plain`]) the general path (`write_internal`,
-//! `deliver`) reduces to the merge and the wave marks, so [`NodeCore::write`], a process's
+//! `deliver`) reduces to the merge and the wave marks (and, along a connection to another
+//! node, the numbered message into the outbox), so [`NodeCore::write`], a process's
 //! [`Ctx::write`](crate::Ctx::write) and the propagation loop take it here: the handle is resolved once, a hop into a plain port that
 //! passes nothing on is the merge and the marks, and the first edge that needs more hands the
 //! rest of the wave to the general loop at exactly that edge.
@@ -106,7 +107,13 @@ impl NodeCore {
                 {
                     next += 1
                 }
-                _ => {
+                // A remote edge ends in a message: nothing on this node can refuse or block it
+                // (the port is plain), so it is sent from here, as the general loop would.
+                None => {
+                    self.send_along(edge, value.clone());
+                    next += 1
+                }
+                Some(_) => {
                     self.propagate_from_edge(b, p, next);
                     return true;
                 }

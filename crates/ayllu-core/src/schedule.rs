@@ -32,6 +32,9 @@ pub(crate) struct Periodic {
     pub(crate) pi: u16,
     pub(crate) next_due: Instant,
     pub(crate) period: Duration,
+    /// `PeriodicWhileFresh`: the port (of the same behavior) that must be fresh at a due time
+    /// for it to be an activation (D7.5).
+    pub(crate) guard: Option<u16>,
     /// Activations run (the process's `runs` in reports).
     pub(crate) runs: u64,
     /// The process's body (the same `Arc` as its state's).
@@ -40,8 +43,12 @@ pub(crate) struct Periodic {
 
 impl Periodic {
     fn new(b: u32, pi: u16, p: &ProcState, next_due: Instant) -> Option<Periodic> {
-        let Trigger::Periodic(period) = p.spec.trigger else { return None };
-        Some(Periodic { b, pi, next_due, period, runs: 0, body: p.spec.body.clone() })
+        let (period, guard) = match p.spec.trigger {
+            Trigger::Periodic(period) => (period, None),
+            Trigger::PeriodicWhileFresh(period, port) => (period, Some(port.0)),
+            Trigger::OnWrite(_) | Trigger::OnMonostable(_) => return None,
+        };
+        Some(Periodic { b, pi, next_due, period, guard, runs: 0, body: p.spec.body.clone() })
     }
 }
 
@@ -52,6 +59,7 @@ impl fmt::Debug for Periodic {
             .field("pi", &self.pi)
             .field("next_due", &self.next_due)
             .field("period", &self.period)
+            .field("guard", &self.guard)
             .field("runs", &self.runs)
             .finish()
     }

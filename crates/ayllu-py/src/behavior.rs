@@ -189,6 +189,16 @@ fn claim(index: &AtomicU32, handle: u16, class: &str, name: &str) -> PyResult<()
     Ok(())
 }
 
+/// The handle of `decl`, which a process of class `class` names (its trigger or its guard):
+/// refused unless it is one of that class's ports (`ports`).
+fn own_port(ports: &[Py<PyAny>], decl: &Bound<'_, PortDecl>, class: &str, process: &str) -> PyResult<Port> {
+    if !ports.iter().any(|p| p.is(decl)) {
+        return Err(errors::InvalidError::new_err(format!("process {class}.{process} names a port of another class")));
+    }
+    let d = decl.get();
+    Ok(Port(assigned(&d.index, "port", &d.name)?))
+}
+
 fn assigned(index: &AtomicU32, what: &str, name: &OnceLock<String>) -> PyResult<u16> {
     let i = index.load(Ordering::Relaxed);
     if i == UNASSIGNED {
@@ -393,16 +403,13 @@ pub fn define(py: Python<'_>, core: &mut NodeCore, procs: &Arc<Processes>, cls: 
         let func: Py<PyAny> = t.get_item(3)?.unbind();
         let trig = match trigger.as_str() {
             "every" => Trigger::Periodic(duration("period", arg.extract()?)?),
-            "on_write" => {
-                let decl = arg.cast::<PortDecl>()?;
-                if !port_decls.iter().any(|p| p.is(decl)) {
-                    return Err(errors::InvalidError::new_err(format!(
-                        "process {name}.{pname} is triggered by a port of another class"
-                    )));
-                }
-                let d = decl.get();
-                Trigger::OnWrite(Port(assigned(&d.index, "port", &d.name)?))
+            "every_while_fresh" => {
+                let pair = arg.cast::<PyTuple>()?;
+                let period = duration("period", pair.get_item(0)?.extract()?)?;
+                let guard = pair.get_item(1)?;
+                Trigger::PeriodicWhileFresh(period, own_port(&port_decls, guard.cast::<PortDecl>()?, name, &pname)?)
             }
+            "on_write" => Trigger::OnWrite(own_port(&port_decls, arg.cast::<PortDecl>()?, name, &pname)?),
             "on_monostable" => {
                 let d = arg.cast::<MonoDecl>()?.get();
                 Trigger::OnMonostable(Mono(assigned(&d.index, "monostable", &d.name)?))

@@ -150,3 +150,44 @@ def test_a_subclass_inherits_declarations_and_may_override_processes() -> None:
     assert (node.read("B", "Out"), node.read("D", "Out"), node.read("D", "Extra")) == (1, 2, 0.5)
     assert [p.name for p in node.report().behaviors[1].ports][3:] == ["Out", "Extra"]
     assert len(node.report().behaviors[1].processes) == 1
+
+
+class Watcher(ayllu.Behavior):
+    seen = ayllu.Port(0.0, lifespan=0.15, name="Seen")
+    runs = ayllu.Slot(0)
+
+    @ayllu.every(hz=10, while_fresh=seen)
+    def look(self, ctx: ayllu.Context) -> None:
+        ctx.set_slot(self.runs, ctx.slot(self.runs) + 1)
+
+
+def test_a_process_while_fresh_runs_only_at_due_times_its_port_is_fresh() -> None:
+    # D7.5: due every 0.1 s from 0; `Seen` fresh for 0.15 s after a write at 0 and at 0.45.
+    node = ayllu.Node(1, manual=True)
+    node.create(Watcher, "W")
+    node.write("W", "Seen", 1.0)
+    node.advance(0.45, tick=0.05)
+    node.write("W", "Seen", 2.0)
+    node.advance(0.55, tick=0.05)
+    proc = node.report().behaviors[0].processes[0]
+    assert (proc.runs, proc.overruns) == (3, 0), "activated at 0, 0.1 and 0.5 only"
+    assert node.report().behaviors[0].slots == [["runs", 3]]
+
+
+def test_while_fresh_takes_a_port_of_the_class() -> None:
+    import pytest
+
+    with pytest.raises(TypeError):
+        ayllu.every(hz=10, while_fresh="Seen")  # type: ignore[arg-type]
+
+    other = ayllu.Port(0.0, name="Elsewhere")
+
+    class Stranger(ayllu.Behavior):
+        mine = ayllu.Port(0.0, name="Mine")
+
+        @ayllu.every(hz=10, while_fresh=other)
+        def look(self, ctx: ayllu.Context) -> None:
+            pass
+
+    with pytest.raises(ayllu.InvalidError, match="port of another class"):
+        ayllu.Node(1, manual=True).create(Stranger, "S")

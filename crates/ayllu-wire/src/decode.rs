@@ -171,6 +171,21 @@ pub trait MessageSink {
     }
     /// A PORT message; `group` is the group it was sent to (non-empty), if any.
     fn port(&mut self, message: PortMessage, group: Option<Arc<str>>);
+    /// A message this sink is done with, for the next PORT message to be decoded into in
+    /// place of building a new one (then [`MessageSink::port_placed`] instead of `port`), if
+    /// it has one. A sink that keeps its messages' places from datagram to datagram (the UDP
+    /// transport's inbox) saves moving each message and, when the place already holds the
+    /// names the message carries (the usual case: a flow's datagrams look alike), taking and
+    /// dropping a reference to each name: they are kept. The place is overwritten only once
+    /// the whole message decoded; a malformed one leaves it as it was.
+    fn port_place(&mut self) -> Option<&mut PortMessage> {
+        None
+    }
+    /// The PORT message just decoded into [`MessageSink::port_place`]'s message; `group` as
+    /// for [`MessageSink::port`].
+    fn port_placed(&mut self, group: Option<Arc<str>>) {
+        let _ = group;
+    }
     /// Any other message, [`WireMessage::Unknown`] included.
     fn other(&mut self, message: WireMessage);
 }
@@ -441,8 +456,13 @@ fn decode_messages(mut area: &[u8], names: &mut NameCache, out: &mut impl Messag
         };
         area = &rest[usize::from(length)..];
         if code == kind::PORT {
-            let (message, group) = decode_port(body, names).ok_or(DropReason::Malformed)?;
-            out.port(message, group);
+            if let Some(place) = out.port_place() {
+                let group = decode_port_into(body, names, place).ok_or(DropReason::Malformed)?;
+                out.port_placed(group);
+            } else {
+                let (message, group) = decode_port(body, names).ok_or(DropReason::Malformed)?;
+                out.port(message, group);
+            }
             continue;
         }
         let message = match code {
@@ -482,6 +502,61 @@ fn decode_port(body: &[u8], names: &mut NameCache) -> Option<(PortMessage, Optio
         Some(group) if !group.is_empty() => Some((message, Some(group))),
         _ => Some((message, None)),
     }
+}
+
+/// [`decode_port`] into `place`, which is overwritten only once the whole body decoded: the
+/// same message, and the same refusals, whatever `place` held. Its names are kept when they
+/// spell the body's (no lookup, no reference taken or dropped); otherwise they come from
+/// `names` as `decode_port`'s do. Numbers are read in place (a call to `Reader::value` cost
+/// as much as the rest of the fields).
+fn decode_port_into(body: &[u8], names: &mut NameCache, place: &mut PortMessage) -> Option<Option<Arc<str>>> {
+    let mut r = Reader::new(body, names);
+    let conn = ConnectionId(r.u64()?);
+    let seq = r.u64()?;
+    let kind = r.kind()?;
+    let priority = r.i32()?;
+    let lb = usize::from(*r.buf.first()?);
+    let lp = usize::from(*r.buf.get(lb + 1)?);
+    let span = r.take(lb + lp + 2)?;
+    let (b, p) = (place.behavior.as_bytes(), place.port.as_bytes());
+    // Names a decoded message holds are never empty, but the place is the sink's: checked.
+    let same_names = lb == b.len()
+        && lp == p.len()
+        && lb != 0
+        && lp != 0
+        && same_bytes(&span[1..lb + 1], b)
+        && same_bytes(&span[lb + 2..], p);
+    let fresh_names = if same_names { None } else { Some(r.names.intern_pair(span)?) };
+    let value = match r.buf.first() {
+        Some(&value_type::INT) if r.buf.len() >= 9 => {
+            r.buf = &r.buf[1..];
+            Value::Int(r.i64()?)
+        }
+        Some(&value_type::FLOAT) if r.buf.len() >= 9 => {
+            r.buf = &r.buf[1..];
+            Value::Float(r.f64()?)
+        }
+        _ => r.value()?,
+    };
+    // The optional group, as `decode_port` reads it.
+    let group = if r.buf.is_empty() {
+        None
+    } else {
+        match r.str8() {
+            Some(group) if !group.is_empty() => Some(group),
+            _ => None,
+        }
+    };
+    if let Some((behavior, port)) = fresh_names {
+        place.behavior = behavior;
+        place.port = port;
+    }
+    place.conn = conn;
+    place.seq = seq;
+    place.kind = kind;
+    place.priority = priority;
+    place.value = value;
+    Some(group)
 }
 
 fn decode_hello(body: &[u8], names: &mut NameCache) -> Option<WireMessage> {

@@ -58,7 +58,7 @@ pub use auth::{mac, parse_key_hex, verify_mac, Key, ReplayWindow};
 pub use decode::{
     decode, decode_into, decode_with, Datagram, DropReason, Header, MessageSink, NameCache, ReceiverConfig,
 };
-pub use encode::{encode_datagram, encoded_len, DatagramWriter, EncodeError};
+pub use encode::{encode_datagram, encoded_len, DatagramWriter, EncodeError, PortTemplates};
 pub use message::{ReplyPart, WireMessage};
 pub use operator::{OperatorPublic, OperatorSecret, OperatorSignature, SignedRequest};
 pub use reply::{reply_messages, report_slice_capacity, AssembleError, ReplyAssembler};

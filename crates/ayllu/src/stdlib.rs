@@ -304,10 +304,12 @@ pub fn observer_class_with(policy: Eligibility) -> Result<BehaviorClass, Error> 
     // What was last offered and when (seconds; negative: never).
     let offered = c.slot("Offered", 0.0)?;
     let offered_at = c.slot("OfferedAt", -1.0)?;
-    c.every_hz("TurnToTarget", 20.0, move |ctx| {
-        // Errata: no output when the target is not seen. `TargetY` is read only once
-        // `TargetX` is fresh: most activations do not see their target, and each read is a
-        // cold port on a node coming back from memory.
+    // Errata: no output when the target is not seen. Activated only while `TargetX` is fresh
+    // (D7.5): most due times do not see the target, and those are not run at all (a team of
+    // a thousand robots skips about 99 of every 100 observer runs); the body still checks,
+    // as the due times of a process that ran at every one would find it. `TargetY` is read
+    // only once `TargetX` is fresh: each read is a cold port on a node coming back from memory.
+    c.every_hz_while_fresh("TurnToTarget", 20.0, x, move |ctx| {
         if let Some(bearing) = ctx.float(x) {
             let Some(height) = ctx.float(y) else { return };
             let _ = ctx.write(rotate, -bearing);

@@ -18,6 +18,7 @@ static const double zero2[2] = {0, 0};
 
 struct seen {
     int ticks;
+    int while_fresh;
     int triggered;
     int mono_changes;
     int64_t last_i;
@@ -75,6 +76,7 @@ ayDefBehaviorClass(Everything) {
     ayPROCESSES {
         ayInitProcess(Tick, ratepersecond(10));
         ayInitTriggeredProcess(OnI, I);
+        ayInitProcessWhileFresh(WhileLifeF, ratepersecond(10), LifeF);
         ayInitMonostableProcess(OnBusy, Busy);
     }
 }
@@ -129,6 +131,11 @@ ayDefProcess(OnI) {
         ayResetPort(MaxI);
     }
     seen.triggered++;
+}
+
+/* Activated only while LifeF is fresh (D7.5). */
+ayDefProcess(WhileLifeF) {
+    seen.while_fresh++;
 }
 
 ayDefProcess(OnBusy) {
@@ -202,6 +209,10 @@ static void everything(void) {
     ayWriteBoolPortOf(X, LifeB, true);
     ayWriteTextPortOf(X, LifeT, "here");
     CHECK(ayPortFreshOf(X, LifeI) && ayPortFreshOf(X, LifeF) && ayPortFreshOf(X, LifeB) && ayPortFreshOf(X, LifeT));
+    CHECK_EQ_INT(seen.while_fresh, 0); /* LifeF was stale at every due time so far */
+    at(1300);
+    ayStep();
+    CHECK_EQ_INT(seen.while_fresh, 1);
     at(1500);
     CHECK(!ayPortFreshOf(X, LifeI) && !ayPortFreshOf(X, LifeF) && !ayPortFreshOf(X, LifeB) && !ayPortFreshOf(X, LifeT));
     /* Windows: an aggregating port empties 1 s after its window opened. */

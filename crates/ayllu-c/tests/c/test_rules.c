@@ -479,6 +479,42 @@ static void processes(void) {
     OK(ay_node_free(node));
 }
 
+/* process_while_fresh.rs (D7.5): activated at its due times only while its port is fresh. */
+static void count_seen(ay_ctx *ctx, void *user) {
+    int *runs = (int *)user;
+    ay_port in;
+    double v = 0.0;
+    OK(ay_ctx_port(ctx, "In", &in));
+    OK(ay_ctx_read_float(ctx, in, &v));
+    (*runs)++;
+}
+
+static void while_fresh(void) {
+    int runs = 0;
+    ay_node *node = NULL;
+    ay_class *c = NULL;
+    OK(ay_node_open_manual(1, "mem://rules-while-fresh", clock_, &node));
+    at(0);
+    OK(ay_class_new("Seer", &c));
+    OK(ay_class_port_float(c, "In", 0.0, AY_PORT_NORMAL, 0.15, 0, NULL));
+    CHECK_EQ_INT(ay_class_every_hz_while_fresh(c, "Look", 10.0, "Nope", count_seen, &runs), AY_ERR_UNKNOWN);
+    CHECK_EQ_INT(ay_class_every_hz_while_fresh(c, "Look", 0.0, "In", count_seen, &runs), AY_ERR_RATE);
+    OK(ay_class_every_hz_while_fresh(c, "Look", 10.0, "In", count_seen, &runs));
+    OK(ay_node_define(node, c));
+    OK(ay_node_create(node, "Seer", "S"));
+    /* Due every 100 ms from 0; `In` fresh for 150 ms after a write: written at 0 and 450, so
+     * activated at 0, 100 and 500 only. */
+    for (int t = 0; t <= 1000; t += 50) {
+        at(t);
+        if (t == 0 || t == 450) {
+            OK(ay_node_write_float(node, "S", "In", 1.0));
+        }
+        OK(ay_node_step(node, NULL));
+    }
+    CHECK_EQ_INT(runs, 3);
+    OK(ay_node_free(node));
+}
+
 /* ---- remote, group, BLE over mem:// ---- */
 
 static ay_node *relay_node(uint32_t id, const char *net) {
@@ -691,6 +727,7 @@ int main(void) {
     run(priority_port);
     run(text_and_bytes_ports);
     run(processes);
+    run(while_fresh);
     run(remote_and_group);
     run(ble);
     run(reports_and_handles);

@@ -21,7 +21,7 @@ use crate::message::{Message, Outgoing, PortMessage};
 use crate::time::Instant;
 use crate::value::Value;
 
-use super::{NodeCore, PortRef, PortState, Target};
+use super::{Edge, NodeCore, PortRef, PortState, Target};
 
 /// Where a wave stands at one port: the next of its outgoing connections to take.
 #[derive(Copy, Clone)]
@@ -109,11 +109,11 @@ impl NodeCore {
     }
 
     /// The wave from port (b, p), which has just accepted and may propagate (rule S5): the
-    /// common case — local edges into ports that do not pass the value on — is taken here
-    /// without a stack frame. The first edge that needs more (a destination that propagates
-    /// further, a remote destination) hands the rest of the wave to [`NodeCore::run_wave`] at
-    /// exactly that point, so the depth-first order, and every check `deliver` makes, are
-    /// those of the general path.
+    /// common cases — local edges into ports that do not pass the value on, and remote
+    /// destinations, where the wave ends in a message — are taken here without a stack frame.
+    /// The first edge that needs more (a destination that propagates further) hands the rest
+    /// of the wave to [`NodeCore::run_wave`] at exactly that point, so the depth-first order,
+    /// and every check `deliver` makes, are those of the general path.
     #[inline]
     pub(crate) fn propagate_from(&mut self, b: u32, p: u16) {
         self.propagate_from_edge(b, p, 0);
@@ -126,14 +126,17 @@ impl NodeCore {
             let Some(beh) = self.behaviors.get(b as usize).and_then(Option::as_ref) else { return };
             let port = &beh.ports[usize::from(p)];
             let Some(&edge) = port.out.get(next as usize) else { return };
-            let Some((db, dp)) = edge.local else {
-                self.stack.push(Frame { b, p, next });
-                self.run_wave();
-                return;
-            };
             let last = next as usize + 1 == port.out.len();
             let value = port.cell.value.clone();
             next += 1;
+            let Some((db, dp)) = edge.local else {
+                // A remote edge ends there: taken here, not by the general loop's frame.
+                self.send_along(edge, value);
+                if last {
+                    return;
+                }
+                continue;
+            };
             let from = Source::connection(me, ConnectionId(edge.id));
             if edge.kind == ConnectionKind::Normal && self.hop_plain_checked(db, dp, from, &value) {
                 if last {
@@ -177,31 +180,35 @@ impl NodeCore {
                 top.next += 1;
             }
             let value = port.cell.value.clone();
-            let from = Source::connection(me, ConnectionId(edge.id));
-            let (kind, priority) = (edge.kind, edge.priority);
             if let Some((db, dp)) = edge.local {
-                if self.deliver(db, dp, kind, from, priority, &value) {
+                let from = Source::connection(me, ConnectionId(edge.id));
+                if self.deliver(db, dp, edge.kind, from, edge.priority, &value) {
                     self.stack.push(Frame { b: db, p: dp, next: 0 });
                 }
                 continue;
             }
-            let Some(conn) = self.conns.get_mut(edge.conn as usize).and_then(Option::as_mut) else { continue };
-            match &conn.dst {
-                Target::Local { .. } => {}
-                Target::Remote { to, behavior, port } => {
-                    conn.seq += 1;
-                    let message = Message::Port(PortMessage {
-                        conn: ConnectionId(conn.id),
-                        seq: conn.seq,
-                        behavior: behavior.clone(),
-                        port: port.clone(),
-                        kind,
-                        priority,
-                        value,
-                    });
-                    self.outbox.push_back(Outgoing { to: to.clone(), message });
-                }
-            }
+            self.send_along(edge, value);
+        }
+    }
+
+    /// The remote end of a wave: a numbered port message along `edge` (a connection to
+    /// another node) into the outbox. Nothing follows from it on this node, so the wave goes
+    /// on with the next edge, whichever loop took this one.
+    #[inline(always)]
+    pub(crate) fn send_along(&mut self, edge: Edge, value: Value) {
+        let Some(conn) = self.conns.get_mut(edge.conn as usize).and_then(Option::as_mut) else { return };
+        if let Target::Remote { to, behavior, port } = &conn.dst {
+            conn.seq += 1;
+            let message = Message::Port(PortMessage {
+                conn: ConnectionId(conn.id),
+                seq: conn.seq,
+                behavior: behavior.clone(),
+                port: port.clone(),
+                kind: edge.kind,
+                priority: edge.priority,
+                value,
+            });
+            self.outbox.push_back(Outgoing { to: to.clone(), message });
         }
     }
 

@@ -84,6 +84,17 @@ impl NodeCore {
             let missed = if next <= now { (now - next).as_nanos() / period.as_nanos() + 1 } else { 0 };
             next += period * missed;
             entry.next_due = next;
+            // D7.5: a due time at which the guard port is stale is not an activation (neither
+            // run nor counted); the next due time is the unguarded process's either way.
+            if let Some(g) = entry.guard {
+                let fresh = self.behaviors[b as usize]
+                    .as_ref()
+                    .and_then(|beh| beh.ports.get(usize::from(g)))
+                    .is_some_and(|port| port.cell.fresh(now));
+                if !fresh {
+                    continue;
+                }
+            }
             entry.runs += 1;
             // What the run needs is in the entry: the process's state is touched only to count
             // skipped activations (and, in `run_body`, on a node that keeps change outcomes).

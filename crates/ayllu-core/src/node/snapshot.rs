@@ -328,11 +328,16 @@ impl NodeCore {
         for (b, pi, next_due, period, runs) in s.schedule.periodic {
             let p = core.process_state(b, pi).ok_or_else(|| format!("a schedule entry for no process ({b}, {pi})"))?;
             // The entry's period is its process's (the trigger checked above): a damaged one,
-            // zero above all, would make every poll divide by it.
-            if !matches!(p.spec.trigger, Trigger::Periodic(q) if q == period) {
+            // zero above all, would make every poll divide by it. The guard is the process's
+            // own: a snapshot does not repeat it.
+            let guard = match p.spec.trigger {
+                Trigger::PeriodicWhileFresh(_, port) => Some(port.0),
+                _ => None,
+            };
+            if p.spec.trigger.period() != Some(period) {
                 return Err(format!("a schedule entry for ({b}, {pi}) with another period than its process's"));
             }
-            periodic.push(Periodic { b, pi, next_due, period, runs, body: p.spec.body.clone() });
+            periodic.push(Periodic { b, pi, next_due, period, guard, runs, body: p.spec.body.clone() });
         }
         if periodic.windows(2).any(|w| (w[0].b, w[0].pi) >= (w[1].b, w[1].pi)) {
             return Err("the schedule is not in process order".into());
@@ -434,6 +439,7 @@ fn check_indices(core: &NodeCore, free_behaviors: &[u32], free_conns: &[u32]) ->
                 Trigger::OnWrite(port) => usize::from(port.0) < n_ports,
                 Trigger::OnMonostable(m) => usize::from(m.0) < beh.monos.len(),
                 Trigger::Periodic(period) => !period.is_zero(),
+                Trigger::PeriodicWhileFresh(period, port) => !period.is_zero() && usize::from(port.0) < n_ports,
             };
             if !fits {
                 return Err(format!("process `{}.{}` has a trigger its behavior lacks", beh.name, p.spec.name));

@@ -167,7 +167,7 @@ impl NodeCore {
         attach_trigger(&mut beh.ports, &mut beh.monos, spec.trigger, ix);
         let trigger = spec.trigger;
         beh.processes.push(ProcState::new(spec));
-        if matches!(trigger, Trigger::Periodic(_)) {
+        if trigger.period().is_some() {
             self.schedule.add_process(b, ix, beh.processes.last().expect("just pushed"), now);
             self.debug_check_schedule();
         }
@@ -270,6 +270,7 @@ fn attach_trigger(ports: &mut [PortState], monos: &mut [MonoState], trigger: Tri
             port.refresh_plain();
         }
         Trigger::OnMonostable(Mono(m)) => monos[usize::from(m)].watchers.push(ix),
-        Trigger::Periodic(_) => {}
+        // The schedule checks the port at each due time: nothing to attach to it.
+        Trigger::Periodic(_) | Trigger::PeriodicWhileFresh(..) => {}
     }
 }

@@ -11,7 +11,7 @@ use std::sync::Arc;
 
 use crate::address::{Endpoint, NodeId};
 use crate::arbitration::Windows;
-use crate::behavior::{BehaviorClass, ProcessSpec, Trigger};
+use crate::behavior::{BehaviorClass, ProcessSpec};
 use crate::ble::BleState;
 use crate::change::ChangeOutcome;
 use crate::connection::ConnectionKind;
@@ -171,7 +171,7 @@ impl ProcState {
     }
 
     pub(crate) fn is_periodic(&self) -> bool {
-        matches!(self.spec.trigger, Trigger::Periodic(_))
+        self.spec.trigger.period().is_some()
     }
 }
 

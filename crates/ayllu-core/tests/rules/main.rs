@@ -32,6 +32,7 @@ mod port_priority;
 mod port_sum;
 mod process_periodic;
 mod process_triggered;
+mod process_while_fresh;
 mod propagation;
 mod receive_cache;
 mod remote;

@@ -159,11 +159,18 @@ F = TypeVar("F", bound=Callable[..., Any])
 _MAX_SECONDS = 18446744073.709553
 
 
-def every(*, hz: Optional[float] = None, period: Optional[float] = None) -> Callable[[F], F]:
+def every(
+    *, hz: Optional[float] = None, period: Optional[float] = None, while_fresh: Optional[Port] = None
+) -> Callable[[F], F]:
     """A periodic process: ``hz`` activations a second, or one every ``period`` seconds,
-    phase-locked to the behavior's creation (rule S7)."""
+    phase-locked to the behavior's creation (rule S7). With ``while_fresh=port`` (a port of
+    the same class) it is activated only at the due times at which that port holds a fresh
+    value; at the others it is not run and not counted (D7.5) — for a process that does
+    nothing without that port's value."""
     if (hz is None) == (period is None):
         raise ValueError("give exactly one of hz= or period=")
+    if while_fresh is not None and not isinstance(while_fresh, Port):
+        raise TypeError(f"while_fresh takes a Port declared in the class body, not {while_fresh!r}")
     if hz is not None:
         # The rate's period must be a duration too (1 ns to 584 years), said as a bad rate:
         # hz=1e-300 used to be refused as a period of 1e300 s the caller never wrote.
@@ -174,7 +181,10 @@ def every(*, hz: Optional[float] = None, period: Optional[float] = None) -> Call
         period = 1.0 / hz
 
     def mark(fn: F) -> F:
-        fn.__ayllu_process__ = ("every", period)  # type: ignore[attr-defined]
+        if while_fresh is None:
+            fn.__ayllu_process__ = ("every", period)  # type: ignore[attr-defined]
+        else:
+            fn.__ayllu_process__ = ("every_while_fresh", (period, while_fresh))  # type: ignore[attr-defined]
         return fn
 
     return mark

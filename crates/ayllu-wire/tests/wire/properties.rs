@@ -9,8 +9,8 @@ use ayllu_core::{
     BleConfig, Change, ConnectionId, ConnectionKind, ControlBody, Duration, Endpoint, NodeId, PortMessage, Value,
 };
 use ayllu_wire::{
-    decode, encode_datagram, DatagramWriter, EncodeError, Key, ReceiverConfig, ReplayWindow, ReplyPart, WireMessage,
-    MAX_DATAGRAM_LEN,
+    decode, decode_into, encode_datagram, DatagramWriter, EncodeError, Key, MessageSink, NameCache, PortTemplates,
+    ReceiverConfig, ReplayWindow, ReplyPart, WireMessage, HEADER_LEN, MAX_DATAGRAM_LEN,
 };
 use proptest::prelude::*;
 
@@ -297,6 +297,111 @@ proptest! {
         prop_assert_eq!(by_push.finish(), by_push_port.finish());
     }
 
+    /// `push_port_with` (the runtime's path: each connection's unchanging bytes from a
+    /// template) writes the bytes, and returns the errors, that `push_port` does, message after
+    /// message, while the templates are made, reused, taken over by another connection of the
+    /// same slot (ids 1, 257, 513), or stand no more: the same connection with other name
+    /// strings (equal text in another `Arc`, or other text), kind or priority. Every field is
+    /// drawn from a few choices, so all of these happen within a few messages.
+    #[test]
+    fn push_port_with_is_push_port(
+        mtu in 40usize..3000,
+        msgs in proptest::collection::vec(
+            (0usize..3, 0usize..5, 0usize..5, 0usize..3, 0usize..2, any::<u64>(), value(), proptest::option::weighted(0.1, name())),
+            0..40,
+        ),
+    ) {
+        let conns = [1u64, 257, 513];
+        // Two strings of one text (a name looked up again), other texts (one too long for the
+        // encoder's fixed block), and an invalid name.
+        let names: [Arc<str>; 5] =
+            [Arc::from("D"), Arc::from("D"), Arc::from("p07"), Arc::from("a_rather_long_behavior_name"), Arc::from("")];
+        let kinds = [
+            ConnectionKind::Normal,
+            ConnectionKind::Suppress(Duration::from_millis(5)),
+            ConnectionKind::Inhibit(Duration::ZERO),
+        ];
+        let mut templates = PortTemplates::new();
+        let mut by_push_port = DatagramWriter::new(7, NodeId(1), 1, None, mtu);
+        let mut by_template = by_push_port.clone();
+        for (c, b, p, k, priority, seq, value, group) in msgs {
+            let message = PortMessage {
+                conn: ConnectionId(conns[c]),
+                seq,
+                behavior: names[b].clone(),
+                port: names[p].clone(),
+                kind: kinds[k],
+                priority: priority as i32,
+                value,
+            };
+            let group = group.as_deref();
+            prop_assert_eq!(
+                by_push_port.push_port(&message, group),
+                by_template.push_port_with(&mut templates, &message, group)
+            );
+        }
+        prop_assert_eq!(by_push_port.finish(), by_template.finish());
+    }
+
+    /// Decoding into places kept from datagram to datagram (`MessageSink::port_place`, as the
+    /// UDP transport's inbox does) gives what `decode` gives, refusals included, whatever the
+    /// places held: names from a few choices (so a place often holds the message's names, and
+    /// often others), any value, groups, other messages in between, and bytes flipped.
+    #[test]
+    fn decoding_into_kept_places_is_decoding(
+        datagrams in proptest::collection::vec(
+            (
+                proptest::collection::vec(
+                    (0usize..4, 0usize..4, value(), proptest::option::weighted(0.2, 0usize..4), proptest::bool::weighted(0.1)),
+                    0..8,
+                ),
+                proptest::collection::vec((any::<usize>(), any::<u8>()), 0..2),
+            ),
+            1..8,
+        ),
+    ) {
+        let pool: [Arc<str>; 4] = [Arc::from("D"), Arc::from("D2"), Arc::from("p00"), Arc::from("é✓")];
+        let config = ReceiverConfig::open(7);
+        let mut names = NameCache::new();
+        let mut sink = Places::default();
+        for (seq, (messages, flips)) in datagrams.into_iter().enumerate() {
+            let mut wire = Vec::new();
+            for (i, (b, p, value, group, other_first)) in messages.into_iter().enumerate() {
+                if other_first {
+                    wire.push(WireMessage::Challenge { cookie: [i as u8; 16] });
+                }
+                let message = PortMessage {
+                    conn: ConnectionId(i as u64),
+                    seq: seq as u64,
+                    behavior: pool[b].clone(),
+                    port: pool[p].clone(),
+                    kind: ConnectionKind::Normal,
+                    priority: 0,
+                    value,
+                };
+                wire.push(match group {
+                    Some(g) => WireMessage::GroupPort { group: pool[g].clone(), message },
+                    None => WireMessage::Port(message),
+                });
+            }
+            let mut bytes = encode_datagram(7, NodeId(1), seq as u64, None, &wire).unwrap();
+            for (at, bit) in flips {
+                let at = HEADER_LEN + at % (bytes.len() - HEADER_LEN).max(1);
+                if at < bytes.len() {
+                    bytes[at] ^= 1 << (bit % 8);
+                }
+            }
+            let expected = decode(&bytes, &config).map(|d| d.messages);
+            sink.used = 0;
+            sink.got.clear();
+            let got = decode_into(&bytes, &config, &mut names, &mut sink).map(|_| sink.got.clone());
+            match (&expected, &got) {
+                (Ok(a), Ok(b)) => prop_assert!(all_same(a, b), "{:?}\n{:?}", a, b),
+                _ => prop_assert_eq!(expected.clone().err(), got.clone().err()),
+            }
+        }
+    }
+
     #[test]
     fn random_bytes_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..600), auth: bool) {
         let _ = decode(&bytes, &ReceiverConfig { team: 7, key: auth.then_some(KEY) });
@@ -356,6 +461,45 @@ proptest! {
 
 /// Whatever the decoder accepts, the encoder can send: re-encoding the decoded messages (all
 /// but skipped unknown kinds) succeeds and decodes to the same messages.
+/// A sink that keeps its port messages' places from datagram to datagram, as the UDP
+/// transport's inbox does: the `used` first ones hold this datagram's, the rest earlier ones'.
+#[derive(Default)]
+struct Places {
+    places: Vec<PortMessage>,
+    used: usize,
+    got: Vec<WireMessage>,
+}
+
+impl Places {
+    fn keep(&mut self, message: PortMessage, group: Option<Arc<str>>) {
+        self.got.push(match group {
+            Some(group) => WireMessage::GroupPort { group, message: message.clone() },
+            None => WireMessage::Port(message.clone()),
+        });
+        match self.places.get_mut(self.used) {
+            Some(place) => *place = message,
+            None => self.places.push(message),
+        }
+        self.used += 1;
+    }
+}
+
+impl MessageSink for Places {
+    fn port(&mut self, message: PortMessage, group: Option<Arc<str>>) {
+        self.keep(message, group);
+    }
+    fn other(&mut self, message: WireMessage) {
+        self.got.push(message);
+    }
+    fn port_place(&mut self) -> Option<&mut PortMessage> {
+        self.places.get_mut(self.used)
+    }
+    fn port_placed(&mut self, group: Option<Arc<str>>) {
+        let message = self.places[self.used].clone();
+        self.keep(message, group);
+    }
+}
+
 fn check_reencodes(messages: &[WireMessage]) -> Result<(), TestCaseError> {
     let known: Vec<WireMessage> =
         messages.iter().filter(|m| !matches!(m, WireMessage::Unknown { .. })).cloned().collect();

@@ -7,7 +7,7 @@
 use std::net::SocketAddr;
 
 use ayllu_core::PortMessage;
-use ayllu_wire::{DatagramWriter, EncodeError, WireMessage};
+use ayllu_wire::{DatagramWriter, EncodeError, PortTemplates, WireMessage};
 
 use crate::datagram::DatagramSocket;
 use crate::transport::TransportEvent;
@@ -56,18 +56,23 @@ impl<S: DatagramSocket> UdpTransport<S> {
     /// Append a message to the open datagram for `addr`; a full datagram is finished and queued
     /// for the end of the turn.
     pub(super) fn push(&mut self, addr: SocketAddr, message: &WireMessage) {
-        self.push_with(addr, |w| w.push(message));
+        self.push_with(addr, |w, _| w.push(message));
     }
 
-    /// [`UdpTransport::push`] for a port message, encoded from the core's own message.
+    /// [`UdpTransport::push`] for a port message, encoded from the core's own message and the
+    /// connection's template (the same bytes, [`PortTemplates`]).
     pub(super) fn push_port(&mut self, addr: SocketAddr, message: &PortMessage, group: Option<&str>) {
-        self.push_with(addr, |w| w.push_port(message, group));
+        self.push_with(addr, |w, templates| w.push_port_with(templates, message, group));
     }
 
     /// Add one message, written by `encode`, to the turn's datagram for `addr`; a full datagram
     /// leaves and the message starts the next.
     #[inline(always)]
-    fn push_with(&mut self, addr: SocketAddr, encode: impl Fn(&mut DatagramWriter) -> Result<(), EncodeError>) {
+    fn push_with(
+        &mut self,
+        addr: SocketAddr,
+        encode: impl Fn(&mut DatagramWriter, &mut PortTemplates) -> Result<(), EncodeError>,
+    ) {
         let i = match self.batches.iter().position(|(a, _)| *a == addr) {
             Some(i) => i,
             None => {
@@ -76,13 +81,13 @@ impl<S: DatagramSocket> UdpTransport<S> {
                 self.batches.len() - 1
             }
         };
-        match encode(&mut self.batches[i].1) {
+        match encode(&mut self.batches[i].1, &mut self.templates) {
             Ok(()) => {}
             Err(EncodeError::DoesNotFit { .. }) => {
                 let fresh = self.writer();
                 let full = std::mem::replace(&mut self.batches[i].1, fresh);
                 self.transmit(addr, full);
-                if encode(&mut self.batches[i].1).is_err() {
+                if encode(&mut self.batches[i].1, &mut self.templates).is_err() {
                     self.count("too_large");
                 }
             }

@@ -4,7 +4,6 @@
 //! CHALLENGE/ECHO, HELLO, reply parts reassembled within bounds (N4). A datagram that fails a
 //! check leaves nothing behind in the inbox.
 
-use std::collections::VecDeque;
 use std::net::SocketAddr;
 use std::sync::Arc;
 
@@ -15,6 +14,7 @@ use crate::datagram::DatagramSocket;
 use crate::udp_config::MAX_DATAGRAM;
 
 use super::admit::Admitted;
+use super::inbox::Inbox;
 use super::peers::{expiry, MAX_PEER_INTERVAL, RECHALLENGE};
 use super::UdpTransport;
 
@@ -42,7 +42,7 @@ fn joined(joined: &[String], group: &str) -> bool {
 /// counted as `not_member` once the datagram is admitted). Any other message goes to `rest`,
 /// and so does every message after it, so that the inbox keeps the datagram's order.
 struct Inbound<'a> {
-    inbox: &'a mut VecDeque<(NodeId, Message)>,
+    inbox: &'a mut Inbox,
     joined: &'a [String],
     rest: &'a mut Vec<WireMessage>,
     sender: NodeId,
@@ -59,8 +59,25 @@ impl MessageSink for Inbound<'_> {
             return self.rest.port(message, group);
         }
         if group.is_none_or(|group| joined(self.joined, &group)) {
-            self.inbox.push_back((self.sender, Message::Port(message)));
+            self.inbox.push_back(self.sender, Message::Port(message));
         } else {
+            self.not_member += 1;
+        }
+    }
+    #[inline(always)]
+    fn port_place(&mut self) -> Option<&mut PortMessage> {
+        // After another message, everything waits in `rest`, in order.
+        if !self.rest.is_empty() {
+            return None;
+        }
+        self.inbox.port_place()
+    }
+    #[inline(always)]
+    fn port_placed(&mut self, group: Option<Arc<str>>) {
+        if group.is_none_or(|group| joined(self.joined, &group)) {
+            self.inbox.commit(self.sender);
+        } else {
+            // Its place stays free.
             self.not_member += 1;
         }
     }
@@ -101,7 +118,7 @@ impl<S: DatagramSocket> UdpTransport<S> {
         // Port messages go into the inbox as they are decoded (the hot path); anything else,
         // and whatever follows it, waits in `rest` for the checks below, so the inbox keeps
         // the datagram's order. A refused datagram's messages are taken back out.
-        let mark = self.inbox.len();
+        let mark = self.inbox.end();
         let mut rest = std::mem::take(&mut self.decoded);
         rest.clear();
         let mut sink =
@@ -125,7 +142,7 @@ impl<S: DatagramSocket> UdpTransport<S> {
             // be replays captured before this node started; they wait for its ECHO (values are
             // best effort, N1; requests are retried, N2). Replies go through: they match only
             // our own pending requests, whose ids start at this run's boot time.
-            let ports = self.inbox.len() - mark;
+            let ports = self.inbox.end() - mark;
             self.inbox.truncate(mark);
             let mut refused = ports as u64;
             rest.retain(|m| {
@@ -148,11 +165,11 @@ impl<S: DatagramSocket> UdpTransport<S> {
         let mut hello = false;
         for m in rest.drain(..) {
             match m {
-                WireMessage::Port(p) => self.inbox.push_back((sender, Message::Port(p))),
+                WireMessage::Port(p) => self.inbox.push_back(sender, Message::Port(p)),
                 WireMessage::GroupPort { group, message } => {
                     // Only a member applies a group's message (S10, D-S10.6).
                     if joined(&self.joined, &group) {
-                        self.inbox.push_back((sender, Message::Port(message)));
+                        self.inbox.push_back(sender, Message::Port(message));
                     } else {
                         self.count("not_member");
                     }
@@ -167,7 +184,7 @@ impl<S: DatagramSocket> UdpTransport<S> {
                         None => Ok(()),
                     };
                     match verdict {
-                        Ok(()) => self.inbox.push_back((sender, Message::Control(ControlMessage { id, body }))),
+                        Ok(()) => self.inbox.push_back(sender, Message::Control(ControlMessage { id, body })),
                         Err(refusal) => {
                             self.count(refusal.cause());
                             // A replay or a request over the rate is not answered: the answer
@@ -287,7 +304,7 @@ impl<S: DatagramSocket> UdpTransport<S> {
             Ok(Some(result)) => {
                 self.assemblies.remove(i);
                 let body = ControlBody::Reply { result };
-                self.inbox.push_back((sender, Message::Control(ControlMessage { id, body })));
+                self.inbox.push_back(sender, Message::Control(ControlMessage { id, body }));
             }
             Ok(None) => {
                 // Bounded in bytes as well as in count: the oldest other assemblies go first.
@@ -330,7 +347,7 @@ mod tests {
     /// inbox gets a datagram's messages in the order they were sent.
     #[test]
     fn inbound_keeps_the_datagrams_order() {
-        let mut inbox = VecDeque::new();
+        let mut inbox = Inbox::default();
         let mut rest = Vec::new();
         let joined = ["arm".to_string()];
         let mut sink =
@@ -343,13 +360,11 @@ mod tests {
         sink.port(port(4), None);
         sink.port(port(5), Some("legs".into()));
         assert_eq!(sink.not_member, 1, "counted once the datagram is admitted");
-        let seqs: Vec<u64> = inbox
-            .iter()
-            .map(|(from, m)| match m {
-                Message::Port(p) if *from == NodeId(9) => p.seq,
-                other => panic!("{other:?}"),
-            })
-            .collect();
+        let mut seqs = Vec::new();
+        inbox.each_then_empty(|from, m| match m {
+            Message::Port(p) if from == NodeId(9) => seqs.push(p.seq),
+            other => panic!("{other:?}"),
+        });
         assert_eq!(seqs, [1, 2]);
         assert_eq!(
             rest,

@@ -32,14 +32,35 @@ impl<S: DatagramSocket> UdpTransport<S> {
     /// Send `message` to `to`, from a borrowed message: only a message held for a node not
     /// heard from yet is copied (the rare case).
     pub(super) fn send_message(&mut self, to: &Destination, message: &Message) -> Sent {
+        self.send_message_after(to, message, &mut None)
+    }
+
+    /// [`UdpTransport::send_message`] for one of a run of messages (a turn's outbox): `last`
+    /// is the node the run's previous port message went to and its address, if it had one,
+    /// and the peer table has not changed since (nothing in a run changes it). A run of
+    /// messages to one node then looks its peer up once.
+    #[inline(always)]
+    pub(super) fn send_message_after(
+        &mut self,
+        to: &Destination,
+        message: &Message,
+        last: &mut Option<(NodeId, SocketAddr)>,
+    ) -> Sent {
         // The hot path, a port message to one node: one lookup, no list of addresses.
         if let (Destination::Node(n), Message::Port(p)) = (to, message) {
-            let now = self.now;
-            let Some(addr) = self.peers.get_mut(n).map(|peer| {
-                peer.used = Some(now);
-                peer.addr
-            }) else {
-                return self.hold(*n, message.clone());
+            let addr = match *last {
+                Some((node, addr)) if node == *n => addr,
+                _ => {
+                    let now = self.now;
+                    let Some(addr) = self.peers.get_mut(n).map(|peer| {
+                        peer.used = Some(now);
+                        peer.addr
+                    }) else {
+                        return self.hold(*n, message.clone());
+                    };
+                    *last = Some((*n, addr));
+                    addr
+                }
             };
             self.push_port(addr, p, None);
             self.unflushed += 1;
