@@ -1,7 +1,8 @@
 //! The distributed mode means what the in-process simulator means: one scenario file, with
 //! radio loss and a kill, run by `ayllu sim serve --scenario` and three `ayllu sim robot
-//! --scenario` processes on loopback, for BLE, Local, ForceField and BLE-seek (the four teams at
-//! once, to keep the test short; BLE-seek's robots are told their pose over the body link).
+//! --scenario` processes on loopback, for BLE, Local, ForceField and BLE-seek (three teams at
+//! once to keep the test short, then BLE-seek's, whose robots are told their pose over the
+//! body link and need the CPU on time: [`ROUNDS`]).
 //!
 //! Checks, for each controller, on the server's lines and the robots':
 //! * the kill happened: the server announced it at the scenario's instant, robot 2's process
@@ -15,8 +16,8 @@
 //! * A_w falls within the in-process spread for the same scenario (wander seeds 1..=8, the
 //!   world's seed fixed), widened by [`SLACK`] for real processes on a real clock.
 //!
-//! Bounded: 30 s of world time on the real clock, all four teams together; the whole test
-//! takes about 40 s.
+//! Bounded: 30 s of world time on the real clock, three teams together and then BLE-seek's
+//! (see [`ROUNDS`]); the whole test takes about 75 s.
 
 use crate::common;
 
@@ -179,7 +180,12 @@ fn check(team: &mut Team, started: Instant) {
     );
 }
 
-/// The teams run at once.
+/// The teams run at once, in two rounds: BLE-seek's three robots run after the other nine. A
+/// BLE-seek robot steers by the pose the server sends it each tick, so a robot process that
+/// waits for the CPU steers by an old pose: beside two busy loops its team's A_w fell to 0.52
+/// (0.74 alone; BLE, Local and ForceField unchanged), and beside the other teams and the rest
+/// of `make test` it fell outside the slack in 2 of 3 full runs (docs/limits.md).
+const ROUNDS: [&[&str]; 2] = [&["BLE", "Local", "ForceField"], &["BLE-seek"]];
 const TEAMS: [&str; 4] = ["BLE", "Local", "ForceField", "BLE-seek"];
 
 #[test]
@@ -192,10 +198,14 @@ fn ble_local_forcefield_and_ble_seek_with_loss_and_a_kill_match_in_process() {
     let dir =
         PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("sim_distributed_scenario-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("scratch folder");
-    let started = Instant::now();
-    let mut teams: Vec<Team> = TEAMS.into_iter().map(|c| start(c, &dir)).collect();
-    for team in &mut teams {
-        check(team, started);
+    let mut teams: Vec<Team> = Vec::new();
+    for round in ROUNDS {
+        let started = Instant::now();
+        let first = teams.len();
+        teams.extend(round.iter().map(|&c| start(c, &dir)));
+        for team in &mut teams[first..] {
+            check(team, started);
+        }
     }
     // Every surviving robot stops by itself once its server is gone.
     for team in &mut teams {
