@@ -14,10 +14,15 @@ use std::sync::Arc;
 
 use ayllu_core::{ConnectionId, ConnectionKind, NodeId, PortMessage, Value};
 use ayllu_wire::{
-    decode, decode_into, encode_datagram, mac, MessageSink, NameCache, ReceiverConfig, WireMessage, FLAG_AUTH,
+    decode, decode_into, encode_datagram, mac, NameCache, ReceiverConfig, WireMessage, FLAG_AUTH,
     HEADER_LEN,
 };
 use libfuzzer_sys::fuzz_target;
+
+// The sink the wire crate's property test decodes into, shared rather than copied.
+#[path = "../../crates/ayllu-wire/tests/wire/places.rs"]
+mod places;
+use places::Places;
 
 const KEY: [u8; 32] = [0x42; 32];
 
@@ -80,8 +85,8 @@ fn check_kept_places(data: &[u8], config: &ReceiverConfig, expected: Result<Vec<
     let mut names = NameCache::new();
     let mut sink = Places::default();
     decode_into(&earlier, config, &mut names, &mut sink).expect("decodes");
-    (sink.used, sink.got) = (0, Vec::new());
-    let got = decode_into(data, config, &mut names, &mut sink).map(|_| sink.got);
+    sink.next_datagram();
+    let got = decode_into(data, config, &mut names, &mut sink).map(|_| std::mem::take(&mut sink.got));
     match (expected, got) {
         (Ok(a), Ok(b)) => {
             // As bytes: floats (NaN payloads) compare exactly that way.
@@ -98,40 +103,3 @@ fn check_kept_places(data: &[u8], config: &ReceiverConfig, expected: Result<Vec<
     }
 }
 
-/// A sink that keeps its port messages' places from datagram to datagram.
-#[derive(Default)]
-struct Places {
-    places: Vec<PortMessage>,
-    used: usize,
-    got: Vec<WireMessage>,
-}
-
-impl Places {
-    fn keep(&mut self, message: PortMessage, group: Option<Arc<str>>) {
-        self.got.push(match group {
-            Some(group) => WireMessage::GroupPort { group, message: message.clone() },
-            None => WireMessage::Port(message.clone()),
-        });
-        match self.places.get_mut(self.used) {
-            Some(place) => *place = message,
-            None => self.places.push(message),
-        }
-        self.used += 1;
-    }
-}
-
-impl MessageSink for Places {
-    fn port(&mut self, message: PortMessage, group: Option<Arc<str>>) {
-        self.keep(message, group);
-    }
-    fn other(&mut self, message: WireMessage) {
-        self.got.push(message);
-    }
-    fn port_place(&mut self) -> Option<&mut PortMessage> {
-        self.places.get_mut(self.used)
-    }
-    fn port_placed(&mut self, group: Option<Arc<str>>) {
-        let message = self.places[self.used].clone();
-        self.keep(message, group);
-    }
-}

@@ -4,6 +4,7 @@
 //!
 //! One test binary (not one per file) keeps the test build short.
 
+mod places;
 mod properties;
 mod reports;
 mod transaction_vectors;

@@ -9,10 +9,12 @@ use ayllu_core::{
     BleConfig, Change, ConnectionId, ConnectionKind, ControlBody, Duration, Endpoint, NodeId, PortMessage, Value,
 };
 use ayllu_wire::{
-    decode, decode_into, encode_datagram, DatagramWriter, EncodeError, Key, MessageSink, NameCache, PortTemplates,
-    ReceiverConfig, ReplayWindow, ReplyPart, WireMessage, HEADER_LEN, MAX_DATAGRAM_LEN,
+    decode, decode_into, encode_datagram, DatagramWriter, EncodeError, Key, NameCache, PortTemplates, ReceiverConfig,
+    ReplayWindow, ReplyPart, WireMessage, HEADER_LEN, MAX_DATAGRAM_LEN,
 };
 use proptest::prelude::*;
+
+use crate::places::Places;
 
 const KEY: Key = [0x5a; 32];
 
@@ -392,8 +394,7 @@ proptest! {
                 }
             }
             let expected = decode(&bytes, &config).map(|d| d.messages);
-            sink.used = 0;
-            sink.got.clear();
+            sink.next_datagram();
             let got = decode_into(&bytes, &config, &mut names, &mut sink).map(|_| sink.got.clone());
             match (&expected, &got) {
                 (Ok(a), Ok(b)) => prop_assert!(all_same(a, b), "{:?}\n{:?}", a, b),
@@ -461,45 +462,6 @@ proptest! {
 
 /// Whatever the decoder accepts, the encoder can send: re-encoding the decoded messages (all
 /// but skipped unknown kinds) succeeds and decodes to the same messages.
-/// A sink that keeps its port messages' places from datagram to datagram, as the UDP
-/// transport's inbox does: the `used` first ones hold this datagram's, the rest earlier ones'.
-#[derive(Default)]
-struct Places {
-    places: Vec<PortMessage>,
-    used: usize,
-    got: Vec<WireMessage>,
-}
-
-impl Places {
-    fn keep(&mut self, message: PortMessage, group: Option<Arc<str>>) {
-        self.got.push(match group {
-            Some(group) => WireMessage::GroupPort { group, message: message.clone() },
-            None => WireMessage::Port(message.clone()),
-        });
-        match self.places.get_mut(self.used) {
-            Some(place) => *place = message,
-            None => self.places.push(message),
-        }
-        self.used += 1;
-    }
-}
-
-impl MessageSink for Places {
-    fn port(&mut self, message: PortMessage, group: Option<Arc<str>>) {
-        self.keep(message, group);
-    }
-    fn other(&mut self, message: WireMessage) {
-        self.got.push(message);
-    }
-    fn port_place(&mut self) -> Option<&mut PortMessage> {
-        self.places.get_mut(self.used)
-    }
-    fn port_placed(&mut self, group: Option<Arc<str>>) {
-        let message = self.places[self.used].clone();
-        self.keep(message, group);
-    }
-}
-
 fn check_reencodes(messages: &[WireMessage]) -> Result<(), TestCaseError> {
     let known: Vec<WireMessage> =
         messages.iter().filter(|m| !matches!(m, WireMessage::Unknown { .. })).cloned().collect();
