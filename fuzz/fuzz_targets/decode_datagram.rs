@@ -14,8 +14,7 @@ use std::sync::Arc;
 
 use ayllu_core::{ConnectionId, ConnectionKind, NodeId, PortMessage, Value};
 use ayllu_wire::{
-    decode, decode_into, encode_datagram, mac, NameCache, ReceiverConfig, WireMessage, FLAG_AUTH,
-    HEADER_LEN,
+    decode, decode_into, encode_datagram, mac, NameCache, ReceiverConfig, WireMessage, FLAG_AUTH, HEADER_LEN,
 };
 use libfuzzer_sys::fuzz_target;
 
@@ -102,4 +101,3 @@ fn check_kept_places(data: &[u8], config: &ReceiverConfig, expected: Result<Vec<
         (a, b) => assert_eq!(a.err(), b.err()),
     }
 }
-
