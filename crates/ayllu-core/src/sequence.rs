@@ -15,9 +15,16 @@
 //!   cannot choose connection ids that collide; a flood of new ids is bounded by N1's limit,
 //!   which the node enforces by clearing the table.
 //! * Lookups never allocate; an insert allocates only when the table doubles.
+//! * Each entry holds the name strings it compares addresses against ([`Incoming::behavior`])
+//!   itself, in the line's last 8 bytes ([`SeqTable::hold`]), and lets go of them when it
+//!   takes others or is cleared. (A list of every pair ever held, kept beside the table, was
+//!   one more cold line for every port resolved, and grew, copied, on every node of a team at
+//!   once.) How many pairs were held since the table was last cleared is counted all the same
+//!   ([`SeqTable::held`]): it is N1's bound on re-pointing (docs/semantics.md, D10.2).
 
 use std::hash::BuildHasher;
 use std::sync::atomic::{AtomicPtr, AtomicU16, AtomicU32, AtomicU64, AtomicUsize, Ordering::Relaxed};
+use std::sync::Arc;
 
 use crate::address::{ConnectionId, NodeId};
 use crate::node::PortState;
@@ -36,8 +43,8 @@ pub(crate) struct Incoming {
     /// The addresses of the name strings (`Arc<str>`) the message that resolved the port
     /// carried (0: no port resolved): a message carrying the same `Arc`s (the sender's
     /// connection shares them among its messages, e.g. in-process transports) names the same
-    /// port, so it skips comparing strings. Those `Arc`s are held in `NodeCore::held_names` for
-    /// as long as this entry may compare against them, so their addresses cannot be reused for
+    /// port, so it skips comparing strings. The entry holds those `Arc`s itself for as long as
+    /// it compares against them ([`SeqTable::hold`]), so their addresses cannot be reused for
     /// other names meanwhile.
     pub(crate) behavior: usize,
     pub(crate) port: usize,
@@ -54,13 +61,6 @@ pub(crate) struct Incoming {
     pub(crate) target: *mut PortState,
 }
 
-impl Incoming {
-    /// A connection heard for the first time: its newest sequence number, no port resolved.
-    pub(crate) fn unresolved(newest: u64) -> Incoming {
-        Incoming { newest, behavior: 0, port: 0, b: 0, p: 0, epoch: 0, target: std::ptr::null_mut() }
-    }
-}
-
 /// The sequence table's key for connection `conn` of node `from`.
 pub(crate) fn incoming_key(from: NodeId, conn: ConnectionId) -> IncomingKey {
     IncomingKey { node: u64::from(from.0), conn: conn.0 }
@@ -71,6 +71,11 @@ pub(crate) fn incoming_key(from: NodeId, conn: ConnectionId) -> IncomingKey {
 /// entries by shared reference, so the state ([`Incoming`]) is kept in atomics, read and
 /// written `Relaxed` (plain loads and stores): it changes only under `&mut NodeCore`, and
 /// atomics, unlike a `Cell`, leave the node `Sync`. The key of a filled slot never changes.
+///
+/// The name strings (`behavior`, `port`: their addresses, 0 for none) are the entry's own
+/// strong references, taken by [`SeqTable::hold`] with `Arc::into_raw` and given back by
+/// [`SeqEntry::let_go`] (on a new pair, on clearing, on drop), which only `&mut` reaches; with
+/// their lengths in the line's last 8 bytes, holding them costs no line beyond the entry.
 #[repr(C, align(64))]
 pub(crate) struct SeqEntry {
     key: IncomingKey,
@@ -81,25 +86,63 @@ pub(crate) struct SeqEntry {
     p: AtomicU16,
     pub(crate) epoch: AtomicU16,
     target: AtomicPtr<PortState>,
+    /// The lengths of the strings `behavior` and `port` hold (meaningless while they are 0).
+    behavior_len: u32,
+    port_len: u32,
 }
 
+// The names' lengths fill the line the entry took already: holding the names costs no line.
+const _: () = assert!(std::mem::size_of::<SeqEntry>() == 64);
+
 impl SeqEntry {
-    pub(crate) fn new(key: IncomingKey, i: Incoming) -> SeqEntry {
+    /// A connection heard for the first time: its newest sequence number, no port resolved and
+    /// no names held.
+    pub(crate) fn new(key: IncomingKey, newest: u64) -> SeqEntry {
         SeqEntry {
             key,
-            newest: AtomicU64::new(i.newest),
-            behavior: AtomicUsize::new(i.behavior),
-            port: AtomicUsize::new(i.port),
-            b: AtomicU32::new(i.b),
-            p: AtomicU16::new(i.p),
-            epoch: AtomicU16::new(i.epoch),
-            target: AtomicPtr::new(i.target),
+            newest: AtomicU64::new(newest),
+            behavior: AtomicUsize::new(0),
+            port: AtomicUsize::new(0),
+            b: AtomicU32::new(0),
+            p: AtomicU16::new(0),
+            epoch: AtomicU16::new(0),
+            target: AtomicPtr::new(std::ptr::null_mut()),
+            behavior_len: 0,
+            port_len: 0,
         }
     }
 
     /// A free slot.
     fn empty() -> SeqEntry {
-        SeqEntry::new(IncomingKey { node: EMPTY, conn: 0 }, Incoming::unresolved(0))
+        SeqEntry::new(IncomingKey { node: EMPTY, conn: 0 }, 0)
+    }
+
+    /// Give back the name strings this entry holds, if any: its addresses become 0 (no port
+    /// resolved by address).
+    #[inline]
+    fn let_go(&mut self) {
+        if *self.behavior.get_mut() != 0 {
+            self.give_back();
+        }
+    }
+
+    /// [`SeqEntry::let_go`] of an entry that holds names. Out of line: inlined, the drop glue
+    /// of the slot an insert overwrites made the receive path, into which the insert is
+    /// inlined, about 10 instructions a message dearer (`speed callgrind 100 10`).
+    #[cold]
+    #[inline(never)]
+    fn give_back(&mut self) {
+        let (behavior, port) = (std::mem::take(self.behavior.get_mut()), std::mem::take(self.port.get_mut()));
+        for (address, len) in [(behavior, self.behavior_len), (port, self.port_len)] {
+            let raw = std::ptr::slice_from_raw_parts(address as *const u8, len as usize) as *const str;
+            // SAFETY: a non-zero `behavior` (and with it `port`) is only ever stored by
+            // `SeqTable::hold`, as `Arc::into_raw` of a clone of an `Arc<str>` of exactly `len`
+            // bytes, a strong reference the entry owns; only this function, which zeroes both
+            // before returning and is reached through `&mut self` only, gives it back. So each
+            // reference is taken back exactly once, with the pointer and length it was made
+            // from.
+            drop(unsafe { Arc::from_raw(raw) });
+        }
     }
 
     pub(crate) fn get(&self) -> Incoming {
@@ -114,14 +157,20 @@ impl SeqEntry {
         }
     }
 
-    pub(crate) fn set(&self, i: Incoming) {
-        self.newest.store(i.newest, Relaxed);
-        self.behavior.store(i.behavior, Relaxed);
-        self.port.store(i.port, Relaxed);
-        self.b.store(i.b, Relaxed);
-        self.p.store(i.p, Relaxed);
-        self.epoch.store(i.epoch, Relaxed);
-        self.target.store(i.target, Relaxed);
+    /// Remember the port (slot `b`, port `p`, at address `target`) the connection's messages
+    /// resolve to, valid while the node's removal count is `epoch`. The names it compares
+    /// against are [`SeqTable::hold`]'s to change.
+    pub(crate) fn set_port(&self, b: u32, p: u16, epoch: u16, target: *mut PortState) {
+        self.b.store(b, Relaxed);
+        self.p.store(p, Relaxed);
+        self.epoch.store(epoch, Relaxed);
+        self.target.store(target, Relaxed);
+    }
+}
+
+impl Drop for SeqEntry {
+    fn drop(&mut self) {
+        self.let_go();
     }
 }
 
@@ -149,17 +198,58 @@ const MIN_SLOTS: usize = 16;
 pub(crate) struct SeqTable {
     /// A power of two of them, or none before the first insert.
     slots: Vec<SeqEntry>,
-    len: usize,
+    /// Entries, and name pairs held since the table was last cleared ([`SeqTable::held`]), in
+    /// 32 bits each (the node bounds both far below, N1), so that the count takes no room in
+    /// the node's hot lines beyond the word `len` had.
+    len: u32,
+    held: u32,
     hasher: foldhash::fast::RandomState,
 }
 
 impl SeqTable {
     pub(crate) fn new() -> SeqTable {
-        SeqTable { slots: Vec::new(), len: 0, hasher: foldhash::fast::RandomState::default() }
+        SeqTable { slots: Vec::new(), len: 0, held: 0, hasher: foldhash::fast::RandomState::default() }
     }
 
     pub(crate) fn len(&self) -> usize {
-        self.len
+        self.len as usize
+    }
+
+    /// How many name pairs [`SeqTable::hold`] took since the table was last cleared (or its
+    /// names forgotten), those let go of since included: the node bounds it as it bounds the
+    /// entries, so that a sender re-pointing one connection id without end clears the table as
+    /// one inventing ids does (docs/semantics.md, D10.2).
+    pub(crate) fn held(&self) -> usize {
+        self.held as usize
+    }
+
+    /// Make `key`'s entry (if there is one) hold `behavior` and `port` and compare against
+    /// their addresses ([`Incoming::behavior`]), letting go of the pair it held before; counted
+    /// in [`SeqTable::held`]. Strings whose length does not fit 32 bits are not held: the entry
+    /// then compares against none, and its next message resolves its port by name again.
+    pub(crate) fn hold(&mut self, key: &IncomingKey, behavior: &Arc<str>, port: &Arc<str>) {
+        let Some(i) = self.index(key, self.hash(key)) else { return };
+        let entry = &mut self.slots[i];
+        entry.let_go();
+        let (Ok(behavior_len), Ok(port_len)) = (u32::try_from(behavior.len()), u32::try_from(port.len())) else {
+            return;
+        };
+        entry.behavior_len = behavior_len;
+        entry.port_len = port_len;
+        // The addresses `into_raw` gives are the strings' own (`Arc::as_ptr`), the ones
+        // messages are compared by; `let_go` takes the references back.
+        *entry.behavior.get_mut() = Arc::into_raw(behavior.clone()).cast::<u8>() as usize;
+        *entry.port.get_mut() = Arc::into_raw(port.clone()).cast::<u8>() as usize;
+        self.held += 1;
+    }
+
+    /// Every entry forgets the names its port was resolved from and lets go of them (its next
+    /// message resolves its port by name); [`SeqTable::held`] starts again from 0.
+    pub(crate) fn forget_names(&mut self) {
+        for entry in &mut self.slots {
+            entry.let_go();
+        }
+        self.held = 0;
     }
 
     /// The home slot of `key` in a table of `mask + 1` slots.
@@ -186,6 +276,9 @@ impl SeqTable {
     /// [`SeqTable::get`] with the key's [`SeqTable::hash`] already made.
     #[inline(always)]
     pub(crate) fn get_hashed(&self, key: &IncomingKey, hash: u64) -> Option<&SeqEntry> {
+        // The probe of `index`, written again to hand out the entry it found: going through
+        // the index cost every message received a second bounds check and about 10
+        // instructions.
         if self.slots.is_empty() {
             return None;
         }
@@ -195,6 +288,25 @@ impl SeqTable {
             let entry = &self.slots[i];
             if entry.key == *key {
                 return Some(entry);
+            }
+            if entry.key.node == EMPTY {
+                return None;
+            }
+            i = (i + 1) & mask;
+        }
+    }
+
+    /// The slot of `key`, whose [`SeqTable::hash`] is `hash`, if the table holds it.
+    fn index(&self, key: &IncomingKey, hash: u64) -> Option<usize> {
+        if self.slots.is_empty() {
+            return None;
+        }
+        let mask = self.slots.len() - 1;
+        let mut i = hash as usize & mask;
+        loop {
+            let entry = &self.slots[i];
+            if entry.key == *key {
+                return Some(i);
             }
             if entry.key.node == EMPTY {
                 return None;
@@ -236,7 +348,7 @@ impl SeqTable {
     /// Add `entry`, whose key the table does not hold (the caller looked it up first).
     pub(crate) fn insert(&mut self, entry: SeqEntry) {
         debug_assert!(self.get(&entry.key).is_none(), "a key is inserted once");
-        if (self.len + 1) * 4 > self.slots.len() * 3 {
+        if (self.len() + 1) * 4 > self.slots.len() * 3 {
             self.grow();
         }
         self.place(entry);
@@ -265,15 +377,19 @@ impl SeqTable {
         }
     }
 
-    /// Forget every entry (N1's bound); the slots are kept for what comes next.
+    /// Forget every entry and let go of the names they held (N1's bound); the slots are kept
+    /// for what comes next.
     pub(crate) fn clear(&mut self) {
         for entry in &mut self.slots {
+            entry.let_go();
             entry.key.node = EMPTY;
         }
         self.len = 0;
+        self.held = 0;
     }
 
     /// Every entry, in no particular order.
+    #[cfg(any(test, feature = "serde"))]
     pub(crate) fn iter(&self) -> impl Iterator<Item = &SeqEntry> {
         self.slots.iter().filter(|e| e.key.node != EMPTY)
     }
@@ -298,7 +414,7 @@ mod tests {
     use std::collections::HashMap;
 
     fn entry(node: u64, conn: u64, newest: u64) -> SeqEntry {
-        SeqEntry::new(IncomingKey { node, conn }, Incoming::unresolved(newest))
+        SeqEntry::new(IncomingKey { node, conn }, newest)
     }
 
     /// Keys that share a home slot (the table's own hash, one of them chosen, the rest found
@@ -334,6 +450,49 @@ mod tests {
         assert!(t.get(&IncomingKey { node: 2, conn: 1200 }).is_none());
         t.insert(entry(2, 1200, 7));
         assert_eq!(t.get(&IncomingKey { node: 2, conn: 1200 }).map(|e| e.get().newest), Some(7));
+    }
+
+    /// An entry holds one reference to each name string it compares against, and gives it
+    /// back when it takes other names, when its names are forgotten, when the table is cleared
+    /// and when the table is dropped; every pair taken is counted until the table is cleared.
+    #[test]
+    fn held_names_are_given_back_once() {
+        let names = |b: &str, p: &str| (Arc::<str>::from(b), Arc::<str>::from(p));
+        let counts = |n: &(Arc<str>, Arc<str>)| (Arc::strong_count(&n.0), Arc::strong_count(&n.1));
+        let (a, b) = (names("A", "In"), names("B", "Out"));
+        let (k1, k2) = (IncomingKey { node: 1, conn: 1 }, IncomingKey { node: 2, conn: 1 });
+        let mut t = SeqTable::new();
+        t.hold(&k1, &a.0, &a.1);
+        assert_eq!((counts(&a), t.held()), ((1, 1), 0), "no entry, nothing held");
+        t.insert(entry(1, 1, 1));
+        t.insert(entry(2, 1, 1));
+        t.hold(&k1, &a.0, &a.1);
+        t.hold(&k2, &a.0, &a.1);
+        assert_eq!((counts(&a), t.held()), ((3, 3), 2));
+        let address = |t: &SeqTable, k: &IncomingKey| t.get(k).map(|e| (e.get().behavior, e.get().port));
+        let of = |n: &(Arc<str>, Arc<str>)| {
+            (Arc::as_ptr(&n.0).cast::<u8>() as usize, Arc::as_ptr(&n.1).cast::<u8>() as usize)
+        };
+        assert_eq!(address(&t, &k1), Some(of(&a)), "compared by the strings' own addresses");
+        t.hold(&k1, &b.0, &b.1);
+        assert_eq!((counts(&a), counts(&b), t.held()), ((2, 2), (2, 2), 3), "re-pointed: the old pair let go");
+        assert_eq!(address(&t, &k1), Some(of(&b)));
+        // Growing moves the entries with what they hold.
+        for c in 10..100 {
+            t.insert(entry(3, c, 1));
+        }
+        assert_eq!((counts(&a), counts(&b), address(&t, &k2)), ((2, 2), (2, 2), Some(of(&a))));
+        t.forget_names();
+        assert_eq!((counts(&a), counts(&b), t.held(), address(&t, &k1)), ((1, 1), (1, 1), 0, Some((0, 0))));
+        t.hold(&k1, &a.0, &a.1);
+        t.hold(&k2, &b.0, &b.1);
+        t.clear();
+        assert_eq!((counts(&a), counts(&b), t.held(), t.len()), ((1, 1), (1, 1), 0, 0));
+        t.insert(entry(1, 1, 1));
+        t.hold(&k1, &a.0, &a.1);
+        assert_eq!(counts(&a), (2, 2));
+        drop(t);
+        assert_eq!(counts(&a), (1, 1), "dropped with the table");
     }
 
     proptest! {

@@ -224,10 +224,6 @@ pub struct NodeCore {
     next_conn_id: u64,
     groups: Vec<Arc<str>>,
     groups_generation: u64,
-    /// The name strings whose addresses `newest_seq` entries compare against
-    /// ([`Incoming::behavior`](crate::sequence::Incoming::behavior)), kept alive until no
-    /// entry can compare against them.
-    held_names: Vec<(Arc<str>, Arc<str>)>,
     seq_table_resets: u64,
     /// How many of `requests` are finished (see `FINISHED_REQUESTS_KEPT`).
     finished_requests: usize,
@@ -286,7 +282,6 @@ impl NodeCore {
             counters: Counters::default(),
             newest_seq: SeqTable::new(),
             removals: 0,
-            held_names: Vec::new(),
             seq_table_resets: 0,
             requests: Vec::new(),
             finished_requests: 0,

@@ -164,7 +164,7 @@ impl NodeCore {
                 if self.newest_seq.len() >= SEQ_TABLE_MAX {
                     self.forget_incoming();
                 }
-                self.newest_seq.insert(SeqEntry::new(key, Incoming::unresolved(m.seq)));
+                self.newest_seq.insert(SeqEntry::new(key, m.seq));
                 None
             }
         };
@@ -207,7 +207,7 @@ impl NodeCore {
                 // The slot may hold a behavior re-created since: its ports are new.
                 let target = self.port_address(incoming.b, incoming.p);
                 if let Some(entry) = self.newest_seq.get(&key) {
-                    entry.set(Incoming { epoch: self.removals, target, ..entry.get() });
+                    entry.set_port(incoming.b, incoming.p, self.removals, target);
                 }
                 return Some((incoming.b, incoming.p, target));
             }
@@ -227,15 +227,14 @@ impl NodeCore {
         let p = port.0;
         // The names held are bounded like the entries (N1): a sender that keeps re-pointing
         // a connection id clears the table as one that invents connection ids does.
-        if self.held_names.len() >= SEQ_TABLE_MAX {
+        if self.newest_seq.held() >= SEQ_TABLE_MAX {
             self.forget_incoming();
-            self.newest_seq.insert(SeqEntry::new(key, incoming));
+            self.newest_seq.insert(SeqEntry::new(key, incoming.newest));
         }
         let target = self.port_address(b, p);
         let Some(entry) = self.newest_seq.get(&key) else { return Some((b, p, target)) };
-        let (behavior, port) = (name_address(&m.behavior), name_address(&m.port));
-        entry.set(Incoming { behavior, port, b, p, epoch: self.removals, target, ..incoming });
-        self.held_names.push((m.behavior.clone(), m.port.clone()));
+        entry.set_port(b, p, self.removals, target);
+        self.newest_seq.hold(&key, &m.behavior, &m.port);
         Some((b, p, target))
     }
 
@@ -252,7 +251,6 @@ impl NodeCore {
     /// Clear the sequence table (N1) and the names its entries held; counted.
     fn forget_incoming(&mut self) {
         self.newest_seq.clear();
-        self.held_names.clear();
         self.seq_table_resets += 1;
     }
 
@@ -263,10 +261,7 @@ impl NodeCore {
     pub(super) fn behavior_removed(&mut self) {
         self.removals = self.removals.wrapping_add(1);
         if self.removals == 0 {
-            for entry in self.newest_seq.iter() {
-                entry.set(Incoming { behavior: 0, port: 0, ..entry.get() });
-            }
-            self.held_names.clear();
+            self.newest_seq.forget_names();
         }
     }
 
@@ -477,7 +472,7 @@ fn answer_bytes(result: &Result<ReplyBody, String>) -> usize {
 }
 
 /// Whether `m` carries the very name strings `incoming`'s port was resolved from (address
-/// comparison; those strings are held in `NodeCore::held_names`).
+/// comparison; the entry itself holds those strings, `SeqTable::hold`).
 fn same_names(incoming: &Incoming, m: &PortMessage) -> bool {
     incoming.behavior == name_address(&m.behavior) && incoming.port == name_address(&m.port)
 }

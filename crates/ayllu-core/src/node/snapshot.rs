@@ -45,7 +45,7 @@ use crate::counters::Counters;
 use crate::message::{Outgoing, ReplyBody};
 use crate::port::PortSpec;
 use crate::schedule::{Periodic, Schedule};
-use crate::sequence::{incoming_key, Incoming, SeqEntry};
+use crate::sequence::{incoming_key, SeqEntry};
 use crate::time::{Duration, Instant};
 use crate::transaction::Transactions;
 use crate::value::Value;
@@ -353,7 +353,7 @@ impl NodeCore {
             if core.newest_seq.get(&key).is_some() {
                 return Err(format!("sequence entry ({node}, {conn}) twice"));
             }
-            core.newest_seq.insert(SeqEntry::new(key, Incoming::unresolved(newest)));
+            core.newest_seq.insert(SeqEntry::new(key, newest));
         }
         core.now = s.now;
         core.wave = s.wave;
