@@ -42,6 +42,7 @@ use crate::sequence::SeqTable;
 use crate::time::{Duration, Instant};
 
 mod connections;
+mod names;
 mod propagation;
 mod receive;
 mod registers;
@@ -216,7 +217,8 @@ pub struct NodeCore {
     parked: Vec<Behavior>,
     classes: HashMap<String, Arc<BehaviorClass>>,
     free_behaviors: Vec<u32>,
-    names: HashMap<Arc<str>, u32>,
+    /// Behavior slots by name (short names kept in the key: `names`).
+    names: HashMap<names::NameKey, u32>,
     next_behavior_id: u64,
     pub(crate) conns: Vec<Option<Conn>>,
     free_conns: Vec<u32>,

@@ -24,7 +24,7 @@ use crate::counters::DropCause;
 use crate::error::Error;
 use crate::journal::Event;
 use crate::message::{ControlBody, ControlMessage, Destination, Message, Outgoing, PortMessage, ReplyBody};
-use crate::sequence::{incoming_key, Incoming, IncomingKey, SeqEntry};
+use crate::sequence::{incoming_key, Incoming, IncomingKey};
 use crate::time::Instant;
 use crate::value::Value;
 
@@ -164,7 +164,7 @@ impl NodeCore {
                 if self.newest_seq.len() >= SEQ_TABLE_MAX {
                     self.forget_incoming();
                 }
-                self.newest_seq.insert(SeqEntry::new(key, m.seq));
+                self.newest_seq.enter(key, m.seq);
                 None
             }
         };
@@ -229,7 +229,7 @@ impl NodeCore {
         // a connection id clears the table as one that invents connection ids does.
         if self.newest_seq.held() >= SEQ_TABLE_MAX {
             self.forget_incoming();
-            self.newest_seq.insert(SeqEntry::new(key, incoming.newest));
+            self.newest_seq.enter(key, incoming.newest);
         }
         let target = self.port_address(b, p);
         let Some(entry) = self.newest_seq.get(&key) else { return Some((b, p, target)) };

@@ -301,7 +301,7 @@ impl NodeCore {
                     })
                 })
                 .collect::<Result<Vec<_>, String>>()?;
-            if core.names.insert(d.name.clone(), b as u32).is_some() {
+            if core.names.insert((&*d.name).into(), b as u32).is_some() {
                 return Err(format!("behavior `{}` twice", d.name));
             }
             core.behaviors.push(Some(Behavior {

@@ -101,7 +101,7 @@ impl NodeCore {
                 (self.behaviors.len() - 1) as u32
             }
         };
-        self.names.insert(Arc::from(name), b);
+        self.names.insert(name.into(), b);
         self.schedule.add_behavior(b, &self.behaviors[b as usize].as_ref().expect("just placed").processes, now);
         self.debug_check_schedule();
         let class = self.behaviors[b as usize].as_ref().map_or(String::new(), |beh| beh.class.name.clone());
