@@ -11,6 +11,14 @@
 //! so that a periodic run does not touch the process's state at all: at 20 Hz with several
 //! processes per node, that state was a cache miss per run once the node had gone cold.
 //!
+//! A guarded process (D7.5) is activated only at the due times at which its guard port is
+//! fresh; an observer whose target is out of sight finds it stale at almost every one. Reading
+//! the port to find that costs two lines (the behavior's, for its ports, and the port's cell),
+//! so an entry remembers that its guard was found stale (`stale`): a port turns fresh only by
+//! accepting a value, and a guard port (marked `guarded`, which keeps it off the plain path)
+//! tells the schedule when it accepts (`guard_accepted`), so the remembered answer is exact.
+//! A restored node and a new entry know nothing yet and read the port.
+//!
 //! What it promises: the poll runs the same processes in the same order as the walk over
 //! (behavior slot, declaration) did, structure changes made by a running process included
 //! (a behavior created into a later free slot runs in the same poll, one created into an
@@ -35,6 +43,9 @@ pub(crate) struct Periodic {
     /// `PeriodicWhileFresh`: the port (of the same behavior) that must be fresh at a due time
     /// for it to be an activation (D7.5).
     pub(crate) guard: Option<u16>,
+    /// Guarded entries: the guard port was found stale at an earlier due time and has accepted
+    /// nothing since, so it is stale now (see `Schedule::guard_accepted`).
+    pub(crate) stale: bool,
     /// Activations run (the process's `runs` in reports).
     pub(crate) runs: u64,
     /// The process's body (the same `Arc` as its state's).
@@ -48,7 +59,7 @@ impl Periodic {
             Trigger::PeriodicWhileFresh(period, port) => (period, Some(port.0)),
             Trigger::OnWrite(_) | Trigger::OnMonostable(_) => return None,
         };
-        Some(Periodic { b, pi, next_due, period, guard, runs: 0, body: p.spec.body.clone() })
+        Some(Periodic { b, pi, next_due, period, guard, stale: false, runs: 0, body: p.spec.body.clone() })
     }
 }
 
@@ -60,6 +71,7 @@ impl fmt::Debug for Periodic {
             .field("next_due", &self.next_due)
             .field("period", &self.period)
             .field("guard", &self.guard)
+            .field("stale", &self.stale)
             .field("runs", &self.runs)
             .finish()
     }
@@ -120,6 +132,19 @@ impl Schedule {
         let at = self.after(b, pi);
         self.periodic.insert(at, entry);
         self.generation += 1;
+    }
+
+    /// A port guarding a process of the behavior in slot `b` accepted a value: it may be fresh
+    /// now, so no entry of that behavior may take its guard for stale without reading it.
+    /// Every one of the behavior's entries, not only those of that port: a port does not know
+    /// which processes it guards, and a behavior has few.
+    #[cold]
+    #[inline(never)]
+    pub(crate) fn guard_accepted(&mut self, b: u32) {
+        let from = self.periodic.partition_point(|e| e.b < b);
+        for e in self.periodic[from..].iter_mut().take_while(|e| e.b == b) {
+            e.stale = false;
+        }
     }
 
     /// A monostable just rose (or stays high) until `end`.

@@ -85,13 +85,21 @@ impl NodeCore {
             next += period * missed;
             entry.next_due = next;
             // D7.5: a due time at which the guard port is stale is not an activation (neither
-            // run nor counted); the next due time is the unguarded process's either way.
+            // run nor counted); the next due time is the unguarded process's either way. A
+            // port can turn fresh only by accepting a value, and an acceptance clears `stale`
+            // (`Schedule::guard_accepted`), so a port found stale at an earlier due time is
+            // still stale while `stale` is set: known without reading the behavior and the
+            // port's cell, two cold lines at most due times of a quiet observer.
             if let Some(g) = entry.guard {
+                if entry.stale {
+                    continue;
+                }
                 let fresh = self.behaviors[b as usize]
                     .as_ref()
                     .and_then(|beh| beh.ports.get(usize::from(g)))
                     .is_some_and(|port| port.cell.fresh(now));
                 if !fresh {
+                    entry.stale = true;
                     continue;
                 }
             }

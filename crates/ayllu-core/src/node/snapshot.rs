@@ -276,6 +276,15 @@ impl NodeCore {
             {
                 return Err(format!("behavior `{}` does not have its class's registers", d.name));
             }
+            // A guard port's flag first, since `set_triggers` works out `plain` from it (an
+            // index out of range is refused by `check_indices` below).
+            for p in &d.processes {
+                if let Trigger::PeriodicWhileFresh(_, port) = p.trigger {
+                    if let Some(port) = d.ports.get_mut(usize::from(port.0)) {
+                        port.guarded = true;
+                    }
+                }
+            }
             for port in &mut d.ports {
                 port.set_triggers();
             }
@@ -337,7 +346,8 @@ impl NodeCore {
             if p.spec.trigger.period() != Some(period) {
                 return Err(format!("a schedule entry for ({b}, {pi}) with another period than its process's"));
             }
-            periodic.push(Periodic { b, pi, next_due, period, guard, runs, body: p.spec.body.clone() });
+            // Not known stale: the first due time reads the port.
+            periodic.push(Periodic { b, pi, next_due, period, guard, stale: false, runs, body: p.spec.body.clone() });
         }
         if periodic.windows(2).any(|w| (w[0].b, w[0].pi) >= (w[1].b, w[1].pi)) {
             return Err("the schedule is not in process order".into());
