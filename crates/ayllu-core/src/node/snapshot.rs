@@ -339,15 +339,12 @@ impl NodeCore {
             // The entry's period is its process's (the trigger checked above): a damaged one,
             // zero above all, would make every poll divide by it. The guard is the process's
             // own: a snapshot does not repeat it.
-            let guard = match p.spec.trigger {
-                Trigger::PeriodicWhileFresh(_, port) => Some(port.0),
-                _ => None,
-            };
             if p.spec.trigger.period() != Some(period) {
                 return Err(format!("a schedule entry for ({b}, {pi}) with another period than its process's"));
             }
-            // Not known stale: the first due time reads the port.
-            periodic.push(Periodic { b, pi, next_due, period, guard, stale: false, runs, body: p.spec.body.clone() });
+            // Nothing known of a guard: the first due time reads the port.
+            let entry = Periodic::new(b, pi, p, next_due, runs);
+            periodic.push(entry.ok_or_else(|| format!("a schedule entry for ({b}, {pi}), which is not periodic"))?);
         }
         if periodic.windows(2).any(|w| (w[0].b, w[0].pi) >= (w[1].b, w[1].pi)) {
             return Err("the schedule is not in process order".into());
