@@ -160,22 +160,35 @@ pub struct BleGroup {
 }
 
 /// Per-behavior BLE bookkeeping, for introspection ("who claims which task").
+///
+/// In declaration order (`repr(C)`) on a line of its own (`align(64)`): what `select` reads
+/// and writes at every claim period (the period, the join time, the last local and best
+/// eligibilities) in the first 64 bytes, what only a claim (rare) or a report touches after.
+/// Every layer of every robot selects on the same tick; in the compiler's order the select's
+/// fields spread over two or three lines of the box. A checkpoint keeps the declaration order
+/// of before (`snapshot::BleStateForm`).
 #[derive(Clone, Debug)]
+#[repr(C, align(64))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(
+    feature = "serde",
+    serde(from = "crate::node::snapshot::BleStateForm", into = "crate::node::snapshot::BleStateForm")
+)]
 pub(crate) struct BleState {
-    pub(crate) group: Arc<str>,
-    pub(crate) output: Port,
     pub(crate) claim_period: Duration,
-    pub(crate) inhibit_period: Duration,
     /// When the behavior joined: it listens for one full cycle before it may claim.
     pub(crate) joined_at: Instant,
+    pub(crate) last_local: Option<f64>,
+    pub(crate) last_best: Option<(f64, Source)>,
     pub(crate) claims: u64,
     pub(crate) last_claim: Option<Instant>,
-    #[cfg_attr(feature = "serde", serde(with = "crate::node::snapshot::best_bits"))]
-    pub(crate) last_best: Option<(f64, Source)>,
-    #[cfg_attr(feature = "serde", serde(with = "crate::node::snapshot::float_bits"))]
-    pub(crate) last_local: Option<f64>,
+    pub(crate) group: Arc<str>,
+    pub(crate) inhibit_period: Duration,
+    pub(crate) output: Port,
 }
+
+// What `select` touches ends within the first line.
+const _: () = assert!(std::mem::offset_of!(BleState, last_best) + std::mem::size_of::<Option<(f64, Source)>>() <= 64);
 
 /// A behavior's BLE standing at `now`.
 #[derive(Clone, Debug, PartialEq)]

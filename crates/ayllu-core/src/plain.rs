@@ -10,8 +10,8 @@
 //!
 //! What it promises: the same outcome as the general path, bit for bit (values, suppliers,
 //! times, counters, wave marks, the order of the wave), and no allocation. The flag `plain`
-//! is kept up to date wherever triggers or windows change (creation, `add_process`, a window
-//! opening in `deliver`, `disconnect`), and checked against the port in debug builds. The
+//! is kept up to date wherever triggers, guards or windows change (creation, `add_process`, a
+//! window opening in `deliver`, `disconnect`, a restore), and checked against the port in debug builds. The
 //! journal (the flight recorder's tap) records here what the general path would record, in
 //! the same order: a write from outside and its acceptance as one record (the merge stores the
 //! value itself), each hop's acceptance. The tests below compare the two paths, journals
@@ -25,12 +25,13 @@ use crate::port::PortKind;
 use crate::value::Value;
 
 impl PortState {
-    /// A Normal port with no triggered process and no window (none was ever opened, or every
-    /// one was forgotten): accepting a value is the merge and the marks, nothing to queue, and
-    /// nothing blocks the value on its way in or out. The hop's fast path takes such ports
-    /// (`NodeCore::write_plain`, `NodeCore::hop_plain`); the flag `plain` caches this.
+    /// A Normal port with no triggered process, no window (none was ever opened, or every
+    /// one was forgotten) and no periodic process it guards (D7.5): accepting a value is the
+    /// merge and the marks, nothing to queue or tell the schedule, and nothing blocks the value
+    /// on its way in or out. The hop's fast path takes such ports (`NodeCore::write_plain`,
+    /// `NodeCore::hop_plain`); the flag `plain` caches this.
     pub(crate) fn is_plain(&self) -> bool {
-        self.cell.kind == PortKind::Normal && self.triggers.is_empty() && self.windows.is_empty()
+        self.cell.kind == PortKind::Normal && self.triggers.is_empty() && self.windows.is_empty() && !self.guarded
     }
 
     /// Recompute `plain` after the triggers or the windows changed.

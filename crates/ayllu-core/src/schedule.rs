@@ -4,12 +4,27 @@
 //! A poll used to walk every behavior's every process to find the periodic ones that are due,
 //! and every behavior's monostables to find the edges, touching each process's state (a cache
 //! line each once the node is cold, as it is in a simulator stepping hundreds of nodes). The
-//! schedule keeps what that walk needed in one compact array, so a poll reads 16 bytes per
+//! schedule keeps what that walk needs in one compact array, so a poll reads one entry per
 //! periodic process and nothing for the others.
 //!
 //! An entry also holds what a run needs of its process (the period, the body, the run count),
 //! so that a periodic run does not touch the process's state at all: at 20 Hz with several
-//! processes per node, that state was a cache miss per run once the node had gone cold.
+//! processes per node, that state was a cache miss per run once the node had gone cold. The
+//! walk reads every entry at every poll, so an entry is kept to 48 bytes (a BLE robot's twelve
+//! processes: nine lines where 56-byte entries made ten or eleven). The body cannot leave the
+//! entry for the class's copy: a class's specs are cold too in a simulated team, and an
+//! instance's own processes (BLE's select) would read their state again (measured: more
+//! last-level misses, not fewer). Nor can a split of the entry into the walk's half and the
+//! run's: the run's half of a 10 Hz process then leaves the lines read every tick, and misses
+//! the last level at every run (measured).
+//!
+//! A guarded process (D7.5) is activated only at the due times at which its guard port is
+//! fresh; an observer whose target is out of sight finds it stale at almost every one. Reading
+//! the port to find that costs two lines (the behavior's, for its ports, and the port's cell),
+//! so an entry remembers that its guard was found stale (`Guard::Stale`): a port turns fresh
+//! only by accepting a value, and a guard port (marked `guarded`, which keeps it off the plain
+//! path) tells the schedule when it accepts (`guard_accepted`), so the remembered answer is
+//! exact. A restored node and a new entry know nothing yet and read the port.
 //!
 //! What it promises: the poll runs the same processes in the same order as the walk over
 //! (behavior slot, declaration) did, structure changes made by a running process included
@@ -22,46 +37,75 @@
 use std::fmt;
 
 use crate::behavior::{ProcessFn, Trigger};
-use crate::node::ProcState;
+use crate::node::{Behavior, ProcState};
 use crate::time::{Duration, Instant};
 
-/// One periodic process: where it lives, when it is next due, and what a run needs.
+/// One periodic process: where it lives, when it is next due, what is known of its guard, and
+/// what a run needs. 48 bytes (asserted): a poll walks every entry, so each byte is read at
+/// every poll of every node.
 #[derive(Clone)]
 pub(crate) struct Periodic {
     pub(crate) b: u32,
     pub(crate) pi: u16,
+    /// Whether the process is guarded (D7.5) and what is known of its guard port. The port
+    /// itself is the process's trigger's (`guard_port`): in the entry, with the run count and
+    /// the body, it would make it 56 bytes.
+    pub(crate) guard: Guard,
     pub(crate) next_due: Instant,
     pub(crate) period: Duration,
-    /// `PeriodicWhileFresh`: the port (of the same behavior) that must be fresh at a due time
-    /// for it to be an activation (D7.5).
-    pub(crate) guard: Option<u16>,
     /// Activations run (the process's `runs` in reports).
     pub(crate) runs: u64,
     /// The process's body (the same `Arc` as its state's).
     pub(crate) body: ProcessFn,
 }
 
-impl Periodic {
-    fn new(b: u32, pi: u16, p: &ProcState, next_due: Instant) -> Option<Periodic> {
-        let (period, guard) = match p.spec.trigger {
-            Trigger::Periodic(period) => (period, None),
-            Trigger::PeriodicWhileFresh(period, port) => (period, Some(port.0)),
-            Trigger::OnWrite(_) | Trigger::OnMonostable(_) => return None,
-        };
-        Some(Periodic { b, pi, next_due, period, guard, runs: 0, body: p.spec.body.clone() })
-    }
-}
+const _: () = assert!(std::mem::size_of::<Periodic>() == 48);
 
 impl fmt::Debug for Periodic {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.debug_struct("Periodic")
             .field("b", &self.b)
             .field("pi", &self.pi)
+            .field("guard", &self.guard)
             .field("next_due", &self.next_due)
             .field("period", &self.period)
-            .field("guard", &self.guard)
             .field("runs", &self.runs)
             .finish()
+    }
+}
+
+/// Whether a periodic process is guarded (D7.5), and what the schedule knows of its guard.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Guard {
+    /// A plain periodic process.
+    None,
+    /// Guarded: the port must be read at the next due time.
+    Read,
+    /// Guarded, and the port was found stale at an earlier due time and has accepted nothing
+    /// since: it is stale now (see `Schedule::guard_accepted`).
+    Stale,
+}
+
+impl Periodic {
+    /// Process `pi` (`p`) of slot `b`, next due at `next_due`, having run `runs` times, if it
+    /// is periodic. Nothing is known of a guard yet.
+    pub(crate) fn new(b: u32, pi: u16, p: &ProcState, next_due: Instant, runs: u64) -> Option<Periodic> {
+        let (period, guard) = match p.spec.trigger {
+            Trigger::Periodic(period) => (period, Guard::None),
+            Trigger::PeriodicWhileFresh(period, _) => (period, Guard::Read),
+            Trigger::OnWrite(_) | Trigger::OnMonostable(_) => return None,
+        };
+        Some(Periodic { b, pi, next_due, period, guard, runs, body: p.spec.body.clone() })
+    }
+}
+
+/// The port guarding process `pi` of `beh`, if it is guarded (D7.5): its trigger's, read from
+/// the process's state only when the schedule must read the port, which is rare (a guard
+/// known stale is not read at all).
+pub(crate) fn guard_port(beh: &Behavior, pi: u16) -> Option<u16> {
+    match beh.processes.get(usize::from(pi))?.spec.trigger {
+        Trigger::PeriodicWhileFresh(_, port) => Some(port.0),
+        _ => None,
     }
 }
 
@@ -100,7 +144,7 @@ impl Schedule {
     /// (D7.2).
     pub(crate) fn add_behavior(&mut self, b: u32, processes: &[ProcState], now: Instant) {
         let at = self.periodic.partition_point(|e| e.b < b);
-        let new = processes.iter().enumerate().filter_map(|(pi, p)| Periodic::new(b, pi as u16, p, now));
+        let new = processes.iter().enumerate().filter_map(|(pi, p)| Periodic::new(b, pi as u16, p, now, 0));
         self.periodic.splice(at..at, new);
         self.generation += 1;
     }
@@ -116,10 +160,25 @@ impl Schedule {
     /// List process `pi` (`p`), just added to the behavior in slot `b` (the last of its
     /// processes), if it is periodic.
     pub(crate) fn add_process(&mut self, b: u32, pi: u16, p: &ProcState, next_due: Instant) {
-        let Some(entry) = Periodic::new(b, pi, p, next_due) else { return };
+        let Some(entry) = Periodic::new(b, pi, p, next_due, 0) else { return };
         let at = self.after(b, pi);
         self.periodic.insert(at, entry);
         self.generation += 1;
+    }
+
+    /// A port guarding a process of the behavior in slot `b` accepted a value: it may be fresh
+    /// now, so no entry of that behavior may take its guard for stale without reading it.
+    /// Every one of the behavior's entries, not only those of that port: a port does not know
+    /// which processes it guards, and a behavior has few.
+    #[cold]
+    #[inline(never)]
+    pub(crate) fn guard_accepted(&mut self, b: u32) {
+        let from = self.periodic.partition_point(|e| e.b < b);
+        for e in self.periodic[from..].iter_mut().take_while(|e| e.b == b) {
+            if e.guard == Guard::Stale {
+                e.guard = Guard::Read;
+            }
+        }
     }
 
     /// A monostable just rose (or stays high) until `end`.

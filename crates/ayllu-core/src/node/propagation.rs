@@ -95,6 +95,9 @@ impl NodeCore {
             journal_value(j, now, JournalValue::Accepted, (b, id), (&beh.name, &beh.class), p, &port.cell.value);
         }
         port.queue_triggered(&mut self.pending, &mut beh.processes, b, id);
+        if port.guarded {
+            self.schedule.guard_accepted(b);
+        }
         // A port with nowhere to send has nothing to block: only real blocks are counted.
         if port.out.is_empty() {
             return Ok(());
@@ -306,6 +309,9 @@ impl NodeCore {
             let beh = self.behaviors[b as usize].as_mut().expect("the caller's live behavior");
             let id = beh.id;
             port.queue_triggered(&mut self.pending, &mut beh.processes, b, id);
+        }
+        if port.guarded {
+            self.schedule.guard_accepted(b);
         }
         if port.out.is_empty() {
             return false;

@@ -15,7 +15,7 @@ use std::sync::Arc;
 use crate::change::{Change, ChangeOutcome};
 use crate::journal::Event;
 use crate::process::Ctx;
-use crate::schedule::Periodic;
+use crate::schedule::{guard_port, Guard, Periodic};
 use crate::time::Instant;
 
 use super::{NodeCore, ProcState, RequestStatus, Running, RETRIGGER_INTERVAL};
@@ -85,14 +85,25 @@ impl NodeCore {
             next += period * missed;
             entry.next_due = next;
             // D7.5: a due time at which the guard port is stale is not an activation (neither
-            // run nor counted); the next due time is the unguarded process's either way.
-            if let Some(g) = entry.guard {
-                let fresh = self.behaviors[b as usize]
-                    .as_ref()
-                    .and_then(|beh| beh.ports.get(usize::from(g)))
-                    .is_some_and(|port| port.cell.fresh(now));
-                if !fresh {
-                    continue;
+            // run nor counted); the next due time is the unguarded process's either way. A
+            // port can turn fresh only by accepting a value, and an acceptance turns `Stale`
+            // back to `Read` (`Schedule::guard_accepted`), so a port found stale at an earlier
+            // due time is still stale while the entry says `Stale`: known without reading the
+            // behavior and the port's cell, two cold lines at most due times of a quiet
+            // observer.
+            match entry.guard {
+                Guard::None => {}
+                Guard::Stale => continue,
+                Guard::Read => {
+                    let fresh = self.behaviors[b as usize].as_ref().is_some_and(|beh| {
+                        guard_port(beh, pi)
+                            .and_then(|g| beh.ports.get(usize::from(g)))
+                            .is_some_and(|port| port.cell.fresh(now))
+                    });
+                    if !fresh {
+                        entry.guard = Guard::Stale;
+                        continue;
+                    }
                 }
             }
             entry.runs += 1;

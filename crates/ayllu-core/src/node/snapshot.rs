@@ -37,8 +37,8 @@ use super::connections::Request;
 use super::tables::{Behavior, Conn, MonoState, PortState, ProcState, Target};
 use super::NodeCore;
 use crate::access::{Access, Limits};
-use crate::address::{ConnectionId, NodeId};
-use crate::behavior::{BehaviorClass, ProcessFn, ProcessSpec, SlotSpec, Trigger};
+use crate::address::{ConnectionId, NodeId, Source};
+use crate::behavior::{BehaviorClass, Port, ProcessFn, ProcessSpec, SlotSpec, Trigger};
 use crate::ble::{BleState, BLE_SELECT};
 use crate::change::ChangeOutcome;
 use crate::counters::Counters;
@@ -276,6 +276,15 @@ impl NodeCore {
             {
                 return Err(format!("behavior `{}` does not have its class's registers", d.name));
             }
+            // A guard port's flag first, since `set_triggers` works out `plain` from it (an
+            // index out of range is refused by `check_indices` below).
+            for p in &d.processes {
+                if let Trigger::PeriodicWhileFresh(_, port) = p.trigger {
+                    if let Some(port) = d.ports.get_mut(usize::from(port.0)) {
+                        port.guarded = true;
+                    }
+                }
+            }
             for port in &mut d.ports {
                 port.set_triggers();
             }
@@ -330,14 +339,12 @@ impl NodeCore {
             // The entry's period is its process's (the trigger checked above): a damaged one,
             // zero above all, would make every poll divide by it. The guard is the process's
             // own: a snapshot does not repeat it.
-            let guard = match p.spec.trigger {
-                Trigger::PeriodicWhileFresh(_, port) => Some(port.0),
-                _ => None,
-            };
             if p.spec.trigger.period() != Some(period) {
                 return Err(format!("a schedule entry for ({b}, {pi}) with another period than its process's"));
             }
-            periodic.push(Periodic { b, pi, next_due, period, guard, runs, body: p.spec.body.clone() });
+            // Nothing known of a guard: the first due time reads the port.
+            let entry = Periodic::new(b, pi, p, next_due, runs);
+            periodic.push(entry.ok_or_else(|| format!("a schedule entry for ({b}, {pi}), which is not periodic"))?);
         }
         if periodic.windows(2).any(|w| (w[0].b, w[0].pi) >= (w[1].b, w[1].pi)) {
             return Err("the schedule is not in process order".into());
@@ -475,6 +482,57 @@ pub(crate) mod float_bits {
 
     pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f64>, D::Error> {
         Ok(Option::<u64>::deserialize(d)?.map(f64::from_bits))
+    }
+}
+
+/// A BLE member's bookkeeping as a checkpoint holds it: `BleState`'s fields in their order of
+/// before `BleState` was laid out for `select` (a checkpoint's form does not follow the
+/// layout), under the same name.
+#[derive(Serialize, Deserialize)]
+#[serde(rename = "BleState")]
+pub(crate) struct BleStateForm {
+    group: Arc<str>,
+    output: Port,
+    claim_period: Duration,
+    inhibit_period: Duration,
+    joined_at: Instant,
+    claims: u64,
+    last_claim: Option<Instant>,
+    #[serde(with = "best_bits")]
+    last_best: Option<(f64, Source)>,
+    #[serde(with = "float_bits")]
+    last_local: Option<f64>,
+}
+
+impl From<BleState> for BleStateForm {
+    fn from(s: BleState) -> BleStateForm {
+        BleStateForm {
+            group: s.group,
+            output: s.output,
+            claim_period: s.claim_period,
+            inhibit_period: s.inhibit_period,
+            joined_at: s.joined_at,
+            claims: s.claims,
+            last_claim: s.last_claim,
+            last_best: s.last_best,
+            last_local: s.last_local,
+        }
+    }
+}
+
+impl From<BleStateForm> for BleState {
+    fn from(s: BleStateForm) -> BleState {
+        BleState {
+            claim_period: s.claim_period,
+            joined_at: s.joined_at,
+            last_local: s.last_local,
+            last_best: s.last_best,
+            claims: s.claims,
+            last_claim: s.last_claim,
+            group: s.group,
+            inhibit_period: s.inhibit_period,
+            output: s.output,
+        }
     }
 }
 

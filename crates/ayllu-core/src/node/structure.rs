@@ -62,6 +62,7 @@ impl NodeCore {
             .iter()
             .map(|spec| PortState {
                 plain: false,
+                guarded: false,
                 trigger_bits: 0,
                 cell: PortCell::new(spec),
                 windows: Windows::default(),
@@ -270,7 +271,13 @@ fn attach_trigger(ports: &mut [PortState], monos: &mut [MonoState], trigger: Tri
             port.refresh_plain();
         }
         Trigger::OnMonostable(Mono(m)) => monos[usize::from(m)].watchers.push(ix),
-        // The schedule checks the port at each due time: nothing to attach to it.
-        Trigger::Periodic(_) | Trigger::PeriodicWhileFresh(..) => {}
+        // The schedule checks the guard port at each due time, unless it knows the port has
+        // been stale since an earlier one: the port tells it when it accepts.
+        Trigger::PeriodicWhileFresh(_, Port(p)) => {
+            let port = &mut ports[usize::from(p)];
+            port.guarded = true;
+            port.refresh_plain();
+        }
+        Trigger::Periodic(_) => {}
     }
 }

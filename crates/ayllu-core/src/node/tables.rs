@@ -40,6 +40,14 @@ pub(crate) struct PortState {
     /// Not in a checkpoint: worked out again from the triggers and windows.
     #[cfg_attr(feature = "serde", serde(skip))]
     pub(crate) plain: bool,
+    /// Whether a periodic process of this behavior is guarded by this port (D7.5): an
+    /// acceptance here must tell the schedule, whose entries may remember the port as stale
+    /// (`crate::schedule`). In the padding after `plain`, in the line every acceptance reads.
+    /// A guarded port is not plain, so only the general path (`write_internal`, `deliver_to`)
+    /// accepts into it. Never cleared (a behavior's processes go only with it). Not in a
+    /// checkpoint: worked out again from the processes' triggers.
+    #[cfg_attr(feature = "serde", serde(skip))]
+    pub(crate) guarded: bool,
     /// `triggers` as a set of bits (bit `i`: process `i`) in the padding after `plain`, so
     /// that an accepted value finds the processes to queue in this first line instead of the
     /// far one `triggers` lives in (one cache line per accepted message). Exact while every
