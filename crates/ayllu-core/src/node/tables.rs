@@ -26,10 +26,12 @@ use super::scheduler::queue;
 /// Laid out in declaration order (`repr(C)`) on whole cache lines (`align(64)`, 384 bytes):
 /// the first line holds what every message into the port reads or writes of the port's own
 /// state (the plain flag, the wave mark, the acceptance counts, whether windows are open, the
-/// outgoing connections), the second what a merge reads of the cell (`PortCell`'s order), the
-/// supplier and the triggers after it, and the drop counters (touched only when something is
-/// refused) last. A message into an aggregating port that absorbs it then costs two or three
-/// cache lines, a plain hop three, where the compiler's order and an unaligned 376-byte slot
+/// outgoing connections), the second what a merge, an acceptance or a freshness read touches
+/// of the cell (its supplier included: `PortCell`'s order), what only a Priority merge, a
+/// window's opening or a reset reads of the cell and the triggers after it, and the drop
+/// counters (touched only when something is refused) last. A message into a Normal port, or
+/// into a Max or Min port that holds a number, accepted or absorbed, then costs two cache
+/// lines, as does a plain hop, where the compiler's order and an unaligned 376-byte slot
 /// spread them over four or five.
 #[derive(Clone)]
 #[repr(C, align(64))]
