@@ -8,7 +8,7 @@
 
 use core::cmp::Ordering;
 
-use crate::address::Source;
+use crate::address::{NodeId, Source};
 use crate::counters::DropCause;
 use crate::error::Error;
 use crate::time::{Duration, Instant};
@@ -184,51 +184,179 @@ impl PortSpec {
 }
 
 /// A live port's value state. Arbitration windows live beside it (see `arbitration`).
-#[derive(Clone, Debug)]
-// In declaration order (`repr(C)`): what a merge into an aggregating port or a freshness read
-// reads (kind, value, time of the last acceptance, window end, lifespan) in the first 64 bytes,
-// which the node places on a cache line of their own (`crate::node::PortState`); then the
-// supplier (written on acceptance), and what only opening a window or a reset reads (window,
-// default) last. The last acceptance is a flag in the padding after `empty` plus a bare
-// `Instant` rather than an `Option<Instant>` (16 bytes): that saving is what brings the
-// lifespan's length into the first line, so a freshness read touches one line, not two.
+// In declaration order (`repr(C)`): what a merge, a Normal write or a freshness read touches
+// (kind, value, time of the last acceptance, window end, lifespan, and the supplier, which
+// every acceptance writes) in the first 64 bytes, which the node places on a cache line of
+// their own (`crate::node::PortState`); then what only a Priority merge, opening a window or a
+// reset reads (supplier priority, window, default) last. To fit, the optional fields are split
+// into their parts with their presence in bits of `flags` (in the padding after
+// `has_accepted`): the supplier's node and connection (an `Option<Source>` is 24 bytes), and
+// the lifespan's length (an `Option<Duration>` is 16). The last acceptance is likewise a flag
+// plus a bare `Instant`. With the supplier in the far line, every accepted write and hop wrote
+// a third line of the port (a third of the writes that missed the last level at 1000 robots,
+// docs/performance.md). A checkpoint and `Debug` show the fields as they were declared before
+// (`CellForm`), so a snapshot's form is unchanged.
+#[derive(Clone)]
 #[repr(C)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(from = "CellForm", into = "CellForm"))]
 pub struct PortCell {
     pub(crate) kind: PortKind,
     /// Aggregating ports: no value in the current window. Normal ports are never empty.
     pub(crate) empty: bool,
     /// Whether the port ever accepted a value: `accepted_at` means something only then.
     pub(crate) has_accepted: bool,
-    pub(crate) supplier_priority: i32,
+    /// [`HAS_SUPPLIER`] and [`HAS_LIFESPAN`].
+    flags: u8,
+    /// The supplier's node, if [`HAS_SUPPLIER`].
+    supplier_node: NodeId,
     pub(crate) value: Value,
     /// The time of the last acceptance, if `has_accepted`.
     pub(crate) accepted_at: Instant,
     pub(crate) window_end: Instant,
-    pub(crate) lifespan: Option<Duration>,
-    pub(crate) supplier: Option<Source>,
+    /// The lifespan, if [`HAS_LIFESPAN`] (else zero).
+    lifespan: Duration,
+    /// The supplier's connection, if [`HAS_SUPPLIER`].
+    supplier_conn: u64,
+    pub(crate) supplier_priority: i32,
     pub(crate) window: Option<Duration>,
     pub(crate) default: Value,
 }
 
-// What a freshness read needs ends within the first 64 bytes (see the layout note above).
-const _: () = assert!(std::mem::offset_of!(PortCell, lifespan) + std::mem::size_of::<Option<Duration>>() <= 64);
+/// [`PortCell::flags`]: the cell has a supplier (`supplier_node`, `supplier_conn`).
+const HAS_SUPPLIER: u8 = 1;
+/// [`PortCell::flags`]: the port has a lifespan (`lifespan`).
+const HAS_LIFESPAN: u8 = 2;
+
+// What a freshness read, a merge and an acceptance need ends within the first 64 bytes (see
+// the layout note above).
+const _: () = assert!(std::mem::offset_of!(PortCell, supplier_conn) + std::mem::size_of::<u64>() <= 64);
+const _: () = assert!(std::mem::offset_of!(PortCell, lifespan) + std::mem::size_of::<Duration>() <= 64);
+
+/// A [`PortCell`] as checkpoints and `Debug` show it: its fields as declared before the
+/// supplier and the lifespan were split to fit the cell's first line (see the layout note).
+#[derive(Clone, Debug)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename = "PortCell"))]
+struct CellForm {
+    kind: PortKind,
+    empty: bool,
+    has_accepted: bool,
+    supplier_priority: i32,
+    value: Value,
+    accepted_at: Instant,
+    window_end: Instant,
+    lifespan: Option<Duration>,
+    supplier: Option<Source>,
+    window: Option<Duration>,
+    default: Value,
+}
+
+impl From<PortCell> for CellForm {
+    fn from(c: PortCell) -> CellForm {
+        CellForm {
+            kind: c.kind,
+            empty: c.empty,
+            has_accepted: c.has_accepted,
+            supplier_priority: c.supplier_priority,
+            accepted_at: c.accepted_at,
+            window_end: c.window_end,
+            lifespan: c.lifespan(),
+            supplier: c.supplier(),
+            window: c.window,
+            value: c.value,
+            default: c.default,
+        }
+    }
+}
+
+impl From<CellForm> for PortCell {
+    fn from(f: CellForm) -> PortCell {
+        let mut c = PortCell {
+            kind: f.kind,
+            empty: f.empty,
+            has_accepted: f.has_accepted,
+            flags: 0,
+            supplier_node: NodeId(0),
+            value: f.value,
+            accepted_at: f.accepted_at,
+            window_end: f.window_end,
+            lifespan: Duration::ZERO,
+            supplier_conn: 0,
+            supplier_priority: f.supplier_priority,
+            window: f.window,
+            default: f.default,
+        };
+        c.set_lifespan(f.lifespan);
+        c.set_supplier(f.supplier);
+        c
+    }
+}
+
+impl std::fmt::Debug for PortCell {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let form = CellForm::from(self.clone());
+        f.debug_struct("PortCell")
+            .field("kind", &form.kind)
+            .field("empty", &form.empty)
+            .field("has_accepted", &form.has_accepted)
+            .field("supplier_priority", &form.supplier_priority)
+            .field("value", &form.value)
+            .field("accepted_at", &form.accepted_at)
+            .field("window_end", &form.window_end)
+            .field("lifespan", &form.lifespan)
+            .field("supplier", &form.supplier)
+            .field("window", &form.window)
+            .field("default", &form.default)
+            .finish()
+    }
+}
 
 impl PortCell {
     /// A live port as `spec` declares it; aggregating kinds start empty (D3.1).
     pub fn new(spec: &PortSpec) -> PortCell {
-        PortCell {
+        let mut c = PortCell {
             kind: spec.kind,
             default: spec.default.clone(),
             value: spec.default.clone(),
             empty: spec.kind.is_aggregating(),
-            supplier: None,
+            flags: 0,
+            supplier_node: NodeId(0),
+            supplier_conn: 0,
             supplier_priority: i32::MIN,
             has_accepted: false,
             accepted_at: Instant::ZERO,
             window_end: Instant::MAX,
-            lifespan: spec.lifespan,
+            lifespan: Duration::ZERO,
             window: spec.window,
+        };
+        c.set_lifespan(spec.lifespan);
+        c
+    }
+
+    /// How long a value stays fresh after it is accepted (`None`: for ever).
+    #[inline(always)]
+    pub(crate) fn lifespan(&self) -> Option<Duration> {
+        (self.flags & HAS_LIFESPAN != 0).then_some(self.lifespan)
+    }
+
+    fn set_lifespan(&mut self, l: Option<Duration>) {
+        self.lifespan = l.unwrap_or(Duration::ZERO);
+        self.flags = if l.is_some() { self.flags | HAS_LIFESPAN } else { self.flags & !HAS_LIFESPAN };
+    }
+
+    /// `from` supplied the value.
+    #[inline(always)]
+    fn supply(&mut self, from: Source) {
+        self.supplier_node = from.node;
+        self.supplier_conn = from.conn;
+        self.flags |= HAS_SUPPLIER;
+    }
+
+    fn set_supplier(&mut self, s: Option<Source>) {
+        match s {
+            Some(from) => self.supply(from),
+            None => self.flags &= !HAS_SUPPLIER,
         }
     }
 
@@ -260,7 +388,7 @@ impl PortCell {
     /// window (for a Priority port the window is its holder's lease, renewed by every accepted
     /// write) or when it goes stale (lifespan), whichever comes first. `Instant::MAX`: never.
     pub(crate) fn release_at(&self) -> Instant {
-        match (self.lifespan, self.last_accepted()) {
+        match (self.lifespan(), self.last_accepted()) {
             (Some(l), Some(t)) => self.window_end.min(t + l),
             _ => self.window_end,
         }
@@ -284,7 +412,7 @@ impl PortCell {
     /// gone): an aggregating port empties; a Normal port keeps its value (it holds no one's
     /// claim). Returns whether it released.
     pub(crate) fn release_from(&mut self, gone: impl Fn(Source) -> bool) -> bool {
-        if self.kind.is_aggregating() && !self.empty && self.supplier.is_some_and(gone) {
+        if self.kind.is_aggregating() && !self.empty && self.supplier().is_some_and(gone) {
             self.reset();
             return true;
         }
@@ -295,7 +423,7 @@ impl PortCell {
     pub fn reset(&mut self) {
         self.value = self.default.clone();
         self.empty = self.kind.is_aggregating();
-        self.supplier = None;
+        self.set_supplier(None);
         self.supplier_priority = i32::MIN;
         self.window_end = Instant::MAX;
     }
@@ -313,7 +441,7 @@ impl PortCell {
         if self.kind.is_aggregating() {
             return !self.is_empty(now);
         }
-        match self.lifespan {
+        match self.lifespan() {
             Some(l) => now < t + l,
             None => true,
         }
@@ -350,8 +478,9 @@ impl PortCell {
 
     /// Who supplied the value as of the last merge or reset (D3.4). Not cleared lazily: check
     /// [`PortCell::is_empty`] or [`PortCell::fresh`] before trusting it.
+    #[inline]
     pub fn supplier(&self) -> Option<Source> {
-        self.supplier
+        (self.flags & HAS_SUPPLIER != 0).then_some(Source { node: self.supplier_node, conn: self.supplier_conn })
     }
 
     /// Merge `m` from `from` at `now` (rule S3). `Ok(())` means the port *accepted* the value
@@ -392,11 +521,11 @@ impl PortCell {
         match x.total_cmp(c) {
             ord if ord == better => {
                 *c = *x;
-                self.supplier = Some(from);
+                self.supply(from);
             }
             Ordering::Equal => {
-                if self.supplier.is_none_or(|s| from < s) {
-                    self.supplier = Some(from);
+                if self.supplier().is_none_or(|s| from < s) {
+                    self.supply(from);
                 }
             }
             _ => return Some(Err(DropCause::Absorbed)),
@@ -410,7 +539,7 @@ impl PortCell {
     pub(crate) fn accept_normal(&mut self, now: Instant, m: &Value, from: Source) {
         debug_assert!(self.kind == PortKind::Normal && m.ty() == self.ty());
         assign(&mut self.value, m);
-        self.supplier = Some(from);
+        self.supply(from);
         self.accepted(now);
     }
 
@@ -423,7 +552,7 @@ impl PortCell {
         match self.kind {
             PortKind::Normal => {
                 assign(&mut self.value, m);
-                self.supplier = Some(from);
+                self.supply(from);
             }
             PortKind::Max | PortKind::Min => {
                 if self.empty {
@@ -433,11 +562,11 @@ impl PortCell {
                     let better = if self.kind == PortKind::Max { Ordering::Greater } else { Ordering::Less };
                     if ord == better {
                         assign(&mut self.value, m);
-                        self.supplier = Some(from);
+                        self.supply(from);
                     } else if ord == Ordering::Equal {
                         // Ties go to the smaller source, whatever the arrival order.
-                        if self.supplier.is_none_or(|s| from < s) {
-                            self.supplier = Some(from);
+                        if self.supplier().is_none_or(|s| from < s) {
+                            self.supply(from);
                         }
                     } else {
                         return Err(DropCause::Absorbed);
@@ -464,13 +593,13 @@ impl PortCell {
                         return Err(DropCause::NotANumber);
                     }
                     self.value = sum;
-                    self.supplier = Some(from);
+                    self.supply(from);
                 }
             }
             PortKind::Priority => {
                 let wins = self.empty
                     || priority > self.supplier_priority
-                    || (priority == self.supplier_priority && self.supplier == Some(from));
+                    || (priority == self.supplier_priority && self.supplier() == Some(from));
                 if !wins {
                     return Err(DropCause::Absorbed);
                 }
@@ -478,7 +607,7 @@ impl PortCell {
                     self.open(now, m, from);
                 } else {
                     assign(&mut self.value, m);
-                    self.supplier = Some(from);
+                    self.supply(from);
                 }
                 self.supplier_priority = priority;
                 // A Priority port's window is its holder's lease: every accepted write renews
@@ -495,7 +624,7 @@ impl PortCell {
 
     fn open(&mut self, now: Instant, m: &Value, from: Source) {
         assign(&mut self.value, m);
-        self.supplier = Some(from);
+        self.supply(from);
         self.empty = false;
         self.window_end = match self.window {
             Some(w) => now + w,
@@ -514,5 +643,29 @@ fn assign(dst: &mut Value, m: &Value) {
         (Value::Float(d), Value::Float(x)) => *d = *x,
         (Value::Bool(d), Value::Bool(x)) => *d = *x,
         (dst, m) => dst.clone_from(m),
+    }
+}
+
+#[cfg(all(test, feature = "serde"))]
+mod tests {
+    use super::*;
+
+    /// A checkpoint shows a cell with the fields and order it had before the supplier and the
+    /// lifespan were split to fit the first line, and reads it back as it was.
+    #[test]
+    fn a_cell_keeps_its_checkpoint_form() {
+        let mut cell = PortCell::new(&PortSpec::new("P", 0i64).lifespan(Duration::from_millis(5)));
+        cell.accept_normal(Instant::from_nanos(7), &Value::Int(3), Source { node: NodeId(2), conn: 9 });
+        let json = serde_json::to_string(&cell).unwrap();
+        assert_eq!(
+            json,
+            r#"{"kind":"Normal","empty":false,"has_accepted":true,"supplier_priority":-2147483648,"value":{"Int":3},"accepted_at":{"nanos":7},"window_end":{"nanos":18446744073709551615},"lifespan":{"nanos":5000000},"supplier":{"node":2,"conn":9},"window":null,"default":{"Int":0}}"#
+        );
+        let back: PortCell = serde_json::from_str(&json).unwrap();
+        assert_eq!(format!("{back:?}"), format!("{cell:?}"));
+        assert_eq!((back.supplier(), back.lifespan()), (cell.supplier(), Some(Duration::from_millis(5))));
+        let empty: PortCell =
+            serde_json::from_str(&serde_json::to_string(&PortCell::new(&PortSpec::new("Q", 0.0))).unwrap()).unwrap();
+        assert_eq!((empty.supplier(), empty.lifespan()), (None, None));
     }
 }

@@ -29,10 +29,13 @@ pub struct Body {
     ranges: PortRef,
     vision: Vec<(PortRef, PortRef)>,
     sightings: Vec<Sighting>,
-    sonar: Vec<f64>,
-    /// The sonar sweep's noise, drawn by [`Body::observe`] (a pair of uniforms a pair of
-    /// beams).
-    draws: Vec<(f64, f64)>,
+    /// The sonar's beams.
+    beams: usize,
+    /// Where the noise stream stood when [`Body::observe`] moved it past this sweep's draws
+    /// ([`World::skip_sonar_draws`]): the draws themselves, and the sweep's ranges, are made
+    /// in the visit ([`World::sonar_from`]), in the visiting thread's room (`SonarScratch`), so that a sensing tick
+    /// writes no per-robot buffer that the next one would find evicted at 1000 robots.
+    noise: u64,
     /// When this body last wrote each target's VISION ports (`None`: never).
     seen: Vec<Option<Instant>>,
 }
@@ -76,8 +79,8 @@ impl Body {
             rotate: core.port(BASE, "Rotate")?,
             translate: core.port(BASE, "Translate")?,
             sightings: Vec::new(),
-            sonar: vec![0.0; beams],
-            draws: Vec::new(),
+            beams,
+            noise: 0,
             seen: vec![None; targets],
             latest: None,
         })
@@ -90,17 +93,18 @@ impl Body {
     }
 
     /// The first half of [`Body::sense`]: everything that draws from the world's noise
-    /// stream, for robot `i`: its camera frame, and its sonar sweep's noise. Touches no node,
+    /// stream, for robot `i`: its camera frame, and its sonar sweep's noise (the stream moved
+    /// past it, and where it started kept, [`World::skip_sonar_draws`]). Touches no node,
     /// so a team's bodies can all observe in robot order (the stream's order) before any node
     /// runs, and the rest of each robot's work, sweeps included, can then run on any thread.
     pub fn observe(&mut self, world: &mut World, i: usize) {
         world.camera(i, &mut self.sightings);
-        world.sonar_draws(self.sonar.len(), &mut self.draws);
+        self.noise = world.skip_sonar_draws(self.beams);
     }
 
-    /// The second half of [`Body::sense`]: robot `i`'s sonar sweep (with the noise
-    /// [`Body::observe`] drew; `scratch` for room), then the camera frame and the sweep
-    /// written to the ports. Reads the world only.
+    /// The second half of [`Body::sense`], after [`Body::observe`]: robot `i`'s sonar sweep
+    /// (with the noise that `observe` passed over, drawn again here; `scratch` for room), then
+    /// the camera frame and the sweep written to the ports. Reads the world only.
     pub fn write_senses(
         &mut self,
         core: &mut NodeCore,
@@ -109,7 +113,11 @@ impl Body {
         i: usize,
         scratch: &mut SonarScratch,
     ) -> Result<(), Error> {
-        world.sonar_with(i, &self.draws, scratch, &mut self.sonar);
+        let mut ranges = std::mem::take(&mut scratch.ranges);
+        ranges.resize(self.beams, 0.0);
+        world.sonar_from(i, self.noise, scratch, &mut ranges);
+        scratch.ranges = ranges;
+        let ranges = scratch.ranges.as_slice();
         for s in &self.sightings {
             let (angle, bottom) = self.vision[s.target];
             core.write(now, angle, s.angle)?;
@@ -118,9 +126,9 @@ impl Body {
             self.latest = Some(now);
         }
         // A sweep that heard nothing is the world's one shared value (no copy of the beams).
-        match world.quiet_sweep(&self.sonar) {
+        match world.quiet_sweep(ranges) {
             Some(quiet) => core.write(now, self.ranges, quiet.clone())?,
-            None => core.write(now, self.ranges, self.sonar.as_slice())?,
+            None => core.write(now, self.ranges, ranges)?,
         }
         Ok(())
     }

@@ -213,6 +213,21 @@ pub struct SonarScratch {
     circles: Vec<Echo>,
     /// Each beam's direction this sweep (x and y components).
     dirs: (Vec<f64>, Vec<f64>),
+    /// A body's sweep ([`World::sonar_from`]), worked out and written to the port in one
+    /// visit, so kept with the thread rather than with each body
+    /// (`crate::body::Body::write_senses`).
+    pub(crate) ranges: Vec<f64>,
+}
+
+/// A sonar sweep's noise for `beams` beams from `rng` into `draws`: a pair of uniform draws for
+/// each pair of beams ([`World::sonar_draws`]).
+fn draw_pairs(rng: &mut fastrand::Rng, beams: usize, draws: &mut Vec<(f64, f64)>) {
+    draws.clear();
+    for _ in 0..beams.div_ceil(2) {
+        let u = rng.f64();
+        let v = rng.f64();
+        draws.push((u, v));
+    }
 }
 
 /// A standard normal draw (Box-Muller), from a stream that only this module uses.
@@ -572,18 +587,43 @@ impl World {
     /// draws are taken in robot order, and the sweeps ([`World::sonar_with`]) may then run on
     /// any thread, in any order.
     pub fn sonar_draws(&mut self, beams: usize, draws: &mut Vec<(f64, f64)>) {
-        draws.clear();
+        draw_pairs(&mut self.noise_rng, beams, draws);
+    }
+
+    /// [`World::sonar_draws`] kept as where they start: the noise stream moves past a sweep's
+    /// draws as it does there, and the state it started from is returned, from which
+    /// [`World::sonar_draws_from`] draws the same numbers again. Eight bytes for a body to keep
+    /// between its observation and its sweep ([`World::sonar_from`]) instead of the draws.
+    pub fn skip_sonar_draws(&mut self, beams: usize) -> u64 {
+        let start = self.noise_rng.get_seed();
         for _ in 0..beams.div_ceil(2) {
-            let u = self.noise_rng.f64();
-            let v = self.noise_rng.f64();
-            draws.push((u, v));
+            self.noise_rng.f64();
+            self.noise_rng.f64();
         }
+        start
     }
 
     /// The second half of [`World::sonar`]: robot `i`'s sweep into `out` (`out.len()` beams),
     /// its noise from `draws` ([`World::sonar_draws`] for as many beams), `scratch` for room.
     /// Reads the world only.
     pub fn sonar_with(&self, i: usize, draws: &[(f64, f64)], scratch: &mut SonarScratch, out: &mut [f64]) {
+        // Noise comes in pairs (Box-Muller): an even beam and the next share one draw.
+        assert_eq!(draws.len(), out.len().div_ceil(2), "a sweep's draws are for its beams");
+        self.sweep(i, draws.iter().copied(), scratch, out);
+    }
+
+    /// [`World::sonar_with`] with the draws that [`World::skip_sonar_draws`] passed over from
+    /// `start` (for `out.len()` beams), drawn again as the sweep takes them: the numbers
+    /// [`World::sonar_draws`] would have drawn there, never stored.
+    pub fn sonar_from(&self, i: usize, start: u64, scratch: &mut SonarScratch, out: &mut [f64]) {
+        let mut rng = fastrand::Rng::with_seed(start);
+        self.sweep(i, std::iter::repeat_with(move || (rng.f64(), rng.f64())), scratch, out);
+    }
+
+    /// The sweep of [`World::sonar_with`] and [`World::sonar_from`], a pair of `draws` (u, v)
+    /// for each pair of beams.
+    #[inline(always)]
+    fn sweep(&self, i: usize, draws: impl Iterator<Item = (f64, f64)>, scratch: &mut SonarScratch, out: &mut [f64]) {
         let c = &self.config;
         let p = self.robots[i].pose;
         let [w, h] = c.arena;
@@ -649,9 +689,9 @@ impl World {
         } else {
             out.fill(f64::INFINITY);
         }
-        // Noise comes in pairs (Box-Muller): an even beam and the next share one draw.
-        assert_eq!(draws.len(), beams.div_ceil(2), "a sweep's draws are for its beams");
-        for (pair, &(u, v)) in out.chunks_mut(2).zip(draws) {
+        // Noise comes in pairs (Box-Muller): an even beam and the next share one draw, drawn
+        // whether or not the pair needs it.
+        for (pair, (u, v)) in out.chunks_mut(2).zip(draws) {
             if pair.iter().all(|&best| saturated(best)) {
                 pair.fill(range);
                 continue;

@@ -26,10 +26,12 @@ use super::scheduler::queue;
 /// Laid out in declaration order (`repr(C)`) on whole cache lines (`align(64)`, 384 bytes):
 /// the first line holds what every message into the port reads or writes of the port's own
 /// state (the plain flag, the wave mark, the acceptance counts, whether windows are open, the
-/// outgoing connections), the second what a merge reads of the cell (`PortCell`'s order), the
-/// supplier and the triggers after it, and the drop counters (touched only when something is
-/// refused) last. A message into an aggregating port that absorbs it then costs two or three
-/// cache lines, a plain hop three, where the compiler's order and an unaligned 376-byte slot
+/// outgoing connections), the second what a merge, an acceptance or a freshness read touches
+/// of the cell (its supplier included: `PortCell`'s order), what only a Priority merge, a
+/// window's opening or a reset reads of the cell and the triggers after it, and the drop
+/// counters (touched only when something is refused) last. A message into a Normal port, or
+/// into a Max or Min port that holds a number, accepted or absorbed, then costs two cache
+/// lines, as does a plain hop, where the compiler's order and an unaligned 376-byte slot
 /// spread them over four or five.
 #[derive(Clone)]
 #[repr(C, align(64))]
@@ -184,23 +186,35 @@ impl ProcState {
 }
 
 /// In declaration order (`repr(C)`) and on a cache line of its own (`align(64)`): what a
-/// message arriving at one of its ports reads (the id a cached target is checked against, the
-/// ports, the processes it may trigger, the name) in the first line, the rest after. The
-/// compiler's own order put those four in three lines of a 248-byte slot. The BLE state is
-/// boxed: inline, its enum tag was the niche `Option<Behavior>` took (at byte 128), so every
-/// `behaviors[b]` check read a third line; boxed, the niche is the ports' capacity, in the
-/// first line, and the slot is 192 bytes instead of 256.
+/// message arriving at one of its ports or a process's run reads (the id a cached target is
+/// checked against, the ports, the processes it may trigger) and the BLE state's box in the
+/// first line; the name, class and slots (a process's `Ctx::slot`) in the second; the
+/// monostables, read only when one is set or a poll looks for the next wake-up, last (across
+/// the second and third). The compiler's own order put the first line's fields in three lines
+/// of a 248-byte slot. The BLE state is boxed: inline, its enum tag was the niche
+/// `Option<Behavior>` took (at byte 128), so every `behaviors[b]` check read a third line;
+/// boxed, the niche is the ports' capacity, in the first line, and the slot is 192 bytes
+/// instead of 256. The box came after the monostables, at byte 128, so that each layer's
+/// select (once a second, every robot's five layers on the same tick) read a third line of
+/// the behavior for it alone; in the first line, in place of the name's first half (the name
+/// straddled the first two lines), a 1000-robot run misses the last level about 17 % less
+/// (docs/performance.md, issue 36's sensing pass).
 #[repr(C, align(64))]
 pub(crate) struct Behavior {
     pub(crate) id: u64,
     pub(crate) ports: Vec<PortState>,
     pub(crate) processes: Vec<ProcState>,
+    pub(crate) ble: Option<Box<BleState>>,
     pub(crate) name: Arc<str>,
     pub(crate) class: Arc<BehaviorClass>,
     pub(crate) slots: Vec<Value>,
     pub(crate) monos: Vec<MonoState>,
-    pub(crate) ble: Option<Box<BleState>>,
 }
+
+// The BLE state's box in the first line, the slots in the second (see the layout note above).
+const _: () = assert!(std::mem::offset_of!(Behavior, ble) + std::mem::size_of::<Option<Box<BleState>>>() <= 64);
+const _: () = assert!(std::mem::offset_of!(Behavior, slots) + std::mem::size_of::<Vec<Value>>() <= 128);
+const _: () = assert!(std::mem::size_of::<Behavior>() == 192);
 
 #[derive(Clone, Debug)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]

@@ -5,7 +5,7 @@ use std::f64::consts::PI;
 
 use crate::common;
 
-use ayllu_sim::world::{Command, Motion, Pose, Sighting, World, WorldConfig};
+use ayllu_sim::world::{Command, Motion, Pose, Sighting, SonarScratch, World, WorldConfig};
 use common::quiet;
 
 fn run(w: &mut World, cmd: Command, seconds: f64) {
@@ -107,6 +107,42 @@ fn sonar_measures_from_the_rim_to_walls_and_targets() {
     assert!((r[4] - (2.0 - c.robot_radius)).abs() < 1e-9, "{r:?}");
     // Left (beam 2, +90°): the wall at y = 8 is 4 m away: capped.
     assert_eq!(r[2], c.sonar_range);
+}
+
+/// A sweep whose noise was passed over and drawn again in the sweep (`skip_sonar_draws`,
+/// `sonar_from`, what the simulator's bodies do) reads what one with its draws kept
+/// (`sonar_draws`, `sonar_with`) reads, and leaves the noise stream where that one does.
+#[test]
+fn a_sweep_with_its_noise_drawn_again_reads_as_one_with_it_kept() {
+    let world = || {
+        let mut c = WorldConfig::lab(&[1.0]);
+        c.sonar_noise = 0.3;
+        let mut w = World::new(c, 2, 7);
+        w.robots[0].pose = Pose { x: 1.0, y: 1.0, theta: 0.3 };
+        w.robots[1].pose = Pose { x: 1.6, y: 1.2, theta: 0.0 };
+        w.index();
+        w
+    };
+    let (mut kept, mut again) = (world(), world());
+    let mut scratch = SonarScratch::default();
+    for beams in [8, 7, 1] {
+        let (mut a, mut b) = (vec![0.0; beams], vec![0.0; beams]);
+        let mut draws = Vec::new();
+        kept.sonar_draws(beams, &mut draws);
+        kept.sonar_with(0, &draws, &mut scratch, &mut a);
+        let start = again.skip_sonar_draws(beams);
+        again.sonar_from(0, start, &mut scratch, &mut b);
+        assert_eq!(
+            a.iter().map(|r| r.to_bits()).collect::<Vec<_>>(),
+            b.iter().map(|r| r.to_bits()).collect::<Vec<_>>()
+        );
+        assert!(a.iter().any(|&r| r < kept.config.sonar_range), "something in reach: {a:?}");
+        // The stream moved alike: what it draws next is the same.
+        let (mut x, mut y) = (Vec::new(), Vec::new());
+        kept.sonar_draws(2, &mut x);
+        again.sonar_draws(2, &mut y);
+        assert_eq!(x, y);
+    }
 }
 
 #[test]
