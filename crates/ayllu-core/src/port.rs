@@ -367,6 +367,12 @@ impl PortCell {
     }
 
     /// Record an acceptance at `now`.
+    ///
+    /// This is the only way a cell turns fresh, and the schedule relies on it: a guarded
+    /// process's entry remembers a stale guard until the port accepts (D7.5,
+    /// `Schedule::guard_accepted`, told by the node's `write_internal` and `deliver_to`). A
+    /// new way to make a cell fresh (a lifespan changed at run time, a cell restored in place)
+    /// must tell the schedule too.
     #[inline(always)]
     fn accepted(&mut self, now: Instant) {
         self.has_accepted = true;
