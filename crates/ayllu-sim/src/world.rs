@@ -591,9 +591,9 @@ impl World {
     }
 
     /// [`World::sonar_draws`] kept as where they start: the noise stream moves past a sweep's
-    /// draws as it does there, and the state it started from is returned, from which
-    /// [`World::sonar_draws_from`] draws the same numbers again. Eight bytes for a body to keep
-    /// between its observation and its sweep ([`World::sonar_from`]) instead of the draws.
+    /// draws as it does there, and the state it started from is returned, from which the
+    /// sweep ([`World::sonar_from`]) draws the same numbers again as it takes them. Eight bytes
+    /// for a body to keep between its observation and its sweep instead of the draws.
     pub fn skip_sonar_draws(&mut self, beams: usize) -> u64 {
         let start = self.noise_rng.get_seed();
         for _ in 0..beams.div_ceil(2) {
