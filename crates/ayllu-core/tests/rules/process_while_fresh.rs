@@ -21,6 +21,13 @@ fn class(hz: f64, life_ms: u64, guarded: bool, log: &Log) -> BehaviorClass {
     let mut c = BehaviorClass::new("C");
     let input = c.port(PortSpec::new("In", 0.0).lifespan(Duration::from_millis(life_ms))).unwrap();
     let out = c.port(PortSpec::new("Out", 0.0)).unwrap();
+    copy_process(&mut c, hz, input, out, guarded, log);
+    c
+}
+
+/// Process `P` of `c` at `hz`: "no value, no output" — it copies `input` to `out` and logs
+/// `(now_ms, value)` when `input` holds a fresh value; guarded by `input` or not.
+fn copy_process(c: &mut BehaviorClass, hz: f64, input: Port, out: Port, guarded: bool, log: &Log) {
     let l = log.clone();
     let body = move |ctx: &mut Ctx<'_>| {
         let Some(v) = ctx.float(input) else { return };
@@ -32,7 +39,6 @@ fn class(hz: f64, life_ms: u64, guarded: bool, log: &Log) -> BehaviorClass {
     } else {
         c.every_hz("P", hz, body).unwrap();
     }
-    c
 }
 
 fn node(hz: f64, life_ms: u64, guarded: bool, log: &Log) -> NodeCore {
@@ -237,17 +243,7 @@ mod paths {
         let input = c.port(spec).unwrap();
         let out = c.port(PortSpec::new("Out", 0.0)).unwrap();
         let kick = c.port(PortSpec::new("Kick", 0.0)).unwrap();
-        let l = log.clone();
-        let body = move |ctx: &mut Ctx<'_>| {
-            let Some(v) = ctx.float(input) else { return };
-            l.lock().unwrap().push((ctx.now().as_nanos() / 1_000_000, v));
-            ctx.write(out, v).unwrap();
-        };
-        if guarded {
-            c.every_hz_while_fresh("P", hz, input, body).unwrap();
-        } else {
-            c.every_hz("P", hz, body).unwrap();
-        }
+        copy_process(&mut c, hz, input, out, guarded, log);
         c.on_write("K", kick, move |ctx| {
             let v = ctx.float(kick).unwrap_or(0.0);
             let _ = ctx.write(input, v);
